@@ -1,0 +1,28 @@
+"""One error hierarchy: every failure a person can cause derives from `DynabarnError`.
+
+The command-line entry points catch `DynabarnError`, print its message on one line and
+exit non-zero; a traceback appears only under `--debug`.
+"""
+
+from __future__ import annotations
+
+
+class DynabarnError(Exception):
+    """Base class of every error meant for the person at the keyboard."""
+
+
+class ProfileError(DynabarnError, ValueError):
+    """A motion profile or profile set whose parameters cannot be sampled."""
+
+
+class WorldError(DynabarnError):
+    """A world that is missing, malformed or not a DynaBARN world."""
+
+
+class ImportFormatError(DynabarnError):
+    """A file handed to `dynabarn-worlds import` that does not match its format."""
+
+
+def unknown_choice(kind: str, name: str, available: list[str] | tuple[str, ...]) -> str:
+    """The message for a name not in a registry, listing what is available."""
+    return f"unknown {kind} {name!r}; available: {', '.join(sorted(available))}"

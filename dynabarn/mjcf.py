@@ -1,0 +1,210 @@
+"""WorldSpec -> MJCF, built with `mujoco.MjSpec`, and MJCF -> WorldSpec.
+
+A world file holds the whole world: floor, the three walls, a goal marker, one mocap body
+per obstacle, the obstacles' schedules as `<custom><numeric name="obstacle_NNN_keyframes">`
+(flattened [t, x, y] rows) and the rest of the `WorldSpec` as JSON in
+`<custom><text name="dynabarn_world">`. The Jackal is not copied in: the file names
+`assets/jackal/jackal.xml` with `<asset><model>` and places it with
+`<attach model="jackal" prefix="jackal/">`, so MuJoCo itself loads the file
+(`python -m mujoco.viewer --mjcf generated_worlds/world_137.xml`).
+
+MjSpec builds everything it can express; it inlines attached models when it writes XML,
+so the two robot-reference elements are added to its output as the only text edit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from dynabarn.errors import WorldError
+from dynabarn.robot import JACKAL_XML, GeomGroup
+from dynabarn.world import WorldSpec
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+GENERATED_WORLDS = REPO_ROOT / "generated_worlds"
+METADATA_TEXT = "dynabarn_world"
+ROBOT_PREFIX = "jackal/"
+PHYSICS_TIMESTEP = 0.005
+
+
+def keyframes_numeric_name(obstacle_name: str) -> str:
+    return f"{obstacle_name}_keyframes"
+
+
+def build_world_spec(world: WorldSpec) -> mujoco.MjSpec:
+    """The world without the robot, as an MjSpec (compiles on its own)."""
+    spec = mujoco.MjSpec()
+    spec.modelname = world.name
+    spec.compiler.degree = False
+    spec.option.timestep = PHYSICS_TIMESTEP
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.visual.global_.offwidth = 1280
+    spec.visual.global_.offheight = 720
+
+    spec.add_texture(
+        name="grid",
+        type=mujoco.mjtTexture.mjTEXTURE_2D,
+        builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+        rgb1=[0.82, 0.82, 0.80],
+        rgb2=[0.74, 0.74, 0.72],
+        width=512,
+        height=512,
+    )
+    floor_mat = spec.add_material(name="floor", texrepeat=[20, 20], reflectance=0.0)
+    floor_mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "grid"
+    spec.add_material(name="wall", rgba=[0.55, 0.55, 0.6, 1])
+    spec.add_material(name="obstacle", rgba=[0.85, 0.15, 0.12, 1])
+    spec.add_material(name="goal", rgba=[0.1, 0.8, 0.2, 1])
+
+    wb = spec.worldbody
+    wb.add_light(
+        name="sun", pos=[0, 0, 20], dir=[0, 0, -1], type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, castshadow=False
+    )
+    half = world.layout.arena_half_size
+    wb.add_geom(
+        name="floor",
+        type=mujoco.mjtGeom.mjGEOM_PLANE,
+        size=[half + 4, half + 4, 0.1],
+        pos=[2, 0, 0],
+        material="floor",
+        contype=0,
+        conaffinity=0,
+        group=GeomGroup.STATIC,
+    )
+    for wall in world.layout.walls:
+        wb.add_geom(
+            name=wall.name,
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[wall.size[0] / 2, wall.size[1] / 2, wall.size[2] / 2],
+            pos=[wall.centre[0], wall.centre[1], wall.size[2] / 2],
+            material="wall",
+            contype=1,
+            conaffinity=1,
+            group=GeomGroup.STATIC,
+        )
+    wb.add_geom(
+        name="goal",
+        type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+        size=[0.075, 0.001, 0],
+        pos=[world.layout.goal[0], world.layout.goal[1], 0.001],
+        material="goal",
+        contype=0,
+        conaffinity=0,
+        group=GeomGroup.MARKER,
+    )
+    for k, obstacle in enumerate(world.obstacles):
+        x0, y0 = obstacle.trajectory.xy[0]
+        body = wb.add_body(name=obstacle.name, mocap=True, pos=[x0, y0, obstacle.height / 2])
+        body.info = f"{world.name}, obstacle {k}"
+        body.add_geom(
+            name=obstacle.name,
+            type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+            size=[obstacle.radius, obstacle.height / 2, 0],
+            material="obstacle",
+            contype=1,
+            conaffinity=1,
+            group=GeomGroup.OBSTACLE,
+        )
+        kf = np.column_stack([obstacle.trajectory.times, obstacle.trajectory.xy]).ravel()
+        spec.add_numeric(name=keyframes_numeric_name(obstacle.name), data=kf.tolist())
+    spec.add_text(name=METADATA_TEXT, data=json.dumps(world.metadata(), sort_keys=True, separators=(",", ":")))
+    return spec
+
+
+def robot_reference(world_dir: Path, robot_xml: Path = JACKAL_XML) -> str:
+    """The robot file's path as written in a world in `world_dir` (relative when possible)."""
+    try:
+        return Path(os.path.relpath(robot_xml, world_dir)).as_posix()
+    except ValueError:  # different drive on Windows
+        return robot_xml.as_posix()
+
+
+def world_to_xml(world: WorldSpec, *, world_dir: Path, robot_xml: Path = JACKAL_XML) -> str:
+    """The world's MJCF text for a file in `world_dir`, with the Jackal attached."""
+    xml = build_world_spec(world).to_xml()
+    ref = robot_reference(world_dir, robot_xml)
+    model = f'    <model name="jackal" file="{ref}"/>\n'
+    attach = f'    <attach model="jackal" body="base_link" prefix="{ROBOT_PREFIX}"/>\n'
+    for anchor in ("  <asset>\n", "  </worldbody>\n"):
+        if xml.count(anchor) != 1:  # pragma: no cover - guards against an MjSpec format change
+            raise RuntimeError(f"unexpected MjSpec XML layout: {anchor.strip()!r} not found once")
+    xml = xml.replace("  <asset>\n", "  <asset>\n" + model, 1)
+    return xml.replace("  </worldbody>\n", attach + "  </worldbody>\n", 1)
+
+
+def write_world(world: WorldSpec, path: Path, *, robot_xml: Path = JACKAL_XML) -> str:
+    """Write the world's MJCF to `path`; returns the file's sha256."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    xml = world_to_xml(world, world_dir=path.parent.resolve(), robot_xml=robot_xml)
+    data = xml.encode()
+    path.write_bytes(data)
+    return hashlib.sha256(data).hexdigest()
+
+
+def read_world(path: Path | str) -> WorldSpec:
+    """The WorldSpec stored in a world MJCF file (no compilation needed)."""
+    path = Path(path)
+    if not path.is_file():
+        raise WorldError(f"world file not found: {path}")
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise WorldError(f"{path}: not valid XML ({exc})") from None
+    if root.tag != "mujoco":
+        raise WorldError(f"{path}: not an MJCF file (root element <{root.tag}>)")
+    text = root.find(f"./custom/text[@name='{METADATA_TEXT}']")
+    if text is None or (text.get("data") is None and not (text.text or "").strip()):
+        raise WorldError(f"{path}: not a DynaBARN world (no <text name='{METADATA_TEXT}'>)")
+    try:
+        meta = json.loads(text.get("data") or text.text or "")
+    except json.JSONDecodeError as exc:
+        raise WorldError(f"{path}: world metadata is not valid JSON ({exc})") from None
+    numerics = {n.get("name"): n.get("data", "") for n in root.findall("./custom/numeric")}
+    keyframes = []
+    for od in meta.get("obstacles", []) if isinstance(meta, dict) else []:
+        raw = numerics.get(keyframes_numeric_name(str(od.get("name"))))
+        if raw is None:
+            raise WorldError(f"{path}: obstacle {od.get('name')!r} has no keyframes numeric")
+        try:
+            values = np.array(raw.split(), dtype=np.float64)
+        except ValueError:
+            raise WorldError(f"{path}: obstacle {od.get('name')!r} keyframes are not numbers") from None
+        if values.size % 3:
+            raise WorldError(f"{path}: obstacle {od.get('name')!r} keyframes are not [t, x, y] triples")
+        keyframes.append(values.reshape(-1, 3))
+    try:
+        return WorldSpec.from_dict(meta, keyframes)
+    except WorldError as exc:
+        raise WorldError(f"{path}: {exc}") from None
+
+
+def resolve_world(id_or_path: str | int | Path) -> Path:
+    """A generated world id ("137") or a path, to an existing world file."""
+    s = str(id_or_path)
+    if s.isdigit():
+        n = int(s)
+        path = GENERATED_WORLDS / f"world_{n:03d}.xml"
+        if not path.is_file():
+            raise WorldError(f"unknown world id {s}: generated worlds are 0-299 (no {path.name} in {GENERATED_WORLDS})")
+        return path
+    path = Path(s)
+    if not path.is_file():
+        raise WorldError(f"world not found: {s} (give a world id 0-299 or the path of a world .xml)")
+    return path
+
+
+def load_model(path: Path | str) -> mujoco.MjModel:
+    """Compile a world file with MuJoCo, turning its errors into one clear line."""
+    try:
+        return mujoco.MjModel.from_xml_path(str(path))
+    except ValueError as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else "unknown error"
+        raise WorldError(f"{path}: MuJoCo cannot load this world: {first}") from None

@@ -1,0 +1,267 @@
+"""Motion profiles (paper Table I), obstacle-count classes and the difficulty tree (Fig. 2).
+
+A `MotionProfile` is the (order, speed, std) ranges of paper Sec. III-C. A `ProfileSet`
+bundles what the generator needs to build a benchmark: the profiles of the "easy motion"
+and "hard motion" branches of Fig. 2, the low/high obstacle-count ranges, and the
+waypoint scheme. Two sets ship:
+
+- `table1`: the paper's Table I verbatim, waypoints at every integer x (Sec. III-A).
+- `release2022`: what the released worlds actually contain, measured from the 600
+  trajectories of the original release (see README, "Paper versus release"): three
+  speed bands quantised to 0.1 m/s, the hard branch a mix of medium and hard obstacles,
+  and waypoints at ten evenly spaced x values plus the polynomial's sample points.
+
+Profiles are plain data: a user builds their own with `MotionProfile(...)` and
+`ProfileSet(...)`, and every parameter is validated on construction.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+from dynabarn.errors import ProfileError, unknown_choice
+
+ARENA_HALF_SIZE = 10.0
+"""Half the side of the square arena [m]: obstacles live in [-10, 10]^2."""
+
+
+class WaypointScheme(enum.StrEnum):
+    """Where Alg. 1 puts waypoints along the fitted polynomial."""
+
+    INTEGER = "integer"
+    """Every integer x in [-10, 10] plus the edge crossings (paper Sec. III-A)."""
+    RELEASE = "release"
+    """x = linspace(-10, 10, 10), the sample points and the edge crossings (the release)."""
+
+
+class Difficulty(enum.StrEnum):
+    EASY = "easy"
+    MEDIUM = "medium"
+    HARD = "hard"
+
+
+class CountClass(enum.StrEnum):
+    LOW = "low"
+    HIGH = "high"
+
+
+class MotionClass(enum.StrEnum):
+    EASY = "easy"
+    HARD = "hard"
+
+
+def difficulty_of(count: CountClass, motion: MotionClass) -> Difficulty:
+    """Fig. 2: low+easy = easy; low+hard or high+easy = medium; high+hard = hard."""
+    if count is CountClass.LOW and motion is MotionClass.EASY:
+        return Difficulty.EASY
+    if count is CountClass.HIGH and motion is MotionClass.HARD:
+        return Difficulty.HARD
+    return Difficulty.MEDIUM
+
+
+def _check_range(name: str, what: str, lo: float, hi: float, *, minimum: float) -> None:
+    if not (lo == lo and hi == hi):  # NaN check without importing math
+        raise ProfileError(f"profile {name!r}: {what} range contains NaN")
+    if lo < minimum:
+        raise ProfileError(f"profile {name!r}: {what} minimum {lo} is below {minimum}")
+    if lo > hi:
+        raise ProfileError(f"profile {name!r}: {what} range [{lo}, {hi}] has min > max")
+
+
+@dataclass(frozen=True, slots=True)
+class MotionProfile:
+    """The six parameters of paper Sec. III-C for one class of obstacle motion.
+
+    Attributes:
+        name: label stored with every obstacle drawn from this profile.
+        order: [order_min, order_max] of the fitted polynomial (integers >= 1).
+        speed: [speed_min, speed_max] of segment speeds [m/s], speed_min > 0.
+        std: [std_min, std_max] of the per-obstacle speed standard deviation [m/s].
+        speed_step: quantum of segment speeds [m/s]; 0 keeps them continuous. The release
+            stores speeds on a 0.1 m/s grid inside [speed_min, speed_max).
+        speed_limit: how a drawn speed outside [speed_min, speed_max] is limited: `clip`
+            (the paper's "limited below and above") or `redraw` (draw again from the same
+            normal, a truncated normal; fits the release's speed histogram better).
+    """
+
+    name: str
+    order: tuple[int, int]
+    speed: tuple[float, float]
+    std: tuple[float, float]
+    speed_step: float = 0.0
+    speed_limit: str = "clip"
+
+    def __post_init__(self) -> None:
+        n = self.name
+        if self.speed_limit not in ("clip", "redraw"):
+            raise ProfileError(unknown_choice("speed_limit", self.speed_limit, ["clip", "redraw"]))
+        if not n:
+            raise ProfileError("a motion profile needs a name")
+        if any(int(o) != o for o in self.order):
+            raise ProfileError(f"profile {n!r}: order must be whole numbers, got {self.order}")
+        _check_range(n, "order", self.order[0], self.order[1], minimum=1)
+        if self.order[1] > 10:
+            raise ProfileError(f"profile {n!r}: order {self.order[1]} > 10 cannot be fitted to grid points")
+        _check_range(n, "speed", self.speed[0], self.speed[1], minimum=0.0)
+        if self.speed[0] <= 0:
+            raise ProfileError(f"profile {n!r}: speed minimum must be positive, got {self.speed[0]}")
+        _check_range(n, "std", self.std[0], self.std[1], minimum=0.0)
+        if self.speed_step < 0:
+            raise ProfileError(f"profile {n!r}: speed_step must be >= 0, got {self.speed_step}")
+        if self.speed_step > 0 and self.quantised_speeds().size == 0:
+            raise ProfileError(f"profile {n!r}: no multiple of speed_step {self.speed_step} lies in {self.speed}")
+
+    def quantised_speeds(self):  # -> np.ndarray, imported lazily to keep this module light
+        """The admissible speeds [m/s] on the `speed_step` grid, in [speed_min, speed_max)."""
+        import numpy as np
+
+        step = self.speed_step
+        k = np.arange(np.ceil(self.speed[0] / step - 1e-9), np.ceil(self.speed[1] / step - 1e-9))
+        return np.round(k * step, 6)
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "order": list(self.order),
+            "speed": list(self.speed),
+            "std": list(self.std),
+            "speed_step": self.speed_step,
+            "speed_limit": self.speed_limit,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> MotionProfile:
+        try:
+            return cls(
+                name=str(d["name"]),
+                order=(int(d["order"][0]), int(d["order"][1])),
+                speed=(float(d["speed"][0]), float(d["speed"][1])),
+                std=(float(d["std"][0]), float(d["std"][1])),
+                speed_step=float(d.get("speed_step", 0.0)),
+                speed_limit=str(d.get("speed_limit", "clip")),
+            )
+        except (KeyError, TypeError, IndexError, ValueError) as exc:
+            raise ProfileError(f"malformed motion profile {d!r}: {exc}") from None
+
+
+@dataclass(frozen=True, slots=True)
+class ProfileSet:
+    """Everything Alg. 1 and 2 need to build a benchmark of three difficulties.
+
+    Attributes:
+        name: identifier (`table1`, `release2022`, or a user's).
+        easy_motion: profiles of Fig. 2's "easy" branch; each obstacle draws one uniformly.
+        hard_motion: profiles of Fig. 2's "hard" branch.
+        low_count: [min, max] obstacles of the "low" branch.
+        high_count: [min, max] obstacles of the "high" branch.
+        waypoints: where waypoints are placed along the polynomial.
+    """
+
+    name: str
+    easy_motion: tuple[MotionProfile, ...]
+    hard_motion: tuple[MotionProfile, ...]
+    low_count: tuple[int, int] = (5, 9)
+    high_count: tuple[int, int] = (10, 19)
+    waypoints: WaypointScheme = WaypointScheme.INTEGER
+    description: str = field(default="", compare=False)
+
+    def __post_init__(self) -> None:
+        if not self.easy_motion or not self.hard_motion:
+            raise ProfileError(f"profile set {self.name!r}: each motion branch needs at least one profile")
+        for what, (lo, hi) in (("low_count", self.low_count), ("high_count", self.high_count)):
+            if int(lo) != lo or int(hi) != hi:
+                raise ProfileError(f"profile set {self.name!r}: {what} must be whole numbers")
+            if lo < 1:
+                raise ProfileError(f"profile set {self.name!r}: {what} minimum must be >= 1, got {lo}")
+            if lo > hi:
+                raise ProfileError(f"profile set {self.name!r}: {what} [{lo}, {hi}] has min > max")
+        try:
+            WaypointScheme(self.waypoints)
+        except ValueError:
+            raise ProfileError(
+                unknown_choice("waypoint scheme", str(self.waypoints), [s.value for s in WaypointScheme])
+            ) from None
+
+    def motion_profiles(self, motion: MotionClass) -> tuple[MotionProfile, ...]:
+        return self.easy_motion if motion is MotionClass.EASY else self.hard_motion
+
+    def count_range(self, count: CountClass) -> tuple[int, int]:
+        return self.low_count if count is CountClass.LOW else self.high_count
+
+    def profile(self, name: str) -> MotionProfile:
+        for p in (*self.easy_motion, *self.hard_motion):
+            if p.name == name:
+                return p
+        names = sorted({p.name for p in (*self.easy_motion, *self.hard_motion)})
+        raise ProfileError(unknown_choice("motion profile", name, names))
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "easy_motion": [p.to_dict() for p in self.easy_motion],
+            "hard_motion": [p.to_dict() for p in self.hard_motion],
+            "low_count": list(self.low_count),
+            "high_count": list(self.high_count),
+            "waypoints": str(self.waypoints),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> ProfileSet:
+        try:
+            return cls(
+                name=str(d["name"]),
+                easy_motion=tuple(MotionProfile.from_dict(p) for p in d["easy_motion"]),
+                hard_motion=tuple(MotionProfile.from_dict(p) for p in d["hard_motion"]),
+                low_count=(int(d["low_count"][0]), int(d["low_count"][1])),
+                high_count=(int(d["high_count"][0]), int(d["high_count"][1])),
+                waypoints=WaypointScheme(d.get("waypoints", "integer")),
+            )
+        except ProfileError:
+            raise
+        except (KeyError, TypeError, IndexError, ValueError) as exc:
+            raise ProfileError(f"malformed profile set: {exc}") from None
+
+
+# Paper Table I, verbatim.
+TABLE1_EASY = MotionProfile("easy", order=(1, 2), speed=(0.5, 1.0), std=(0.01, 0.1))
+TABLE1_HARD = MotionProfile("hard", order=(3, 4), speed=(1.0, 2.0), std=(0.1, 0.2))
+
+# Measured from the release's 600 trajectories (../shared/reference/dynabarn60.json):
+# segment speeds lie on a 0.1 m/s grid in [0.5, 1.0), [1.0, 1.5) and [1.5, 2.0); the
+# orders [1, 2], [2, 3], [3, 4] give the closest waypoints-per-trajectory distribution
+# under our distinct-x sampling (README: "Paper versus release"); per-trajectory speed
+# std has medians 0.035, 0.087 and 0.107 m/s.
+RELEASE_EASY = MotionProfile(
+    "easy", order=(1, 2), speed=(0.5, 1.0), std=(0.01, 0.1), speed_step=0.1, speed_limit="redraw"
+)
+RELEASE_MEDIUM = MotionProfile(
+    "medium", order=(2, 3), speed=(1.0, 1.5), std=(0.05, 0.15), speed_step=0.1, speed_limit="redraw"
+)
+RELEASE_HARD = MotionProfile(
+    "hard", order=(3, 4), speed=(1.5, 2.0), std=(0.1, 0.2), speed_step=0.1, speed_limit="redraw"
+)
+
+PROFILE_SETS: dict[str, ProfileSet] = {
+    "table1": ProfileSet(
+        "table1",
+        easy_motion=(TABLE1_EASY,),
+        hard_motion=(TABLE1_HARD,),
+        waypoints=WaypointScheme.INTEGER,
+        description="paper Table I; waypoints at every integer x (Sec. III-A)",
+    ),
+    "release2022": ProfileSet(
+        "release2022",
+        easy_motion=(RELEASE_EASY,),
+        hard_motion=(RELEASE_MEDIUM, RELEASE_HARD),
+        waypoints=WaypointScheme.RELEASE,
+        description="measured from the 2022 release: 3 speed bands on a 0.1 m/s grid",
+    ),
+}
+
+
+def get_profile_set(name: str) -> ProfileSet:
+    try:
+        return PROFILE_SETS[name]
+    except KeyError:
+        raise ProfileError(unknown_choice("profile set", name, list(PROFILE_SETS))) from None

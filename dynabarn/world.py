@@ -1,0 +1,311 @@
+"""Alg. 2 and the `WorldSpec`: one world's obstacles, layout and provenance.
+
+Alg. 2 (paper Sec. III-B): obstacle_number ~ U{min, max}, then one Alg. 1 trajectory per
+obstacle. The count range and the motion profiles come from the world's branch of the
+difficulty tree (Fig. 2). Every world draws from its own `numpy.random.Generator` seeded
+by `SeedSequence([base_seed, world_id])`: no global random state, and world 137 is the
+same whether or not worlds 0-136 were generated first.
+
+The 300 worlds: ids 0-99 easy (low count, easy motion), 100-149 medium (low count, hard
+motion), 150-199 medium (high count, easy motion), 200-299 hard (high count, hard
+motion). `paper60` takes 20 of each difficulty, 10 from each medium branch, like the
+paper's baselines: ids 0-19, 100-109, 150-159, 200-219.
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dynabarn.errors import WorldError
+from dynabarn.profiles import (
+    ARENA_HALF_SIZE,
+    CountClass,
+    Difficulty,
+    MotionClass,
+    ProfileSet,
+    difficulty_of,
+)
+from dynabarn.trajectory import Trajectory, generate_trajectory
+
+WORLD_FORMAT_VERSION = 1
+DEFAULT_BASE_SEED = 2022
+N_WORLDS = 300
+
+OBSTACLE_RADIUS = 0.5
+"""Cylinder obstacle radius [m] (paper Fig. 3)."""
+OBSTACLE_HEIGHT = 1.0
+"""Cylinder obstacle height [m] (the release's cylinder length)."""
+
+
+class Interpolation(enum.StrEnum):
+    LINEAR = "linear"
+    """Straight lines at constant speed between waypoints (the paper)."""
+    SPLINE = "spline"
+    """Gazebo's PoseAnimation: a Catmull-Rom (tension 0) Hermite spline per keyframe."""
+
+
+class EndBehavior(enum.StrEnum):
+    LOOP = "loop"
+    """Restart at the first waypoint after the last (Gazebo's loop=true)."""
+    HOLD = "hold"
+    """Stay at the last waypoint."""
+
+
+@dataclass(frozen=True, slots=True)
+class Wall:
+    """An axis-aligned box wall. centre (x, y) [m], size (sx, sy, sz) full lengths [m]."""
+
+    name: str
+    centre: tuple[float, float]
+    size: tuple[float, float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class Layout:
+    """The static part of a world: arena, walls and goal (as in the original release)."""
+
+    walls: tuple[Wall, ...] = (
+        Wall("wall_back", (-10.0, 0.0), (0.5, 20.0, 1.0)),
+        Wall("wall_left", (0.0, 10.0), (20.0, 0.5, 1.0)),
+        Wall("wall_right", (0.0, -10.0), (20.0, 0.5, 1.0)),
+    )
+    goal: tuple[float, float] = (-9.0, 0.0)
+    arena_half_size: float = ARENA_HALF_SIZE
+
+    def to_dict(self) -> dict:
+        return {
+            "walls": [{"name": w.name, "centre": list(w.centre), "size": list(w.size)} for w in self.walls],
+            "goal": list(self.goal),
+            "arena_half_size": self.arena_half_size,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Layout:
+        return cls(
+            walls=tuple(
+                Wall(str(w["name"]), tuple(map(float, w["centre"])), tuple(map(float, w["size"])))  # type: ignore[arg-type]
+                for w in d["walls"]
+            ),
+            goal=(float(d["goal"][0]), float(d["goal"][1])),
+            arena_half_size=float(d["arena_half_size"]),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Obstacle:
+    """One moving cylinder: its name, schedule and size."""
+
+    name: str
+    trajectory: Trajectory
+    radius: float = OBSTACLE_RADIUS
+    height: float = OBSTACLE_HEIGHT
+    source: str = ""
+    """Provenance, e.g. the release plugin it was imported from."""
+
+
+@dataclass(frozen=True, slots=True)
+class WorldSpec:
+    """A whole DynaBARN world: everything needed to compile it and play it back.
+
+    Attributes:
+        name: file stem, e.g. `world_137`.
+        world_id: index in its world set (None for a one-off world).
+        difficulty: easy | medium | hard.
+        count_class, motion_class: the world's branch of Fig. 2 (None when imported).
+        profile_set: name of the profile set it was drawn from (or `dynabarn-release`).
+        seed: the base seed; the world's generator is SeedSequence([seed, world_id]).
+        obstacles: the moving cylinders, in spawn order.
+        interpolation: how positions are played back between waypoints.
+        end_behavior: what happens after an obstacle's last waypoint.
+        layout: walls and goal.
+        provenance: free-form facts about where the world came from.
+    """
+
+    name: str
+    world_id: int | None
+    difficulty: Difficulty
+    obstacles: tuple[Obstacle, ...]
+    count_class: CountClass | None = None
+    motion_class: MotionClass | None = None
+    profile_set: str = ""
+    seed: int | None = None
+    interpolation: Interpolation = Interpolation.LINEAR
+    end_behavior: EndBehavior = EndBehavior.LOOP
+    layout: Layout = field(default_factory=Layout)
+    provenance: dict = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return (
+            f"WorldSpec(name={self.name!r}, difficulty={self.difficulty.value}, "
+            f"n_obstacles={len(self.obstacles)}, interpolation={self.interpolation.value}, "
+            f"end={self.end_behavior.value})"
+        )
+
+    # -- JSON round trip -------------------------------------------------------------
+    def metadata(self) -> dict:
+        """Everything but the schedules (which travel as numeric arrays in the MJCF)."""
+        return {
+            "format": "dynabarn-world",
+            "format_version": WORLD_FORMAT_VERSION,
+            "name": self.name,
+            "world_id": self.world_id,
+            "difficulty": self.difficulty.value,
+            "count_class": self.count_class.value if self.count_class else None,
+            "motion_class": self.motion_class.value if self.motion_class else None,
+            "profile_set": self.profile_set,
+            "seed": self.seed,
+            "interpolation": self.interpolation.value,
+            "end_behavior": self.end_behavior.value,
+            "layout": self.layout.to_dict(),
+            "provenance": self.provenance,
+            "obstacles": [
+                {
+                    "name": o.name,
+                    "profile": o.trajectory.profile,
+                    "order": o.trajectory.order,
+                    "avg_speed": o.trajectory.avg_speed,
+                    "avg_std": o.trajectory.avg_std,
+                    "radius": o.radius,
+                    "height": o.height,
+                    "source": o.source,
+                }
+                for o in self.obstacles
+            ],
+        }
+
+    def to_dict(self) -> dict:
+        d = self.metadata()
+        for od, o in zip(d["obstacles"], self.obstacles, strict=True):
+            od["keyframes"] = np.column_stack([o.trajectory.times, o.trajectory.xy]).tolist()
+        return d
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    @classmethod
+    def from_dict(cls, d: dict, keyframes: list[np.ndarray] | None = None) -> WorldSpec:
+        """Build from `to_dict()` output, or from `metadata()` plus (N, 3) [t, x, y] arrays."""
+        if not isinstance(d, dict) or d.get("format") != "dynabarn-world":
+            raise WorldError("not a DynaBARN world (missing format tag 'dynabarn-world')")
+        if d.get("format_version", 0) > WORLD_FORMAT_VERSION:
+            raise WorldError(
+                f"world format version {d['format_version']} is newer than this dynabarn "
+                f"understands ({WORLD_FORMAT_VERSION}); upgrade dynabarn"
+            )
+        try:
+            obstacles = []
+            for i, od in enumerate(d["obstacles"]):
+                kf = np.asarray(keyframes[i] if keyframes is not None else od["keyframes"], dtype=np.float64)
+                if kf.ndim != 2 or kf.shape[1] != 3 or len(kf) < 2:
+                    raise WorldError(f"obstacle {od.get('name', i)}: keyframes must be (N>=2, 3) [t, x, y]")
+                traj = Trajectory(
+                    times=np.ascontiguousarray(kf[:, 0]),
+                    xy=np.ascontiguousarray(kf[:, 1:3]),
+                    profile=str(od["profile"]),
+                    order=int(od["order"]),
+                    avg_speed=float(od["avg_speed"]),
+                    avg_std=float(od["avg_std"]),
+                )
+                obstacles.append(
+                    Obstacle(
+                        name=str(od["name"]),
+                        trajectory=traj,
+                        radius=float(od["radius"]),
+                        height=float(od["height"]),
+                        source=str(od.get("source", "")),
+                    )
+                )
+            return cls(
+                name=str(d["name"]),
+                world_id=None if d["world_id"] is None else int(d["world_id"]),
+                difficulty=Difficulty(d["difficulty"]),
+                obstacles=tuple(obstacles),
+                count_class=CountClass(d["count_class"]) if d.get("count_class") else None,
+                motion_class=MotionClass(d["motion_class"]) if d.get("motion_class") else None,
+                profile_set=str(d["profile_set"]),
+                seed=None if d.get("seed") is None else int(d["seed"]),
+                interpolation=Interpolation(d["interpolation"]),
+                end_behavior=EndBehavior(d["end_behavior"]),
+                layout=Layout.from_dict(d["layout"]),
+                provenance=dict(d.get("provenance", {})),
+            )
+        except WorldError:
+            raise
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise WorldError(f"malformed world description: {type(exc).__name__}: {exc}") from None
+
+    @classmethod
+    def from_json(cls, text: str) -> WorldSpec:
+        try:
+            return cls.from_dict(json.loads(text))
+        except json.JSONDecodeError as exc:
+            raise WorldError(f"world JSON is not valid JSON: {exc}") from None
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, WorldSpec):
+            return NotImplemented
+        return self.to_json() == other.to_json()
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+# -- the 300 worlds ------------------------------------------------------------------
+
+
+def branch_of(world_id: int) -> tuple[CountClass, MotionClass]:
+    """The Fig. 2 branch of generated world `world_id` (0-299)."""
+    if not 0 <= world_id < N_WORLDS:
+        raise WorldError(f"world id {world_id} out of range 0-{N_WORLDS - 1}")
+    if world_id < 100:
+        return CountClass.LOW, MotionClass.EASY
+    if world_id < 150:
+        return CountClass.LOW, MotionClass.HARD
+    if world_id < 200:
+        return CountClass.HIGH, MotionClass.EASY
+    return CountClass.HIGH, MotionClass.HARD
+
+
+PAPER60: tuple[int, ...] = (*range(0, 20), *range(100, 110), *range(150, 160), *range(200, 220))
+"""The fixed 60-world subset of the paper's baselines: 20 per difficulty."""
+
+
+def world_rng(base_seed: int, world_id: int) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence([base_seed, world_id]))
+
+
+def generate_world(
+    world_id: int,
+    profile_set: ProfileSet,
+    *,
+    base_seed: int = DEFAULT_BASE_SEED,
+    interpolation: Interpolation = Interpolation.LINEAR,
+    end_behavior: EndBehavior = EndBehavior.LOOP,
+) -> WorldSpec:
+    """Alg. 2 for world `world_id` of the 300: count, then one Alg. 1 trajectory each."""
+    count_class, motion_class = branch_of(world_id)
+    rng = world_rng(base_seed, world_id)
+    lo, hi = profile_set.count_range(count_class)
+    n_obstacles = int(rng.integers(lo, hi + 1))
+    profiles = profile_set.motion_profiles(motion_class)
+    obstacles = []
+    for k in range(n_obstacles):
+        profile = profiles[int(rng.integers(len(profiles)))] if len(profiles) > 1 else profiles[0]
+        traj = generate_trajectory(rng, profile, scheme=profile_set.waypoints)
+        obstacles.append(Obstacle(name=f"obstacle_{k:03d}", trajectory=traj))
+    return WorldSpec(
+        name=f"world_{world_id:03d}",
+        world_id=world_id,
+        difficulty=difficulty_of(count_class, motion_class),
+        obstacles=tuple(obstacles),
+        count_class=count_class,
+        motion_class=motion_class,
+        profile_set=profile_set.name,
+        seed=base_seed,
+        interpolation=interpolation,
+        end_behavior=end_behavior,
+        provenance={"generator": "dynabarn", "profiles": profile_set.to_dict()},
+    )

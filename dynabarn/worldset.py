@@ -1,0 +1,101 @@
+"""World sets on disk: the 300 generated worlds with their `index.json`, and imports.
+
+`generate_worlds` writes `world_000.xml` ... `world_299.xml` and `index.json` (id,
+difficulty, count, profile, seed, file hash, and the named subsets such as `paper60`).
+Everything written is a pure function of (profile set, base seed), so `make worlds`
+reproduces the committed files byte for byte.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from dynabarn.errors import WorldError
+from dynabarn.mjcf import GENERATED_WORLDS, write_world
+from dynabarn.profiles import ProfileSet
+from dynabarn.world import DEFAULT_BASE_SEED, N_WORLDS, PAPER60, WorldSpec, generate_world
+
+INDEX_NAME = "index.json"
+
+
+def _entry(world: WorldSpec, file: str, sha256: str) -> dict:
+    return {
+        "id": world.world_id,
+        "name": world.name,
+        "file": file,
+        "difficulty": world.difficulty.value,
+        "count_class": world.count_class.value if world.count_class else None,
+        "motion_class": world.motion_class.value if world.motion_class else None,
+        "n_obstacles": len(world.obstacles),
+        "profiles": sorted({o.trajectory.profile for o in world.obstacles}),
+        "profile_set": world.profile_set,
+        "seed": world.seed,
+        "interpolation": world.interpolation.value,
+        "end_behavior": world.end_behavior.value,
+        "sha256": sha256,
+    }
+
+
+def write_index(out_dir: Path, entries: list[dict], *, meta: dict, sets: dict[str, list[int]]) -> Path:
+    index = {"format": "dynabarn-index", "format_version": 1, **meta, "sets": sets, "worlds": entries}
+    path = Path(out_dir) / INDEX_NAME
+    path.write_text(json.dumps(index, indent=1, sort_keys=True) + "\n")
+    return path
+
+
+def write_worlds(
+    worlds: Iterable[WorldSpec],
+    out_dir: Path,
+    *,
+    meta: dict,
+    sets: dict[str, list[int]],
+    progress: Callable[[Iterable], Iterable] = lambda it: it,
+) -> Path:
+    """Write each world as `<name>.xml` in `out_dir` and the index; returns the index path."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    entries = []
+    for world in progress(worlds):
+        file = f"{world.name}.xml"
+        sha = write_world(world, out_dir / file)
+        entries.append(_entry(world, file, sha))
+    return write_index(out_dir, entries, meta=meta, sets=sets)
+
+
+def generate_worlds(
+    profile_set: ProfileSet,
+    out_dir: Path = GENERATED_WORLDS,
+    *,
+    base_seed: int = DEFAULT_BASE_SEED,
+    world_ids: Iterable[int] = range(N_WORLDS),
+    progress: Callable[[Iterable], Iterable] = lambda it: it,
+) -> Path:
+    """Generate and write the benchmark's worlds; returns the index path."""
+    ids = list(world_ids)
+    worlds = (generate_world(i, profile_set, base_seed=base_seed) for i in ids)
+    sets = {
+        "all": ids,
+        "paper60": [i for i in PAPER60 if i in ids],
+        "easy": [i for i in ids if i < 100],
+        "medium": [i for i in ids if 100 <= i < 200],
+        "hard": [i for i in ids if i >= 200],
+    }
+    meta = {"generator": "dynabarn", "profile_set": profile_set.to_dict(), "base_seed": base_seed}
+    return write_worlds(worlds, out_dir, meta=meta, sets=sets, progress=progress)
+
+
+def read_index(path_or_dir: Path | str = GENERATED_WORLDS) -> dict:
+    p = Path(path_or_dir)
+    if p.is_dir():
+        p = p / INDEX_NAME
+    if not p.is_file():
+        raise WorldError(f"no world index at {p}")
+    try:
+        index = json.loads(p.read_text())
+    except json.JSONDecodeError as exc:
+        raise WorldError(f"{p}: index is not valid JSON ({exc})") from None
+    if index.get("format") != "dynabarn-index":
+        raise WorldError(f"{p}: not a dynabarn world index")
+    return index
