@@ -147,14 +147,13 @@ def _waypoint_path(rng: np.random.Generator, order: int, scheme: WaypointScheme)
     sample_y = rng.choice(grid, size=order + 1, replace=True).astype(np.float64)
     coeffs = newton_coefficients(sample_x, sample_y)
 
-    if scheme is WaypointScheme.INTEGER:
-        x = _INTEGER_X
-    else:
-        x = np.concatenate([_RELEASE_X, sample_x])
+    x = _INTEGER_X if scheme is WaypointScheme.INTEGER else np.concatenate([_RELEASE_X, sample_x])
     y = newton_eval(sample_x, coeffs, x)
     x_cross, y_cross = edge_crossings(sample_x, coeffs)
-    x = np.concatenate([x, x_cross])
-    y = np.concatenate([y, y_cross])
+    # Crossings first: where a steep curve puts a grid point within 1 mm (in x) of a
+    # crossing, de-duplication keeps the crossing, so paths still start on the border.
+    x = np.concatenate([x_cross, x])
+    y = np.concatenate([y_cross, y])
 
     xy = np.round(np.stack([x, y], axis=1), POSITION_DECIMALS)
     inside = np.all(np.abs(xy) <= _EDGE, axis=1)
