@@ -170,5 +170,113 @@ def _worlds_show(args: argparse.Namespace) -> int:
 _WORLD_COMMANDS = {"generate": _worlds_generate, "import": _worlds_import, "show": _worlds_show}
 
 
-if __name__ == "__main__":  # pragma: no cover
+# -- dynabarn-run ------------------------------------------------------------------------
+
+EXIT_EPISODE_ERROR = 1
+
+
+def _planner_config(text: str | None) -> dict:
+    """--planner-config: a JSON file, or inline `key=value,key=value` (values as JSON)."""
+    import json
+
+    if not text:
+        return {}
+    path = Path(text)
+    if path.suffix == ".json":
+        if not path.is_file():
+            raise DynabarnError(f"planner config file not found: {path}")
+        try:
+            cfg = json.loads(path.read_text())
+        except json.JSONDecodeError as exc:
+            raise DynabarnError(f"{path}: planner config is not valid JSON ({exc})") from None
+        if not isinstance(cfg, dict):
+            raise DynabarnError(f"{path}: planner config must be a JSON object")
+        return cfg
+    cfg = {}
+    for item in text.split(","):
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise DynabarnError(f"bad --planner-config item {item!r}: use key=value[,key=value] or a .json file")
+        try:
+            cfg[key.strip()] = json.loads(value)
+        except json.JSONDecodeError:
+            cfg[key.strip()] = value
+    return cfg
+
+
+def run_main(argv: Sequence[str] | None = None) -> int:
+    from dynabarn.planners import available_planners
+
+    parser = _parser(
+        "dynabarn-run",
+        "Run one episode of a planner in a DynaBARN world, print its outcome and metrics, and record it to MCAP.",
+    )
+    parser.add_argument("--world", required=True, help="generated world id (0-299) or path of a world .xml")
+    parser.add_argument(
+        "--planner", default="straight", help=f"planner name; available: {', '.join(available_planners())}"
+    )
+    parser.add_argument(
+        "--planner-config", default=None, help="planner parameters: a .json file or key=value[,key=value]"
+    )
+    parser.add_argument("--protocol", default="barn", help="evaluation protocol: barn, paper2022, or a .json file")
+    parser.add_argument("--seed", type=int, default=0, help="trial seed: obstacle clock offset and laser noise")
+    log = parser.add_mutually_exclusive_group()
+    log.add_argument(
+        "--log",
+        type=Path,
+        default=None,
+        help="MCAP file to record to (default: runs/<world>_<planner>_<protocol>_s<seed>.mcap)",
+    )
+    log.add_argument("--no-log", action="store_true", help="do not record")
+    parser.add_argument("--runs-dir", type=Path, default=Path("runs"), help="folder of default recordings")
+    parser.add_argument("--json", action="store_true", help="print the full result as JSON instead of one line")
+    parser.add_argument("--dt", type=float, default=0.005, help="physics step [s], at most 0.01")
+    parser.add_argument("--control-rate", type=float, default=10.0, help="planner and laser rate [Hz]")
+    args = parser.parse_args(argv)
+    return _run(_run_episode, args)
+
+
+def _run_episode(args: argparse.Namespace) -> int:
+    import json
+
+    from dynabarn.metrics import Outcome
+    from dynabarn.mjcf import resolve_world
+    from dynabarn.planners import get_planner
+    from dynabarn.protocol import get_protocol
+    from dynabarn.recording import McapRecorder, default_run_path
+    from dynabarn.sim import SimConfig, Simulation, run_episode
+
+    world_path = resolve_world(args.world)
+    protocol = get_protocol(args.protocol)
+    planner = get_planner(args.planner, **_planner_config(args.planner_config))
+    sim = Simulation(world_path, config=SimConfig(dt=args.dt, control_rate=args.control_rate))
+    log_path = None
+    observers = []
+    if not args.no_log:
+        log_path = args.log or default_run_path(args.runs_dir, sim.world.name, args.planner, protocol.name, args.seed)
+        observers.append(McapRecorder(log_path))
+    try:
+        result = run_episode(sim, planner, protocol, seed=args.seed, observers=observers, planner_name=args.planner)
+    except KeyboardInterrupt:
+        if log_path:
+            print(f"interrupted; recording kept: {log_path}", file=sys.stderr)
+        raise
+    if args.json:
+        d = result.to_dict()
+        d["recording"] = str(log_path) if log_path else None
+        print(json.dumps(d, indent=1, sort_keys=True))
+    else:
+        print(result.summary())
+        if log_path:
+            print(f"recording: {log_path}")
+    if result.outcome is Outcome.ERROR:
+        if not args.json:
+            print(f"error: {result.reason}", file=sys.stderr)
+        return EXIT_EPISODE_ERROR
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover - `python -m dynabarn.cli run ...` / `... worlds ...`
+    if len(sys.argv) > 1 and sys.argv[1] == "run":
+        sys.exit(run_main(sys.argv[2:]))
     sys.exit(worlds_main())

@@ -1,9 +1,9 @@
 """Schedule playback: every obstacle's position and velocity at time t, vectorised.
 
 The keyframes of all obstacles are padded into (n_obstacles, max_keyframes) arrays once,
-so one call evaluates all obstacles with a handful of numpy operations and no Python
-loop over obstacles. The runner calls `positions_into` every physics step with
-preallocated output arrays.
+so one call evaluates all obstacles, at one time or at many, with a handful of numpy
+operations and no Python loop over obstacles. The runner evaluates every physics step of
+a control period in one `positions_at` call.
 
 Interpolation:
 - `linear`: straight lines at constant speed between waypoints (the paper).
@@ -55,53 +55,52 @@ class SchedulePlayer:
         self._rows = np.arange(n)
         self._last_segment = np.maximum(self.n_keyframes - 2, 0)
 
-    def local_time(self, t: float) -> np.ndarray:
-        """(n_obstacles,) each obstacle's clock at world time t [s]."""
-        tl = np.full(self.n_obstacles, t + self.clock_offset)
+    def local_time(self, t: float | np.ndarray) -> np.ndarray:
+        """Each obstacle's clock at world time(s) t [s]: shape (n_obstacles,) or (T, n_obstacles)."""
+        tl = np.asarray(t, dtype=np.float64)[..., None] + self.clock_offset + np.zeros(self.n_obstacles)
         if self.end_behavior is EndBehavior.LOOP:
             return np.mod(tl, self.durations)
         return np.minimum(tl, self.durations)
 
     def state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Positions (n_obstacles, 2) [m] and velocities (n_obstacles, 2) [m/s] at time t."""
-        pos = np.empty((self.n_obstacles, 2))
-        vel = np.empty((self.n_obstacles, 2))
-        self.positions_into(t, pos, vel)
-        return pos, vel
+        return self._evaluate(self.local_time(t))
+
+    def positions_at(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Positions and velocities (T, n_obstacles, 2) at each of `times` (T,) [s], at once."""
+        return self._evaluate(self.local_time(np.asarray(times, dtype=np.float64)))
 
     def positions_into(self, t: float, pos: np.ndarray, vel: np.ndarray | None = None) -> None:
         """Write positions (and velocities) at time t into preallocated (n, 2) arrays."""
+        p, v = self.state(t)
+        pos[...] = p
+        if vel is not None:
+            vel[...] = v
+
+    def _evaluate(self, tl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Positions and velocities (..., n, 2) for local clocks tl (..., n)."""
         if self.n_obstacles == 0:
-            return
-        tl = self.local_time(t)
-        seg = (self.times <= tl[:, None]).sum(axis=1) - 1
+            shape = (*tl.shape, 2)
+            return np.zeros(shape), np.zeros(shape)
+        # Segment index per obstacle: the last keyframe at or before tl.
+        seg = (self.times <= tl[..., None]).sum(axis=-1) - 1
         np.clip(seg, 0, self._last_segment, out=seg)
         r = self._rows
         t0 = self.times[r, seg]
         dt = self.times[r, seg + 1] - t0
-        u = np.clip((tl - t0) / dt, 0.0, 1.0)[:, None]
+        u = np.clip((tl - t0) / dt, 0.0, 1.0)[..., None]
         p0 = self.points[r, seg]
         p1 = self.points[r, seg + 1]
+        dt = dt[..., None]
         if self.interpolation is Interpolation.LINEAR:
-            np.add(p0, (p1 - p0) * u, out=pos)
-            if vel is not None:
-                np.divide(p1 - p0, dt[:, None], out=vel)
-            return
+            return p0 + (p1 - p0) * u, (p1 - p0) / dt
         m0 = self.tangents[r, seg]
         m1 = self.tangents[r, seg + 1]
         u2 = u * u
         u3 = u2 * u
-        h00 = 2 * u3 - 3 * u2 + 1
-        h10 = u3 - 2 * u2 + u
-        h01 = -2 * u3 + 3 * u2
-        h11 = u3 - u2
-        np.add(h00 * p0 + h10 * m0, h01 * p1 + h11 * m1, out=pos)
-        if vel is not None:
-            d00 = 6 * u2 - 6 * u
-            d10 = 3 * u2 - 4 * u + 1
-            d01 = -6 * u2 + 6 * u
-            d11 = 3 * u2 - 2 * u
-            np.divide(d00 * p0 + d10 * m0 + d01 * p1 + d11 * m1, dt[:, None], out=vel)
+        pos = (2 * u3 - 3 * u2 + 1) * p0 + (u3 - 2 * u2 + u) * m0 + (-2 * u3 + 3 * u2) * p1 + (u3 - u2) * m1
+        vel = ((6 * u2 - 6 * u) * p0 + (3 * u2 - 4 * u + 1) * m0 + (-6 * u2 + 6 * u) * p1 + (3 * u2 - 2 * u) * m1) / dt
+        return pos, vel
 
 
 def _catmull_rom_tangents(p: np.ndarray) -> np.ndarray:

@@ -1,0 +1,148 @@
+"""Episode metrics (DESIGN.md "Episode, protocols and metrics").
+
+All functions are vectorised over the whole episode and run once, after it ends.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+STALL_SPEED = 0.05
+"""Below this forward speed [m/s] (and yaw rate below 0.1 rad/s) the robot counts as stalled."""
+
+
+class Outcome(enum.StrEnum):
+    SUCCESS = "success"
+    COLLISION = "collision"
+    TIMEOUT = "timeout"
+    ERROR = "error"
+
+
+OUTCOME_MESSAGES = {
+    Outcome.SUCCESS: "reached the goal",
+    Outcome.COLLISION: "collided",
+    Outcome.TIMEOUT: "ran out of time",
+    Outcome.ERROR: "stopped by an error",
+}
+
+
+@dataclass(slots=True)
+class EpisodeResult:
+    """Everything known about one finished episode (the JSON of `dynabarn-run --json`).
+
+    Times in seconds, lengths in metres, compute times in milliseconds.
+    """
+
+    world: str
+    planner: str
+    protocol: str
+    seed: int
+    outcome: Outcome
+    reason: str
+    time: float
+    """Episode time as the protocol counts it (barn: from the first 0.1 m of motion) [s]."""
+    sim_time: float
+    """Simulated time from the start to the end of the episode [s]."""
+    path_length: float
+    score: float
+    spl: float
+    min_clearance: float
+    """Smallest distance between the robot's footprint and any obstacle's surface [m]."""
+    mean_abs_jerk: float
+    """Mean |d^3 x / dt^3| of the forward motion, from measured speed at the control rate [m/s^3]."""
+    sum_abs_dw: float
+    """Sum of |change| of the commanded yaw rate between control ticks [rad/s]."""
+    time_stalled: float
+    planner_ms_mean: float
+    planner_ms_p95: float
+    rtf: float
+    """Real-time factor: simulated seconds per wall-clock second."""
+    wall_time: float
+    clock_offset: float
+    n_ticks: int
+    world_file: str = ""
+    world_sha256: str = ""
+    versions: dict = field(default_factory=dict)
+    planner_config: dict = field(default_factory=dict)
+    protocol_version: int = 1
+
+    @property
+    def success(self) -> bool:
+        return self.outcome is Outcome.SUCCESS
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["outcome"] = self.outcome.value
+        return {k: (round(v, 6) if isinstance(v, float) and np.isfinite(v) else v) for k, v in d.items()}
+
+    def summary(self) -> str:
+        """The one-line human summary."""
+        head = f"{self.world} | {self.planner} | {self.protocol} | seed {self.seed}: {self.outcome.value.upper()}"
+        if self.outcome is Outcome.SUCCESS:
+            body = f"in {self.time:.2f} s, score {self.score:.3f}, SPL {self.spl:.2f}"
+        else:
+            body = f"after {self.time:.2f} s ({self.reason})"
+        return (
+            f"{head} {body}; path {self.path_length:.1f} m, min clearance {self.min_clearance:.2f} m, "
+            f"planner {self.planner_ms_mean:.2f} ms, {self.rtf:.0f}x real time"
+        )
+
+
+def path_length(xy: np.ndarray) -> float:
+    """Length of a polyline (n, 2) [m]."""
+    if len(xy) < 2:
+        return 0.0
+    return float(np.hypot(*np.diff(xy, axis=0).T).sum())
+
+
+def footprint_clearance(
+    robot_pose: np.ndarray, obstacle_xy: np.ndarray, radii: np.ndarray, half_extents: tuple[float, float]
+) -> np.ndarray:
+    """Distance from a box footprint to circles, per pose: (T,) minimum over obstacles.
+
+    Args:
+        robot_pose: (T, 3) x, y, yaw.
+        obstacle_xy: (T, n, 2) obstacle centres at the same times.
+        radii: (n,) obstacle radii.
+        half_extents: (half length, half width) of the footprint.
+    """
+    if obstacle_xy.shape[1] == 0:
+        return np.full(len(robot_pose), np.inf)
+    d = obstacle_xy - robot_pose[:, None, :2]
+    c, s = np.cos(robot_pose[:, 2])[:, None], np.sin(robot_pose[:, 2])[:, None]
+    local = np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], axis=-1)
+    outside = np.maximum(np.abs(local) - np.asarray(half_extents), 0.0)
+    dist = np.hypot(outside[..., 0], outside[..., 1]) - radii
+    return dist.min(axis=1)
+
+
+def mean_abs_jerk(v: np.ndarray, dt: float) -> float:
+    """Mean |third derivative of position| from forward speed samples v (k,) at period dt."""
+    if len(v) < 3:
+        return 0.0
+    return float(np.mean(np.abs(np.diff(v, n=2))) / dt**2)
+
+
+def sum_abs_change(x: np.ndarray) -> float:
+    return float(np.abs(np.diff(x)).sum()) if len(x) > 1 else 0.0
+
+
+def stalled_time(v: np.ndarray, w: np.ndarray, dt: float) -> float:
+    """Time [s] with |v| < STALL_SPEED and |w| < 0.1 rad/s, from samples at period dt."""
+    return float(np.count_nonzero((np.abs(v) < STALL_SPEED) & (np.abs(w) < 0.1)) * dt)
+
+
+def spl(success: bool, optimal_length: float, actual_length: float) -> float:
+    """Success weighted by (normalised inverse) Path Length (Anderson et al. 2018)."""
+    if not success:
+        return 0.0
+    return optimal_length / max(actual_length, optimal_length, 1e-9)
+
+
+def compute_percentiles(ms: np.ndarray) -> tuple[float, float]:
+    if len(ms) == 0:
+        return 0.0, 0.0
+    return float(np.mean(ms)), float(np.percentile(ms, 95))

@@ -1,0 +1,65 @@
+"""Planner registry: built-in planners plus any installed under the entry-point group
+`dynabarn.planners` (name = "module:factory"), so a researcher adds a planner from their
+own package without touching this one:
+
+    [project.entry-points."dynabarn.planners"]
+    my_planner = "my_pkg.planner:MyPlanner"
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from importlib.metadata import entry_points
+
+from dynabarn.errors import DynabarnError, unknown_choice
+from dynabarn.planners.base import EpisodeInfo, Observation, ObstacleState, Planner
+from dynabarn.planners.simple import StopPlanner, StraightPlanner
+
+ENTRY_POINT_GROUP = "dynabarn.planners"
+
+_BUILTIN: dict[str, Callable[..., Planner]] = {
+    "straight": StraightPlanner,
+    "stop": StopPlanner,
+}
+_registered: dict[str, Callable[..., Planner]] = {}
+
+
+def register_planner(name: str, factory: Callable[..., Planner]) -> None:
+    """Register a planner factory under `name` at run time."""
+    _registered[name] = factory
+
+
+def _entry_point_planners() -> dict[str, object]:
+    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def available_planners() -> list[str]:
+    return sorted({*_BUILTIN, *_registered, *_entry_point_planners()})
+
+
+def get_planner(name: str, **config) -> Planner:
+    """Instantiate the planner `name` with keyword configuration."""
+    factory = _registered.get(name) or _BUILTIN.get(name)
+    if factory is None:
+        ep = _entry_point_planners().get(name)
+        if ep is None:
+            raise DynabarnError(unknown_choice("planner", name, available_planners()))
+        try:
+            factory = ep.load()
+        except Exception as exc:  # a broken third-party package: say which one
+            raise DynabarnError(f"planner {name!r} failed to load from {ep.value}: {exc}") from None
+    try:
+        return factory(**config)
+    except TypeError as exc:
+        raise DynabarnError(f"planner {name!r}: bad configuration: {exc}") from None
+
+
+__all__ = [
+    "EpisodeInfo",
+    "Observation",
+    "ObstacleState",
+    "Planner",
+    "available_planners",
+    "get_planner",
+    "register_planner",
+]

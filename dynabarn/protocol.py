@@ -1,0 +1,153 @@
+"""Named evaluation protocols: where the robot starts, what counts as success, time limits.
+
+A protocol is plain data (`EvalProtocol`); `--protocol` takes a registered name or the
+path of a JSON file with the same fields, so users add their own without code.
+
+- `barn` (default): the BARN Challenge's rules applied to DynaBARN worlds. Spawn
+  (11, 0, yaw pi); success when the robot centre is within 1.0 m of the goal; 100 s of
+  simulated time counted from the first 0.1 m of motion; score = success * OT /
+  clip(AT, 2 OT, 8 OT) with OT = 20 m / 2 m/s. (The challenge's own script computes OT
+  from a negative path length, so there every success scores 0.125; we use the intended
+  20 m.)
+- `paper2022`: the paper's demonstration pipeline and the release's `check_goal_node`:
+  spawn (12, 0, yaw pi); success when |dx| < 0.3 and |dy| < 0.3; 100 s from the start.
+
+If the robot never covers `timer_start_distance`, the episode times out at `time_limit`
+of simulated time from the start (BARN's script would wait forever).
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from dynabarn.errors import DynabarnError, unknown_choice
+
+
+class GoalRegion(enum.StrEnum):
+    DISC = "disc"
+    """Success when the robot centre is within `goal_tolerance` of the goal."""
+    SQUARE = "square"
+    """Success when |dx| < goal_tolerance and |dy| < goal_tolerance."""
+
+
+@dataclass(frozen=True, slots=True)
+class EvalProtocol:
+    """One evaluation protocol.
+
+    Attributes:
+        name: identifier, e.g. `barn`.
+        version: bumped whenever the rules change, so results name the rules they used.
+        spawn: robot start (x [m], y [m], yaw [rad]) in the world frame.
+        goal_region: shape of the success region.
+        goal_tolerance: radius or half side of the success region [m].
+        time_limit: simulated seconds allowed [s].
+        timer_start_distance: the clock starts once the robot is this far from its spawn
+            [m] (0: at once).
+        reference_path_length: path length behind the score's optimal time [m].
+        max_speed: speed behind the score's optimal time [m/s].
+        score_clip: (low, high) multiples of the optimal time the actual time is clipped to.
+    """
+
+    name: str
+    version: int = 1
+    spawn: tuple[float, float, float] = (11.0, 0.0, math.pi)
+    goal_region: GoalRegion = GoalRegion.DISC
+    goal_tolerance: float = 1.0
+    time_limit: float = 100.0
+    timer_start_distance: float = 0.1
+    reference_path_length: float = 20.0
+    max_speed: float = 2.0
+    score_clip: tuple[float, float] = (2.0, 8.0)
+
+    def __post_init__(self) -> None:
+        if self.goal_tolerance <= 0 or self.time_limit <= 0 or self.max_speed <= 0:
+            raise DynabarnError(f"protocol {self.name!r}: tolerance, time limit and max speed must be positive")
+        if self.timer_start_distance < 0 or self.reference_path_length <= 0:
+            raise DynabarnError(f"protocol {self.name!r}: invalid timer start distance or reference length")
+        try:
+            GoalRegion(self.goal_region)
+        except ValueError:
+            raise DynabarnError(
+                unknown_choice("goal region", str(self.goal_region), [g.value for g in GoalRegion])
+            ) from None
+
+    @property
+    def optimal_time(self) -> float:
+        """OT of the BARN score [s]."""
+        return self.reference_path_length / self.max_speed
+
+    def reached(self, x: float, y: float, goal: tuple[float, float]) -> bool:
+        dx, dy = x - goal[0], y - goal[1]
+        if self.goal_region == GoalRegion.DISC:
+            return dx * dx + dy * dy < self.goal_tolerance * self.goal_tolerance
+        return abs(dx) < self.goal_tolerance and abs(dy) < self.goal_tolerance
+
+    def score(self, success: bool, actual_time: float) -> float:
+        """BARN score: success * OT / clip(AT, low * OT, high * OT)."""
+        if not success:
+            return 0.0
+        ot = self.optimal_time
+        lo, hi = self.score_clip
+        return ot / min(max(actual_time, lo * ot), hi * ot)
+
+    def optimal_path_length(self, goal: tuple[float, float]) -> float:
+        """Shortest distance from spawn to the success region in an empty arena [m] (SPL)."""
+        dx, dy = goal[0] - self.spawn[0], goal[1] - self.spawn[1]
+        if self.goal_region == GoalRegion.DISC:
+            return max(math.hypot(dx, dy) - self.goal_tolerance, 0.0)
+        return math.hypot(max(abs(dx) - self.goal_tolerance, 0.0), max(abs(dy) - self.goal_tolerance, 0.0))
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["goal_region"] = str(self.goal_region)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> EvalProtocol:
+        try:
+            fields = dict(d)
+            for key in ("spawn", "score_clip"):
+                if key in fields:
+                    fields[key] = tuple(float(v) for v in fields[key])
+            if "goal_region" in fields:
+                fields["goal_region"] = GoalRegion(fields["goal_region"])
+            return cls(**fields)
+        except (TypeError, ValueError) as exc:
+            raise DynabarnError(f"malformed protocol: {exc}") from None
+
+
+PROTOCOLS: dict[str, EvalProtocol] = {
+    "barn": EvalProtocol("barn"),
+    "paper2022": EvalProtocol(
+        "paper2022",
+        spawn=(12.0, 0.0, math.pi),
+        goal_region=GoalRegion.SQUARE,
+        goal_tolerance=0.3,
+        time_limit=100.0,
+        timer_start_distance=0.0,
+    ),
+}
+
+
+def register_protocol(protocol: EvalProtocol) -> None:
+    """Make `protocol` available by name (e.g. from a plugin package)."""
+    PROTOCOLS[protocol.name] = protocol
+
+
+def get_protocol(name_or_path: str) -> EvalProtocol:
+    """A registered protocol by name, or one read from a JSON file."""
+    if name_or_path in PROTOCOLS:
+        return PROTOCOLS[name_or_path]
+    path = Path(name_or_path)
+    if path.suffix == ".json":
+        if not path.is_file():
+            raise DynabarnError(f"protocol file not found: {path}")
+        try:
+            return EvalProtocol.from_dict(json.loads(path.read_text()))
+        except json.JSONDecodeError as exc:
+            raise DynabarnError(f"{path}: protocol is not valid JSON ({exc})") from None
+    raise DynabarnError(unknown_choice("protocol", name_or_path, list(PROTOCOLS)) + " (or a .json file)")

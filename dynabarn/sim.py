@@ -1,0 +1,539 @@
+"""The episode loop: a world, a planner and a protocol in MuJoCo.
+
+Per control tick (default 10 Hz): set the obstacles for the current time, cast the
+720-beam scan with `mj_multiRay`, ask the planner for (v, w), limit it, and then run the
+physics steps of the period (default dt = 0.005 s, 20 steps). Obstacle positions for all
+steps of the period come from one vectorised schedule evaluation; inside the physics loop
+each step only copies a row into `mocap_pos`, steps MuJoCo and checks contacts, the goal
+and the clock. Nothing is allocated per physics step.
+
+Trials differ only by seed: the seed draws the obstacles' clock offset in [0, 5) s (in
+Gazebo, trials differed by when the robot started relative to the looping obstacles) and
+the laser noise. Same world, planner, protocol and seed: same result on any machine.
+
+Observers (`EpisodeObserver`) receive the start, every tick, the robot poses and the
+result; the MCAP recorder is one. The loop knows nothing of recording.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol
+
+import mujoco
+import numpy as np
+
+from dynabarn.errors import DynabarnError
+from dynabarn.metrics import (
+    EpisodeResult,
+    Outcome,
+    compute_percentiles,
+    footprint_clearance,
+    mean_abs_jerk,
+    path_length,
+    spl,
+    stalled_time,
+    sum_abs_change,
+)
+from dynabarn.mjcf import REPO_ROOT, ROBOT_PREFIX, load_model, read_world
+from dynabarn.planners.base import EpisodeInfo, Observation, ObstacleState, Planner
+from dynabarn.protocol import EvalProtocol
+from dynabarn.robot import JACKAL, LASER_GEOM_GROUPS, JackalParams
+from dynabarn.schedule import SchedulePlayer
+from dynabarn.world import WorldSpec
+
+MAX_CLOCK_OFFSET = 5.0
+"""Trials start the obstacles' clocks at a seeded offset in [0, 5) s."""
+
+
+@dataclass(frozen=True, slots=True)
+class SimConfig:
+    """Settings of the episode loop.
+
+    Attributes:
+        dt: physics step [s] (<= 0.01: at 0.05 s a 2 m/s obstacle passes through the robot).
+        control_rate: planner and scan rate [Hz]; the control period must be a whole
+            number of physics steps.
+        pose_rate: rate at which robot poses are handed to observers [Hz].
+        max_linear_accel: |dv/dt| limit on the command [m/s^2] (jackal_control's
+            diff-drive controller: linear.x.max_acceleration 20).
+        max_angular_accel: |dw/dt| limit on the command [rad/s^2] (angular.z.max_acceleration 25).
+    """
+
+    dt: float = 0.005
+    control_rate: float = 10.0
+    pose_rate: float = 100.0
+    max_linear_accel: float = 20.0
+    max_angular_accel: float = 25.0
+
+    def __post_init__(self) -> None:
+        if not 0 < self.dt <= 0.01:
+            raise DynabarnError(f"physics step dt must be in (0, 0.01] s, got {self.dt}")
+        if self.control_rate <= 0 or self.pose_rate <= 0:
+            raise DynabarnError("control and pose rates must be positive")
+        k = 1.0 / (self.control_rate * self.dt)
+        if abs(k - round(k)) > 1e-6 or round(k) < 1:
+            raise DynabarnError(
+                f"the control period 1/{self.control_rate} s must be a whole number of physics steps of {self.dt} s"
+            )
+
+    @property
+    def steps_per_tick(self) -> int:
+        return round(1.0 / (self.control_rate * self.dt))
+
+    @property
+    def control_period(self) -> float:
+        return self.steps_per_tick * self.dt
+
+    @property
+    def pose_every(self) -> int:
+        return max(1, round(1.0 / (self.pose_rate * self.dt)))
+
+
+@dataclass(frozen=True, slots=True)
+class EpisodeStart:
+    """What observers learn when an episode starts."""
+
+    world: WorldSpec
+    world_path: Path
+    world_sha256: str
+    protocol: EvalProtocol
+    planner: str
+    planner_config: dict
+    seed: int
+    clock_offset: float
+    config: SimConfig
+    info: EpisodeInfo
+    versions: dict
+
+
+@dataclass(slots=True)
+class Tick:
+    """One control tick, as observers see it. Arrays are fresh (observers may keep them)."""
+
+    time: float
+    scan: np.ndarray  # (n_beams,)
+    laser_pose: np.ndarray  # (3,) x, y, yaw of the laser in the world
+    pose: np.ndarray  # (3,)
+    velocity: np.ndarray  # (2,) measured v, w
+    command: np.ndarray  # (2,) limited v, w sent to the robot
+    raw_command: np.ndarray  # (2,) what the planner returned
+    obstacles: np.ndarray  # (n_obstacles, 2)
+    clearance: float
+    distance_to_goal: float
+    planner_ms: float
+    debug: dict = field(default_factory=dict)
+
+
+class EpisodeObserver(Protocol):
+    def on_start(self, start: EpisodeStart) -> None: ...
+
+    def on_tick(self, tick: Tick) -> None: ...
+
+    def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None: ...
+
+    def on_end(self, result: EpisodeResult) -> None: ...
+
+
+def versions() -> dict:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        ours = version("dynabarn")
+    except PackageNotFoundError:  # pragma: no cover
+        ours = "0+unknown"
+    return {"dynabarn": ours, "mujoco": mujoco.__version__, "numpy": np.__version__}
+
+
+class Laser:
+    """The UST-10 scan by `mj_multiRay` from the laser site, buffers reused every tick."""
+
+    def __init__(self, model: mujoco.MjModel, params: JackalParams = JACKAL) -> None:
+        self.params = params
+        self.site = model.site(f"{ROBOT_PREFIX}laser").id
+        self.robot_body = model.body(f"{ROBOT_PREFIX}base_link").id
+        self.angles = params.laser_angles()
+        n = len(self.angles)
+        self.n = n
+        self._vec = np.zeros(3 * n)
+        self._geomid = np.zeros(n, dtype=np.int32)
+        self._dist = np.zeros(n)
+
+    def cast(self, model: mujoco.MjModel, data: mujoco.MjData, yaw: float) -> np.ndarray:
+        """Noise-free ranges (n,) [m] for the current kinematics; no return reads range_max."""
+        a = self.angles + yaw
+        self._vec[0::3] = np.cos(a)
+        self._vec[1::3] = np.sin(a)
+        mujoco.mj_multiRay(
+            model,
+            data,
+            data.site_xpos[self.site],
+            self._vec,
+            LASER_GEOM_GROUPS,
+            1,
+            self.robot_body,
+            self._geomid,
+            self._dist,
+            None,
+            self.n,
+            self.params.laser_range_max,
+        )
+        ranges = self._dist.copy()
+        ranges[self._geomid < 0] = self.params.laser_range_max
+        return ranges
+
+    def scan(self, model: mujoco.MjModel, data: mujoco.MjData, yaw: float, rng: np.random.Generator) -> np.ndarray:
+        ranges = self.cast(model, data, yaw)
+        ranges += rng.normal(0.0, self.params.laser_noise_std, self.n)
+        np.clip(ranges, self.params.laser_range_min, self.params.laser_range_max, out=ranges)
+        return ranges
+
+
+class Simulation:
+    """A compiled world ready for episodes: model, data, obstacle mapping and buffers."""
+
+    def __init__(self, world_path: Path | str, *, config: SimConfig = SimConfig()) -> None:
+        self.world_path = Path(world_path)
+        self.world = read_world(self.world_path)
+        self.world_sha256 = hashlib.sha256(self.world_path.read_bytes()).hexdigest()
+        self.config = config
+        self.model = load_model(self.world_path)
+        self.model.opt.timestep = config.dt
+        # The runner casts its own scans; the 720 rangefinders would cost ~140 us a step.
+        self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
+        self.data = mujoco.MjData(self.model)
+        mocap_ids = [self.model.body(o.name).mocapid[0] for o in self.world.obstacles]
+        if mocap_ids != list(range(len(mocap_ids))):
+            raise DynabarnError(f"{self.world_path}: obstacle bodies are not the first mocap bodies in order")
+        self.laser = Laser(self.model)
+        self.radii = np.array([o.radius for o in self.world.obstacles])
+        self.goal = np.array(self.world.layout.goal, dtype=np.float64)
+        self.walls = np.array(
+            [[w.centre[0], w.centre[1], w.size[0], w.size[1]] for w in self.world.layout.walls], dtype=np.float64
+        ).reshape(-1, 4)
+        self.robot_geoms = {i for i in range(self.model.ngeom) if self.model.geom_bodyid[i] == self.laser.robot_body}
+
+    def reset(self, spawn: tuple[float, float, float]) -> None:
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[:3] = spawn
+
+    def set_obstacles(self, xy: np.ndarray) -> None:
+        self.data.mocap_pos[: len(xy), :2] = xy
+
+    def episode_info(self, protocol: EvalProtocol, seed: int, params: JackalParams = JACKAL) -> EpisodeInfo:
+        return EpisodeInfo(
+            laser_angles=self.laser.angles.copy(),
+            laser_offset=np.array([params.laser_x, 0.0]),
+            laser_range=(params.laser_range_min, params.laser_range_max),
+            control_period=self.config.control_period,
+            v_limits=(params.v_min, params.v_max),
+            w_max=params.w_max,
+            accel_limits=(self.config.max_linear_accel, self.config.max_angular_accel),
+            footprint=(params.length, params.width),
+            walls=self.walls.copy(),
+            goal=self.goal.copy(),
+            goal_tolerance=protocol.goal_tolerance,
+            seed=seed,
+        )
+
+
+def _goal_in_robot(pose: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    dx, dy = goal[0] - pose[0], goal[1] - pose[1]
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    return np.array([c * dx + s * dy, -s * dx + c * dy])
+
+
+def run_episode(
+    world: Path | str | Simulation,
+    planner: Planner,
+    protocol: EvalProtocol,
+    *,
+    seed: int = 0,
+    config: SimConfig = SimConfig(),
+    observers: Sequence[EpisodeObserver] = (),
+    planner_name: str | None = None,
+) -> EpisodeResult:
+    """Run one episode and return its result.
+
+    A planner that raises or returns a non-finite command ends the episode with outcome
+    `error` and the reason. Ctrl-C ends it the same way (reason "interrupted"), lets the
+    observers finish (the recording is closed and complete), then re-raises.
+    """
+    sim = world if isinstance(world, Simulation) else Simulation(world, config=config)
+    config = sim.config
+    model, data, laser = sim.model, sim.data, sim.laser
+    params = JACKAL
+    rng = np.random.default_rng(np.random.SeedSequence(seed))
+    clock_offset = float(rng.uniform(0.0, MAX_CLOCK_OFFSET))
+    player = SchedulePlayer(sim.world, clock_offset=clock_offset)
+    info = sim.episode_info(protocol, seed)
+    name = planner_name or getattr(planner, "name", type(planner).__name__)
+    start = EpisodeStart(
+        world=sim.world,
+        world_path=sim.world_path,
+        world_sha256=sim.world_sha256,
+        protocol=protocol,
+        planner=name,
+        planner_config=planner.config(),
+        seed=seed,
+        clock_offset=clock_offset,
+        config=config,
+        info=info,
+        versions=versions(),
+    )
+
+    dt = config.dt
+    k = config.steps_per_tick
+    period = config.control_period
+    pose_every = config.pose_every
+    goal = (float(sim.goal[0]), float(sim.goal[1]))
+    sx, sy = protocol.spawn[0], protocol.spawn[1]
+    start_r2 = protocol.timer_start_distance**2
+    limit = protocol.time_limit
+    # Longest possible episode: the clock may start as late as `limit`, then run `limit`.
+    max_steps = int(math.ceil(2 * limit / dt)) + 2 * k
+    poses = np.zeros((max_steps + 1, 3))  # robot pose after every physics step
+    n_ticks_max = max_steps // k + 2
+    tick_v = np.zeros(n_ticks_max)
+    tick_w = np.zeros(n_ticks_max)
+    tick_w_cmd = np.zeros(n_ticks_max)
+    planner_ms = np.zeros(n_ticks_max)
+    step_offsets = np.arange(k) * dt
+
+    sim.reset(protocol.spawn)
+    poses[0] = protocol.spawn
+    outcome: Outcome | None = None
+    reason = ""
+    t_start: float | None = 0.0 if start_r2 == 0.0 else None
+    step = 0
+    n_ticks = 0
+    prev_cmd = np.zeros(2)
+    qpos, qvel = data.qpos, data.qvel
+    wall_t0 = time.perf_counter()
+    for obs_ in observers:
+        obs_.on_start(start)
+    try:
+        planner.reset(info)
+        while outcome is None:
+            t = step * dt
+            # All obstacle positions of this control period in one vectorised call.
+            batch_xy, batch_vel = player.positions_at(t + step_offsets)
+            sim.set_obstacles(batch_xy[0])
+            mujoco.mj_kinematics(model, data)
+            pose = qpos[:3].copy()
+            c, s = math.cos(pose[2]), math.sin(pose[2])
+            v_meas = c * qvel[0] + s * qvel[1]
+            velocity = np.array([v_meas, qvel[2]])
+            scan = laser.scan(model, data, pose[2], rng)
+            goal_robot = _goal_in_robot(pose, sim.goal)
+            privileged = None
+            if planner.privileged:
+                privileged = ObstacleState(
+                    positions=batch_xy[0].copy(),
+                    velocities=batch_vel[0].copy(),
+                    radii=sim.radii.copy(),
+                    predict=lambda tf: player.positions_at(np.array([tf]))[0][0],
+                )
+            observation = Observation(
+                time=t,
+                scan=scan,
+                pose=pose,
+                velocity=velocity,
+                goal_in_robot=goal_robot,
+                goal_in_world=sim.goal.copy(),
+                obstacles=privileged,
+            )
+            c0 = time.perf_counter()
+            try:
+                raw = planner.act(observation)
+                raw_v, raw_w = float(raw[0]), float(raw[1])
+            except KeyboardInterrupt:
+                raise
+            except Exception as exc:  # the planner is foreign code: report, don't crash
+                outcome, reason = Outcome.ERROR, f"planner raised {type(exc).__name__}: {exc}"
+                break
+            planner_ms[n_ticks] = (time.perf_counter() - c0) * 1e3
+            if not (math.isfinite(raw_v) and math.isfinite(raw_w)):
+                outcome, reason = Outcome.ERROR, f"planner returned a non-finite command ({raw_v}, {raw_w})"
+                break
+            v = min(max(raw_v, params.v_min), params.v_max)
+            w = min(max(raw_w, -params.w_max), params.w_max)
+            dv, dw = config.max_linear_accel * period, config.max_angular_accel * period
+            v = min(max(v, prev_cmd[0] - dv), prev_cmd[0] + dv)
+            w = min(max(w, prev_cmd[1] - dw), prev_cmd[1] + dw)
+            prev_cmd = np.array([v, w])
+            data.ctrl[0], data.ctrl[1], data.ctrl[2] = v, 0.0, w
+            tick_v[n_ticks], tick_w[n_ticks], tick_w_cmd[n_ticks] = v_meas, qvel[2], w
+            n_ticks += 1
+
+            if observers:
+                laser_xy = data.site_xpos[laser.site]
+                tick = Tick(
+                    time=t,
+                    scan=scan,
+                    laser_pose=np.array([laser_xy[0], laser_xy[1], pose[2]]),
+                    pose=pose,
+                    velocity=velocity,
+                    command=prev_cmd.copy(),
+                    raw_command=np.array([raw_v, raw_w]),
+                    obstacles=batch_xy[0].copy(),
+                    clearance=float(
+                        footprint_clearance(pose[None], batch_xy[:1], sim.radii, (params.length / 2, params.width / 2))[
+                            0
+                        ]
+                    ),
+                    distance_to_goal=math.hypot(goal[0] - pose[0], goal[1] - pose[1]),
+                    planner_ms=float(planner_ms[n_ticks - 1]),
+                    debug=planner.debug(),
+                )
+                for obs_ in observers:
+                    obs_.on_tick(tick)
+
+            first = step
+            for j in range(k):
+                data.mocap_pos[: sim.radii.size, :2] = batch_xy[j]
+                mujoco.mj_step(model, data)
+                step += 1
+                x, y = qpos[0], qpos[1]
+                poses[step, 0], poses[step, 1], poses[step, 2] = x, y, qpos[2]
+                ts = step * dt
+                if data.ncon:
+                    other = _contact_partner(model, data, sim.robot_geoms)
+                    outcome, reason = Outcome.COLLISION, f"hit {other}"
+                    break
+                if t_start is None and (x - sx) ** 2 + (y - sy) ** 2 >= start_r2:
+                    t_start = ts
+                if protocol.reached(x, y, goal):
+                    outcome, reason = Outcome.SUCCESS, "reached the goal"
+                    break
+                if (t_start is not None and ts - t_start >= limit) or (t_start is None and ts >= limit):
+                    outcome, reason = Outcome.TIMEOUT, f"time limit {limit:g} s"
+                    break
+            if observers:
+                first_idx = 0 if first == 0 else first + pose_every - first % pose_every
+                idx = np.arange(first_idx, step + 1, pose_every)
+                if step % pose_every and outcome is not None:
+                    idx = np.append(idx, step)  # always hand over the final pose
+                if idx.size:
+                    for obs_ in observers:
+                        obs_.on_poses(idx * dt, poses[idx].copy())
+    except KeyboardInterrupt:
+        outcome, reason = Outcome.ERROR, "interrupted"
+        result = _finish(
+            sim,
+            start,
+            outcome,
+            reason,
+            step,
+            t_start,
+            poses,
+            tick_v,
+            tick_w,
+            tick_w_cmd,
+            planner_ms,
+            n_ticks,
+            player,
+            wall_t0,
+        )
+        for obs_ in observers:
+            obs_.on_end(result)
+        raise
+    result = _finish(
+        sim,
+        start,
+        outcome,
+        reason,
+        step,
+        t_start,
+        poses,
+        tick_v,
+        tick_w,
+        tick_w_cmd,
+        planner_ms,
+        n_ticks,
+        player,
+        wall_t0,
+    )
+    for obs_ in observers:
+        obs_.on_end(result)
+    return result
+
+
+def portable_path(path: Path) -> str:
+    """A world path that reads the same on every checkout (relative to the repository)."""
+    try:
+        return path.resolve().relative_to(REPO_ROOT).as_posix()
+    except ValueError:
+        return str(path)
+
+
+def _contact_partner(model: mujoco.MjModel, data: mujoco.MjData, robot_geoms: set[int]) -> str:
+    con = data.contact[0]
+    g1, g2 = int(con.geom[0]), int(con.geom[1])
+    other = g2 if g1 in robot_geoms else g1
+    return model.geom(other).name or f"geom {other}"
+
+
+def _finish(
+    sim: Simulation,
+    start: EpisodeStart,
+    outcome: Outcome,
+    reason: str,
+    step: int,
+    t_start: float | None,
+    poses: np.ndarray,
+    tick_v: np.ndarray,
+    tick_w: np.ndarray,
+    tick_w_cmd: np.ndarray,
+    planner_ms: np.ndarray,
+    n_ticks: int,
+    player: SchedulePlayer,
+    wall_t0: float,
+) -> EpisodeResult:
+    cfg = sim.config
+    protocol = start.protocol
+    sim_time = step * cfg.dt
+    traj = poses[: step + 1]
+    # The protocol's clock: from the first `timer_start_distance` of motion, if any.
+    ep_time = sim_time - t_start if t_start is not None else sim_time
+    success = outcome is Outcome.SUCCESS
+    length = path_length(traj[:, :2])
+    # Clearance at every physics step, from one batched schedule evaluation.
+    obstacle_xy, _ = player.positions_at(np.arange(step + 1) * cfg.dt)
+    clearance = footprint_clearance(traj, obstacle_xy, sim.radii, (JACKAL.length / 2, JACKAL.width / 2))
+    mean_ms, p95_ms = compute_percentiles(planner_ms[:n_ticks])
+    wall = time.perf_counter() - wall_t0
+    goal = (float(sim.goal[0]), float(sim.goal[1]))
+    return EpisodeResult(
+        world=sim.world.name,
+        planner=start.planner,
+        protocol=protocol.name,
+        seed=start.seed,
+        outcome=outcome,
+        reason=reason,
+        time=ep_time,
+        sim_time=sim_time,
+        path_length=length,
+        score=protocol.score(success, ep_time),
+        spl=spl(success, protocol.optimal_path_length(goal), length),
+        min_clearance=float(clearance.min()) if clearance.size else math.inf,
+        mean_abs_jerk=mean_abs_jerk(tick_v[:n_ticks], cfg.control_period),
+        sum_abs_dw=sum_abs_change(tick_w_cmd[:n_ticks]),
+        time_stalled=stalled_time(tick_v[:n_ticks], tick_w[:n_ticks], cfg.control_period),
+        planner_ms_mean=mean_ms,
+        planner_ms_p95=p95_ms,
+        rtf=sim_time / wall if wall > 0 else math.inf,
+        wall_time=wall,
+        clock_offset=start.clock_offset,
+        n_ticks=n_ticks,
+        world_file=portable_path(sim.world_path),
+        world_sha256=sim.world_sha256,
+        versions=start.versions,
+        planner_config=start.planner_config,
+        protocol_version=protocol.version,
+    )
