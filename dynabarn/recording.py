@@ -2,7 +2,9 @@
 
 Written with foxglove-sdk's built-in protobuf schemas, so files open in Foxglove as they
 are; custom data travels on JSON channels with JSON schemas. Log time = simulated time
-(nanoseconds from the episode start). Chunks are small (64 KiB), so a killed process
+(nanoseconds from the episode start). Wall-clock measurements (planner compute time,
+real-time factor) are left out, so the same world, planner, protocol and seed give a
+byte-identical file on any machine. Chunks are small (64 KiB), so a killed process
 loses only the last moments; `read_recording` recovers everything before a cut.
 
 Topics (also in the README):
@@ -37,6 +39,8 @@ from dynabarn.metrics import EpisodeResult
 from dynabarn.sim import EpisodeStart, Tick, portable_path
 
 CHUNK_SIZE = 64 * 1024
+WALL_CLOCK_FIELDS = ("rtf", "wall_time", "planner_ms_mean", "planner_ms_p95")
+"""Result fields that depend on the machine, kept out of recordings."""
 PROFILE = "dynabarn"
 
 TOPIC_METADATA = "/world/metadata"
@@ -73,7 +77,6 @@ _JSON_SCHEMAS = {
                 "w": {"type": "number"},
                 "clearance": {"type": "number"},
                 "distance_to_goal": {"type": "number"},
-                "planner_ms": {"type": "number"},
             },
         },
     ),
@@ -83,7 +86,7 @@ _JSON_SCHEMAS = {
 
 
 def _ns(t: float) -> int:
-    return int(round(t * 1e9))
+    return round(t * 1e9)
 
 
 def _jsonable(value):
@@ -186,7 +189,6 @@ class McapRecorder:
                 "w": float(tick.velocity[1]),
                 "clearance": float(tick.clearance),
                 "distance_to_goal": float(tick.distance_to_goal),
-                "planner_ms": float(tick.planner_ms),
             },
         )
         if tick.debug:
@@ -204,7 +206,8 @@ class McapRecorder:
     def on_end(self, result: EpisodeResult) -> None:
         if self._writer is None:
             return
-        self.log_json(TOPIC_RESULT, result.sim_time, result.to_dict())
+        d = {k: v for k, v in result.to_dict().items() if k not in WALL_CLOCK_FIELDS}
+        self.log_json(TOPIC_RESULT, result.sim_time, d)
         self.close()
 
     # -- helpers ------------------------------------------------------------------------

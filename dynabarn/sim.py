@@ -296,7 +296,7 @@ def run_episode(
     start_r2 = protocol.timer_start_distance**2
     limit = protocol.time_limit
     # Longest possible episode: the clock may start as late as `limit`, then run `limit`.
-    max_steps = int(math.ceil(2 * limit / dt)) + 2 * k
+    max_steps = math.ceil(2 * limit / dt) + 2 * k
     poses = np.zeros((max_steps + 1, 3))  # robot pose after every physics step
     n_ticks_max = max_steps // k + 2
     tick_v = np.zeros(n_ticks_max)

@@ -138,6 +138,25 @@ class WorldSpec:
     layout: Layout = field(default_factory=Layout)
     provenance: dict = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        # Accept plain strings for the enum fields (JSON, users) and validate them.
+        try:
+            for attr, kind in (
+                ("difficulty", Difficulty),
+                ("interpolation", Interpolation),
+                ("end_behavior", EndBehavior),
+                ("count_class", CountClass),
+                ("motion_class", MotionClass),
+            ):
+                value = getattr(self, attr)
+                if value is not None and not isinstance(value, kind):
+                    object.__setattr__(self, attr, kind(value))
+        except ValueError as exc:
+            raise WorldError(f"world {self.name!r}: {exc}") from None
+        names = [o.name for o in self.obstacles]
+        if len(set(names)) != len(names):
+            raise WorldError(f"world {self.name!r}: obstacle names must be unique")
+
     def __repr__(self) -> str:
         return (
             f"WorldSpec(name={self.name!r}, difficulty={self.difficulty.value}, "

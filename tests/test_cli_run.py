@@ -1,0 +1,128 @@
+"""`dynabarn-run` through its real entry point."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from dynabarn.cli import run_main
+from dynabarn.planners import register_planner
+from dynabarn.planners.base import Planner
+from dynabarn.recording import read_recording
+
+REQUIRED_KEYS = {
+    "world",
+    "planner",
+    "protocol",
+    "seed",
+    "outcome",
+    "time",
+    "path_length",
+    "score",
+    "spl",
+    "min_clearance",
+    "rtf",
+}
+
+
+def test_summary_line_and_default_recording(tmp_path, capsys):
+    assert run_main(["--world", "0", "--planner", "straight", "--runs-dir", str(tmp_path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("world_000 | straight | barn | seed 0: SUCCESS")
+    path = tmp_path / "world_000_straight_barn_s0.mcap"
+    assert out[1] == f"recording: {path}"
+    assert read_recording(path).result["outcome"] == "success"
+
+
+def test_json_output(tmp_path, capsys):
+    log = tmp_path / "r.mcap"
+    assert run_main(["--world", "137", "--protocol", "paper2022", "--seed", "3", "--log", str(log), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d.keys() >= REQUIRED_KEYS
+    assert d["protocol"] == "paper2022" and d["seed"] == 3 and d["recording"] == str(log)
+    assert log.is_file()
+
+
+def test_no_log_writes_nothing(tmp_path, capsys):
+    assert run_main(["--world", "0", "--no-log", "--runs-dir", str(tmp_path)]) == 0
+    assert not list(tmp_path.iterdir())
+    assert "recording" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, first_line",
+    [
+        (["--world", "300"], "error: unknown world id 300"),
+        (["--world", "nowhere.xml"], "error: world not found"),
+        (["--world", "0", "--planner", "dwb"], "error: unknown planner 'dwb'; available:"),
+        (["--world", "0", "--protocol", "barn2"], "error: unknown protocol 'barn2'"),
+        (["--world", "0", "--planner-config", "speed"], "error: bad --planner-config item"),
+        (["--world", "0", "--planner-config", "nope=1"], "error: planner 'straight': bad configuration"),
+        (["--world", "0", "--dt", "0.05"], "error: physics step dt must be in"),
+    ],
+)
+def test_bad_input_one_line_nonzero(argv, first_line, capsys, tmp_path):
+    assert run_main([*argv, "--runs-dir", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(first_line), err
+    assert err.count("\n") == 1
+
+
+def test_malformed_world_file(tmp_path, capsys):
+    bad = tmp_path / "bad.xml"
+    bad.write_text("<mujoco><custom><text name='dynabarn_world' data='{not json'/></custom></mujoco>")
+    assert run_main(["--world", str(bad), "--no-log"]) == 2
+    assert "not valid JSON" in capsys.readouterr().err
+
+
+class Boom(Planner):
+    name = "boom"
+
+    def act(self, obs):
+        raise RuntimeError("kaput")
+
+
+class CtrlC(Planner):
+    name = "ctrl_c"
+
+    def act(self, obs):
+        if obs.time >= 0.3:
+            raise KeyboardInterrupt
+        return 0.5, 0.0
+
+
+def test_planner_error_exits_nonzero_and_keeps_recording(tmp_path, capsys):
+    register_planner("boom", Boom)
+    log = tmp_path / "b.mcap"
+    assert run_main(["--world", "0", "--planner", "boom", "--log", str(log)]) == 1
+    captured = capsys.readouterr()
+    assert "ERROR" in captured.out and "error: planner raised RuntimeError: kaput" in captured.err
+    assert read_recording(log).result["outcome"] == "error"
+
+
+def test_ctrl_c_exits_130_with_complete_recording(tmp_path, capsys):
+    register_planner("ctrl_c", CtrlC)
+    log = tmp_path / "c.mcap"
+    assert run_main(["--world", "0", "--planner", "ctrl_c", "--log", str(log)]) == 130
+    assert "recording kept" in capsys.readouterr().err
+    rec = read_recording(log)
+    assert not rec.truncated and rec.result["reason"] == "interrupted"
+
+
+def test_console_script_no_traceback(tmp_path):
+    r = subprocess.run(
+        [sys.executable, "-m", "dynabarn.cli", "run", "--world", "0", "--planner", "nope"],
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+
+
+def test_help_lists_every_option_with_default(capsys):
+    with pytest.raises(SystemExit):
+        run_main(["--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    for opt in ("--world", "--planner", "--protocol", "--seed", "--log", "--no-log", "--json", "--dt"):
+        assert opt in out
+    assert "(default: barn)" in out and "(default: 0)" in out
