@@ -39,7 +39,7 @@ format: $(STAMP)
 	$(BIN)/ruff format . && $(BIN)/ruff check --fix .
 
 bench: $(STAMP)
-	$(BIN)/python -m dynabarn.bench_speed
+	$(BIN)/python -m dynabarn.benchmarks
 
 clean:
 	rm -rf $(VENV) runs *.egg-info

@@ -6,6 +6,7 @@ All functions are vectorised over the whole episode and run once, after it ends.
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -117,6 +118,20 @@ def footprint_clearance(
     outside = np.maximum(np.abs(local) - np.asarray(half_extents), 0.0)
     dist = np.hypot(outside[..., 0], outside[..., 1]) - radii
     return dist.min(axis=1)
+
+
+def footprint_clearance_at(
+    x: float, y: float, yaw: float, obstacle_xy: np.ndarray, radii: np.ndarray, half_extents: tuple[float, float]
+) -> float:
+    """`footprint_clearance` for one pose (the per-tick case), with fewer array operations."""
+    if obstacle_xy.shape[0] == 0:
+        return math.inf
+    c, s = math.cos(yaw), math.sin(yaw)
+    dx = obstacle_xy[:, 0] - x
+    dy = obstacle_xy[:, 1] - y
+    ox = np.maximum(np.abs(c * dx + s * dy) - half_extents[0], 0.0)
+    oy = np.maximum(np.abs(c * dy - s * dx) - half_extents[1], 0.0)
+    return float((np.hypot(ox, oy) - radii).min())
 
 
 def mean_abs_jerk(v: np.ndarray, dt: float) -> float:

@@ -14,9 +14,11 @@ so the two robot-reference elements are added to its output as the only text edi
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -24,7 +26,7 @@ import mujoco
 import numpy as np
 
 from dynabarn.errors import WorldError
-from dynabarn.robot import JACKAL_XML, GeomGroup
+from dynabarn.robot import JACKAL_XML, GeomGroup, build_jackal_spec
 from dynabarn.world import WorldSpec
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -201,10 +203,32 @@ def resolve_world(id_or_path: str | int | Path) -> Path:
     return path
 
 
-def load_model(path: Path | str) -> mujoco.MjModel:
-    """Compile a world file with MuJoCo, turning its errors into one clear line."""
+_RUNTIME_ROBOT = "jackal_runtime.xml"
+
+
+@functools.cache
+def _runtime_robot_xml() -> bytes:
+    return build_jackal_spec(beam_sensors=False).to_xml().encode()
+
+
+_MODEL_REFERENCE = re.compile(r'<model name="jackal" file="[^"]*"/>')
+
+
+def load_model(path: Path | str, *, beam_sensors: bool = True) -> mujoco.MjModel:
+    """Compile a world file with MuJoCo, turning its errors into one clear line.
+
+    With `beam_sensors=False` the world is compiled with the runner's variant of the
+    Jackal (no per-beam sites and rangefinders; the runner casts the scan with
+    mj_multiRay), built in memory and handed to MuJoCo through its asset dictionary.
+    """
     try:
+        if not beam_sensors:
+            xml = Path(path).read_text()
+            if _MODEL_REFERENCE.search(xml):
+                robot = _runtime_robot_xml()
+                xml = _MODEL_REFERENCE.sub(f'<model name="jackal" file="{_RUNTIME_ROBOT}"/>', xml, count=1)
+                return mujoco.MjModel.from_xml_string(xml, assets={_RUNTIME_ROBOT: robot})
         return mujoco.MjModel.from_xml_path(str(path))
-    except ValueError as exc:
+    except (ValueError, UnicodeDecodeError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else "unknown error"
         raise WorldError(f"{path}: MuJoCo cannot load this world: {first}") from None

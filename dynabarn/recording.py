@@ -16,7 +16,7 @@ Topics (also in the README):
 | /goal | foxglove.PoseInFrame | once |
 | /world/obstacles | foxglove.SceneUpdate (cylinders) | control rate |
 | /scan | foxglove.LaserScan (frame `world`, pose = laser pose) | control rate |
-| /robot/pose | foxglove.PoseInFrame (frame `world`) | pose rate (100 Hz) |
+| /robot/pose | foxglove.PoseInFrame (frame `world`) | pose rate (50 Hz) |
 | /cmd_vel | JSON `dynabarn.Command` | control rate |
 | /metrics | JSON `dynabarn.StepMetrics` | control rate |
 | /planner/debug | JSON `dynabarn.PlannerDebug` (e.g. local plan) | control rate, when the planner has any |
@@ -32,8 +32,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import foxglove
 import numpy as np
+from foxglove.mcap import MCAPWriteOptions
+from foxglove.messages import LaserScan, PoseInFrame, SceneUpdate
 
+from dynabarn import wire
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import EpisodeResult
 from dynabarn.sim import EpisodeStart, Tick, portable_path
@@ -108,21 +112,32 @@ def default_run_path(runs_dir: Path, world: str, planner: str, protocol: str, se
     return Path(runs_dir) / f"{world}_{planner}_{protocol}_s{seed}.mcap"
 
 
+_WORLD_FRAME = wire.string(2, "world")
+_OBSTACLE_COLOR = wire.color(0.85, 0.15, 0.12, 1.0)
+_WALL_COLOR = wire.color(0.55, 0.55, 0.6, 1.0)
+_GOAL_COLOR = wire.color(0.1, 0.8, 0.2, 0.5)
+
+
 class McapRecorder:
-    """Records an episode to one MCAP file as it runs (an `EpisodeObserver`)."""
+    """Records an episode to one MCAP file as it runs (an `EpisodeObserver`).
+
+    Args:
+        path: the file to write (replaced if it exists).
+        chunk_size: uncompressed chunk size [bytes]; small chunks bound what a killed
+            process loses.
+        extra_channels: further JSON topics a caller logs to with `log_json`.
+    """
 
     def __init__(self, path: Path | str, *, chunk_size: int = CHUNK_SIZE, extra_channels: tuple[str, ...] = ()):
         self.path = Path(path)
         self.chunk_size = chunk_size
         self.extra_channels = extra_channels
         self._writer = None
-        self._json: dict[str, object] = {}
+        self._json: dict[str, foxglove.Channel] = {}
 
     # -- EpisodeObserver --------------------------------------------------------------
     def on_start(self, start: EpisodeStart) -> None:
-        import foxglove
-        from foxglove.channels import LaserScanChannel, PoseInFrameChannel, SceneUpdateChannel
-        from foxglove.mcap import MCAPWriteOptions
+        from dynabarn.robot import JACKAL
 
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._ctx = foxglove.Context()
@@ -130,13 +145,20 @@ class McapRecorder:
             self.path,
             allow_overwrite=True,
             context=self._ctx,
+            # compression_threads=0: compress on this thread, so one episode uses one core.
             writer_options=MCAPWriteOptions(chunk_size=self.chunk_size, profile=PROFILE, compression_threads=0),
         )
-        self._scan = LaserScanChannel(TOPIC_SCAN, context=self._ctx)
-        self._pose = PoseInFrameChannel(TOPIC_POSE, context=self._ctx)
-        self._goal = PoseInFrameChannel(TOPIC_GOAL, context=self._ctx)
-        self._static = SceneUpdateChannel(TOPIC_STATIC, context=self._ctx)
-        self._obstacles = SceneUpdateChannel(TOPIC_OBSTACLES, context=self._ctx)
+
+        def proto_channel(topic: str, message_type) -> foxglove.Channel:
+            return foxglove.Channel(
+                topic, schema=message_type.get_schema(), message_encoding="protobuf", context=self._ctx
+            )
+
+        self._scan = proto_channel(TOPIC_SCAN, LaserScan)
+        self._pose = proto_channel(TOPIC_POSE, PoseInFrame)
+        self._goal = proto_channel(TOPIC_GOAL, PoseInFrame)
+        self._static = proto_channel(TOPIC_STATIC, SceneUpdate)
+        self._obstacles = proto_channel(TOPIC_OBSTACLES, SceneUpdate)
         for topic in (*_JSON_SCHEMAS, *self.extra_channels):
             name, schema = _JSON_SCHEMAS.get(topic, (f"dynabarn{topic.replace('/', '.')}", {"type": "object"}))
             self._json[topic] = foxglove.Channel(
@@ -145,63 +167,57 @@ class McapRecorder:
                 message_encoding="json",
                 context=self._ctx,
             )
-        self._radii = np.array([o.radius for o in start.world.obstacles])
-        self._heights = np.array([o.height for o in start.world.obstacles])
-        self._names = [o.name for o in start.world.obstacles]
+        info = start.info
+        self._start_angle = float(info.laser_angles[0])
+        self._end_angle = float(info.laser_angles[-1])
+        self._laser_z = JACKAL.laser_z
+        obstacles = start.world.obstacles
+        # Parts of the obstacle update that never change, encoded once.
+        self._obstacle_sizes = [wire.vector3(2 * o.radius, 2 * o.radius, o.height) for o in obstacles]
+        self._obstacle_z = [o.height / 2 for o in obstacles]
         self.log_json(TOPIC_METADATA, 0.0, self._metadata(start))
         self._log_static(start)
 
     def on_tick(self, tick: Tick) -> None:
-        from foxglove.messages import LaserScan
-
         t = tick.time
         ns = _ns(t)
-        lx, ly, lyaw = tick.laser_pose
-        info_angles = self._angles
+        lx, ly, lyaw = tick.laser_pose.tolist()
+        laser_pose = wire.pose(lx, ly, self._laser_z, 0.0, 0.0, math.sin(lyaw / 2), math.cos(lyaw / 2))
         self._scan.log(
-            LaserScan(
-                timestamp=self._stamp(t),
-                frame_id="world",
-                pose=self._pose_msg(lx, ly, self._laser_z, lyaw),
-                start_angle=float(info_angles[0]),
-                end_angle=float(info_angles[-1]),
-                ranges=tick.scan.tolist(),
-                intensities=[],
-            ),
-            log_time=ns,
+            wire.laser_scan(ns, _WORLD_FRAME, laser_pose, self._start_angle, self._end_angle, tick.scan), log_time=ns
         )
-        self._log_obstacles(t, tick.obstacles)
-        self.log_json(
-            TOPIC_CMD,
-            t,
-            {
-                "v": float(tick.command[0]),
-                "w": float(tick.command[1]),
-                "raw_v": float(tick.raw_command[0]),
-                "raw_w": float(tick.raw_command[1]),
-            },
+        cylinders = [
+            wire.cylinder(wire.pose(x, y, z, 0.0, 0.0, 0.0, 1.0), size, _OBSTACLE_COLOR)
+            for (x, y), z, size in zip(tick.obstacles.tolist(), self._obstacle_z, self._obstacle_sizes, strict=True)
+        ]
+        self._obstacles.log(
+            wire.scene_update([wire.scene_entity(ns, _WORLD_FRAME, "obstacles", cylinders=cylinders)]), log_time=ns
         )
+        v, w = tick.command.tolist()
+        raw_v, raw_w = tick.raw_command.tolist()
+        self.log_json(TOPIC_CMD, t, {"v": v, "w": w, "raw_v": raw_v, "raw_w": raw_w})
+        mv, mw = tick.velocity.tolist()
         self.log_json(
             TOPIC_METRICS,
             t,
-            {
-                "v": float(tick.velocity[0]),
-                "w": float(tick.velocity[1]),
-                "clearance": float(tick.clearance),
-                "distance_to_goal": float(tick.distance_to_goal),
-            },
+            {"v": mv, "w": mw, "clearance": tick.clearance, "distance_to_goal": tick.distance_to_goal},
         )
         if tick.debug:
             self.log_json(TOPIC_DEBUG, t, tick.debug)
 
     def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
-        from foxglove.messages import PoseInFrame
-
-        for t, (x, y, yaw) in zip(times.tolist(), poses.tolist(), strict=True):
-            self._pose.log(
-                PoseInFrame(timestamp=self._stamp(t), frame_id="world", pose=self._pose_msg(x, y, 0.0, yaw)),
-                log_time=_ns(t),
-            )
+        ns = np.round(times * 1e9).astype(np.int64).tolist()
+        half_yaw = poses[:, 2] * 0.5
+        log = self._pose.log
+        for n, x, y, qz, qw in zip(
+            ns,
+            poses[:, 0].tolist(),
+            poses[:, 1].tolist(),
+            np.sin(half_yaw).tolist(),
+            np.cos(half_yaw).tolist(),
+            strict=True,
+        ):
+            log(wire.pose_in_frame(n, _WORLD_FRAME, wire.pose(x, y, 0.0, 0.0, 0.0, qz, qw)), log_time=n)
 
     def on_end(self, result: EpisodeResult) -> None:
         if self._writer is None:
@@ -212,8 +228,9 @@ class McapRecorder:
 
     # -- helpers ------------------------------------------------------------------------
     def log_json(self, topic: str, t: float, payload: dict) -> None:
-        channel = self._json[topic]
-        channel.log(json.dumps(_jsonable(payload), sort_keys=True, separators=(",", ":")), log_time=_ns(t))
+        """Log a JSON message on one of the recorder's JSON topics at simulated time t [s]."""
+        body = json.dumps(_jsonable(payload), sort_keys=True, separators=(",", ":"), allow_nan=False)
+        self._json[topic].log(body.encode(), log_time=_ns(t))
 
     def close(self) -> None:
         if self._writer is not None:
@@ -224,10 +241,6 @@ class McapRecorder:
         from dataclasses import asdict
 
         info = start.info
-        self._angles = info.laser_angles
-        from dynabarn.robot import JACKAL
-
-        self._laser_z = JACKAL.laser_z
         return {
             "world": start.world.metadata(),
             "world_file": portable_path(start.world_path),
@@ -241,10 +254,10 @@ class McapRecorder:
             "versions": start.versions,
             "robot": {
                 "footprint": list(info.footprint),
-                "laser_angles": [float(info.laser_angles[0]), float(info.laser_angles[-1]), len(info.laser_angles)],
+                "laser_angles": [self._start_angle, self._end_angle, len(info.laser_angles)],
                 "laser_range": list(info.laser_range),
                 "laser_offset": info.laser_offset.tolist(),
-                "laser_z": JACKAL.laser_z,
+                "laser_z": self._laser_z,
                 "v_limits": list(info.v_limits),
                 "w_max": info.w_max,
             },
@@ -253,75 +266,26 @@ class McapRecorder:
             },
         }
 
-    @staticmethod
-    def _stamp(t: float):
-        from foxglove.messages import Timestamp
-
-        ns = _ns(t)
-        return Timestamp(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000)
-
-    @staticmethod
-    def _pose_msg(x: float, y: float, z: float, yaw: float):
-        from foxglove.messages import Pose, Quaternion, Vector3
-
-        return Pose(
-            position=Vector3(x=float(x), y=float(y), z=float(z)),
-            orientation=Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)),
-        )
-
     def _log_static(self, start: EpisodeStart) -> None:
-        from foxglove.messages import (
-            Color,
-            CubePrimitive,
-            CylinderPrimitive,
-            PoseInFrame,
-            SceneEntity,
-            SceneUpdate,
-            Vector3,
-        )
-
         layout = start.world.layout
+        identity = (0.0, 0.0, 0.0, 1.0)
         cubes = [
-            CubePrimitive(
-                pose=self._pose_msg(w.centre[0], w.centre[1], w.size[2] / 2, 0.0),
-                size=Vector3(x=w.size[0], y=w.size[1], z=w.size[2]),
-                color=Color(r=0.55, g=0.55, b=0.6, a=1.0),
-            )
+            wire.cube(wire.pose(w.centre[0], w.centre[1], w.size[2] / 2, *identity), wire.vector3(*w.size), _WALL_COLOR)
             for w in layout.walls
         ]
         gx, gy = layout.goal
-        goal = CylinderPrimitive(
-            pose=self._pose_msg(gx, gy, 0.005, 0.0),
-            size=Vector3(x=2 * start.protocol.goal_tolerance, y=2 * start.protocol.goal_tolerance, z=0.01),
-            color=Color(r=0.1, g=0.8, b=0.2, a=0.5),
-        )
-        stamp = self._stamp(0.0)
+        d = 2 * start.protocol.goal_tolerance
+        goal = wire.cylinder(wire.pose(gx, gy, 0.005, *identity), wire.vector3(d, d, 0.01), _GOAL_COLOR)
         self._static.log(
-            SceneUpdate(
-                entities=[
-                    SceneEntity(timestamp=stamp, frame_id="world", id="walls", cubes=cubes),
-                    SceneEntity(timestamp=stamp, frame_id="world", id="goal", cylinders=[goal]),
+            wire.scene_update(
+                [
+                    wire.scene_entity(0, _WORLD_FRAME, "walls", cubes=cubes),
+                    wire.scene_entity(0, _WORLD_FRAME, "goal", cylinders=[goal]),
                 ]
             ),
             log_time=0,
         )
-        self._goal.log(
-            PoseInFrame(timestamp=stamp, frame_id="world", pose=self._pose_msg(gx, gy, 0.0, 0.0)), log_time=0
-        )
-
-    def _log_obstacles(self, t: float, xy: np.ndarray) -> None:
-        from foxglove.messages import Color, CylinderPrimitive, SceneEntity, SceneUpdate, Vector3
-
-        stamp = self._stamp(t)
-        red = Color(r=0.85, g=0.15, b=0.12, a=1.0)
-        cylinders = [
-            CylinderPrimitive(pose=self._pose_msg(x, y, h / 2, 0.0), size=Vector3(x=2 * r, y=2 * r, z=h), color=red)
-            for (x, y), r, h in zip(xy.tolist(), self._radii.tolist(), self._heights.tolist(), strict=True)
-        ]
-        self._obstacles.log(
-            SceneUpdate(entities=[SceneEntity(timestamp=stamp, frame_id="world", id="obstacles", cylinders=cylinders)]),
-            log_time=_ns(t),
-        )
+        self._goal.log(wire.pose_in_frame(0, _WORLD_FRAME, wire.pose(gx, gy, 0.0, *identity)), log_time=0)
 
 
 # -- reading --------------------------------------------------------------------------

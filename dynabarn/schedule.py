@@ -24,6 +24,9 @@ import numpy as np
 
 from dynabarn.world import EndBehavior, Interpolation, WorldSpec
 
+_STRIDE = 1.0e6
+"""Seconds between obstacles in the flat key array; schedules are far shorter."""
+
 
 class SchedulePlayer:
     """Vectorised playback of a world's obstacle schedules.
@@ -37,27 +40,27 @@ class SchedulePlayer:
         self.interpolation = Interpolation(world.interpolation)
         self.end_behavior = EndBehavior(world.end_behavior)
         self.clock_offset = float(clock_offset)
-        n = len(world.obstacles)
+        obstacles = world.obstacles
+        n = len(obstacles)
         self.n_obstacles = n
-        k_max = max((len(o.trajectory.times) for o in world.obstacles), default=2)
-        self.n_keyframes = np.array([len(o.trajectory.times) for o in world.obstacles], dtype=np.int64)
-        # Padded with +inf times so searches never select the padding.
-        self.times = np.full((n, k_max), np.inf)
-        self.points = np.zeros((n, k_max, 2))
-        self.tangents = np.zeros((n, k_max, 2))
-        for i, o in enumerate(world.obstacles):
-            k = len(o.trajectory.times)
-            self.times[i, :k] = o.trajectory.times
-            self.points[i, :k] = o.trajectory.xy
-            self.points[i, k:] = o.trajectory.xy[-1]
-            self.tangents[i, :k] = _catmull_rom_tangents(o.trajectory.xy)
-        self.durations = self.times[np.arange(n), self.n_keyframes - 1] if n else np.zeros(0)
-        self._rows = np.arange(n)
-        self._last_segment = np.maximum(self.n_keyframes - 2, 0)
+        self.n_keyframes = np.array([len(o.trajectory.times) for o in obstacles], dtype=np.int64)
+        self.durations = np.array([o.trajectory.duration for o in obstacles], dtype=np.float64)
+        # All keyframes in one flat array, obstacle i's times shifted by i * _STRIDE, so one
+        # searchsorted finds every obstacle's segment at every query time at once.
+        start = np.concatenate([[0], np.cumsum(self.n_keyframes)[:-1]]).astype(np.int64)
+        self._seg_lo = start
+        self._seg_hi = start + np.maximum(self.n_keyframes - 2, 0)
+        self._stride_offsets = np.arange(n) * _STRIDE
+
+        if n:
+            self._flat_key = np.concatenate([o.trajectory.times + i * _STRIDE for i, o in enumerate(obstacles)])
+            self._flat_t = np.concatenate([o.trajectory.times for o in obstacles])
+            self._flat_p = np.concatenate([o.trajectory.xy for o in obstacles])
+            self._flat_m = np.concatenate([_catmull_rom_tangents(o.trajectory.xy) for o in obstacles])
 
     def local_time(self, t: float | np.ndarray) -> np.ndarray:
         """Each obstacle's clock at world time(s) t [s]: shape (n_obstacles,) or (T, n_obstacles)."""
-        tl = np.asarray(t, dtype=np.float64)[..., None] + self.clock_offset + np.zeros(self.n_obstacles)
+        tl = np.asarray(t, dtype=np.float64)[..., None] + self.clock_offset  # broadcasts to (..., n)
         if self.end_behavior is EndBehavior.LOOP:
             return np.mod(tl, self.durations)
         return np.minimum(tl, self.durations)
@@ -82,20 +85,19 @@ class SchedulePlayer:
         if self.n_obstacles == 0:
             shape = (*tl.shape, 2)
             return np.zeros(shape), np.zeros(shape)
-        # Segment index per obstacle: the last keyframe at or before tl.
-        seg = (self.times <= tl[..., None]).sum(axis=-1) - 1
-        np.clip(seg, 0, self._last_segment, out=seg)
-        r = self._rows
-        t0 = self.times[r, seg]
-        dt = self.times[r, seg + 1] - t0
+        # Flat index of the last keyframe at or before tl, for every obstacle and time.
+        seg = np.searchsorted(self._flat_key, tl + self._stride_offsets, side="right") - 1
+        np.clip(seg, self._seg_lo, self._seg_hi, out=seg)
+        t0 = self._flat_t[seg]
+        dt = self._flat_t[seg + 1] - t0
         u = np.clip((tl - t0) / dt, 0.0, 1.0)[..., None]
-        p0 = self.points[r, seg]
-        p1 = self.points[r, seg + 1]
+        p0 = self._flat_p[seg]
+        p1 = self._flat_p[seg + 1]
         dt = dt[..., None]
         if self.interpolation is Interpolation.LINEAR:
             return p0 + (p1 - p0) * u, (p1 - p0) / dt
-        m0 = self.tangents[r, seg]
-        m1 = self.tangents[r, seg + 1]
+        m0 = self._flat_m[seg]
+        m1 = self._flat_m[seg + 1]
         u2 = u * u
         u3 = u2 * u
         pos = (2 * u3 - 3 * u2 + 1) * p0 + (u3 - 2 * u2 + u) * m0 + (-2 * u3 + 3 * u2) * p1 + (u3 - u2) * m1

@@ -55,12 +55,12 @@ def test_recording_reads_back_with_plain_mcap(tmp_path):
     assert sum(rec.counts().values()) == n_messages
     assert rec.counts()["/scan"] == result.n_ticks
     assert len(rec.topic("/scan")[0][1].ranges) == 720
-    # Poses at 100 Hz from t = 0 to the end, on simulated time.
+    # Poses at 50 Hz from t = 0 to the end, on simulated time.
     poses = rec.topic("/robot/pose")
     assert poses[0][0] == 0.0 and poses[-1][0] == pytest.approx(result.sim_time)
     n_steps = round(result.sim_time / 0.005)
-    # every other physics step from t = 0, plus the final pose when it falls between
-    assert len(poses) == n_steps // 2 + 1 + n_steps % 2
+    # every fourth physics step from t = 0, plus the final pose when it falls between
+    assert len(poses) == n_steps // 4 + 1 + (n_steps % 4 > 0)
     assert rec.result["outcome"] == result.outcome.value
     assert rec.metadata["seed"] == 1 and rec.metadata["world"]["name"] == "world_000"
     assert len(rec.topic("/world/obstacles")[0][1].entities[0].cylinders) == result_obstacles(rec)

@@ -1,0 +1,118 @@
+"""Speed benchmarks (`make bench`): figures measured in one run, printed as a table.
+
+Measures, on one core:
+1. the bare loop: mj_step + obstacle schedules + 720-ray scans at 10 Hz, nothing else;
+2. the runner with `straight` and `stop` on a hard world, without and with MCAP recording;
+3. world generation (300 worlds) and MCAP recovery.
+Each figure is the best of `--repeat` runs (the least disturbed by other processes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import tempfile
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from dynabarn.mjcf import resolve_world
+from dynabarn.planners import get_planner
+from dynabarn.protocol import get_protocol
+from dynabarn.recording import McapRecorder, read_recording
+from dynabarn.schedule import SchedulePlayer
+from dynabarn.sim import Simulation, run_episode
+
+HARD_WORLD = 250
+
+
+def bare_loop(world_id: int, sim_seconds: float) -> float:
+    """Real-time factor of mj_step + schedules + scans and nothing else."""
+    sim = Simulation(resolve_world(world_id))
+    model, data, laser = sim.model, sim.data, sim.laser
+    player = SchedulePlayer(sim.world, clock_offset=1.0)
+    k = sim.config.steps_per_tick
+    dt = sim.config.dt
+    offsets = np.arange(k) * dt
+    n_ticks = round(sim_seconds / sim.config.control_period)
+    sim.reset((11.0, 0.0, math.pi))
+    n_obs = sim.radii.size
+    t0 = time.perf_counter()
+    step = 0
+    for _ in range(n_ticks):
+        xy, _ = player.positions_at(step * dt + offsets)
+        data.mocap_pos[:n_obs, :2] = xy[0]
+        mujoco.mj_kinematics(model, data)
+        laser.cast(model, data, data.qpos[2])
+        for j in range(k):
+            data.mocap_pos[:n_obs, :2] = xy[j]
+            mujoco.mj_step(model, data)
+            step += 1
+    return sim_seconds / (time.perf_counter() - t0)
+
+
+def runner(world_id: int, planner: str, seeds: range, *, record: bool) -> tuple[float, float]:
+    """(real-time factor over all episodes, simulated seconds) for the full runner."""
+    sim_time = 0.0
+    wall = 0.0
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in seeds:
+            observers = [McapRecorder(Path(tmp) / f"{seed}.mcap")] if record else []
+            t0 = time.perf_counter()
+            sim = Simulation(resolve_world(world_id))
+            r = run_episode(sim, get_planner(planner), get_protocol("barn"), seed=seed, observers=observers)
+            wall += time.perf_counter() - t0
+            sim_time += r.sim_time
+    return sim_time / wall, sim_time
+
+
+def recovery_speed() -> float:
+    """MB/s at which a recording is read back (100 s, ~1000 scans)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "r.mcap"
+        run_episode(
+            resolve_world(HARD_WORLD), get_planner("stop"), get_protocol("barn"), observers=[McapRecorder(path)]
+        )
+        t0 = time.perf_counter()
+        read_recording(path)
+        return path.stat().st_size / 1e6 / (time.perf_counter() - t0)
+
+
+def world_generation() -> float:
+    from dynabarn.profiles import get_profile_set
+    from dynabarn.worldset import generate_worlds
+
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        generate_worlds(get_profile_set("table1"), Path(tmp))
+        return time.perf_counter() - t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--repeat", type=int, default=3, help="runs per figure; the best counts (default: 3)")
+    args = parser.parse_args(argv)
+
+    def best(fn, *a, **kw):
+        return max((fn(*a, **kw) for _ in range(args.repeat)), key=lambda v: v if not isinstance(v, tuple) else v[0])
+
+    bare = best(bare_loop, HARD_WORLD, 100.0)
+    rows = [("bare loop: mj_step + schedules + scans", bare, 1.0)]
+    for planner, seeds in (("stop", range(1)), ("straight", range(20))):
+        for record in (False, True):
+            rtf, sim_s = best(runner, HARD_WORLD, planner, seeds, record=record)
+            label = f"runner, {planner} ({len(seeds)} ep, {sim_s:.0f} s sim), recording {'on' if record else 'off'}"
+            rows.append((label, rtf, rtf / bare))
+    print(f"world_{HARD_WORLD:03d} (hard), dt 0.005 s, 10 Hz control, one core")
+    print(f"{'measure':<66}{'x real time':>12}{'/ bare':>9}")
+    for label, rtf, ratio in rows:
+        print(f"{label:<66}{rtf:>12.0f}{ratio:>9.2f}")
+    print(f"{'generate 300 worlds [s]':<66}{world_generation():>12.2f}")
+    print(f"{'read back a recording [MB/s]':<66}{recovery_speed():>12.1f}")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
