@@ -1,0 +1,64 @@
+"""DynaBARN on MuJoCo: ground-robot navigation among moving obstacles.
+
+The public surface, in the order data flows: profiles -> trajectories -> worlds -> MJCF
+-> simulation -> recording.
+"""
+
+from dynabarn.errors import DynabarnError, ProfileError, WorldError
+from dynabarn.metrics import EpisodeResult, Outcome
+from dynabarn.mjcf import load_model, read_world, resolve_world, write_world
+from dynabarn.planners import (
+    EpisodeInfo,
+    Observation,
+    ObstacleState,
+    Planner,
+    available_planners,
+    get_planner,
+    register_planner,
+)
+from dynabarn.profiles import PROFILE_SETS, MotionProfile, ProfileSet, get_profile_set
+from dynabarn.protocol import PROTOCOLS, EvalProtocol, get_protocol, register_protocol
+from dynabarn.recording import McapRecorder, Recording, read_recording
+from dynabarn.schedule import SchedulePlayer
+from dynabarn.sim import SimConfig, Simulation, run_episode
+from dynabarn.trajectory import Trajectory, generate_trajectory
+from dynabarn.world import PAPER60, WorldSpec, generate_world
+
+__all__ = [
+    "PAPER60",
+    "PROFILE_SETS",
+    "PROTOCOLS",
+    "DynabarnError",
+    "EpisodeInfo",
+    "EpisodeResult",
+    "EvalProtocol",
+    "McapRecorder",
+    "MotionProfile",
+    "Observation",
+    "ObstacleState",
+    "Outcome",
+    "Planner",
+    "ProfileError",
+    "ProfileSet",
+    "Recording",
+    "SchedulePlayer",
+    "SimConfig",
+    "Simulation",
+    "Trajectory",
+    "WorldError",
+    "WorldSpec",
+    "available_planners",
+    "generate_trajectory",
+    "generate_world",
+    "get_planner",
+    "get_profile_set",
+    "get_protocol",
+    "load_model",
+    "read_recording",
+    "read_world",
+    "register_planner",
+    "register_protocol",
+    "resolve_world",
+    "run_episode",
+    "write_world",
+]

@@ -1,0 +1,44 @@
+import dynabarn
+
+
+def test_star_import_exposes_everything_in_all():
+    namespace: dict = {}
+    exec("from dynabarn import *", namespace)
+    missing = [name for name in dynabarn.__all__ if name not in namespace]
+    assert not missing
+
+
+def test_modules_import_only_earlier_stages():
+    """Data flows one way: a module never imports a later stage."""
+    import ast
+    from pathlib import Path
+
+    order = [
+        "errors",
+        "profiles",
+        "trajectory",
+        "world",
+        "schedule",
+        "robot",
+        "mjcf",
+        "worldset",
+        "release",
+        "plot",
+        "protocol",
+        "metrics",
+        "planners",
+        "sim",
+        "wire",
+        "recording",
+    ]
+    root = Path(dynabarn.__file__).parent
+    for i, name in enumerate(order):
+        path = root / name / "__init__.py" if (root / name).is_dir() else root / f"{name}.py"
+        tree = ast.parse(path.read_text())
+        imported = {
+            node.module.split(".")[1]
+            for node in ast.walk(tree)
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("dynabarn.")
+        }
+        later = imported & set(order[i + 1 :])
+        assert not later, f"{name} imports later stage(s) {later}"
