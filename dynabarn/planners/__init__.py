@@ -13,11 +13,13 @@ from importlib.metadata import entry_points
 
 from dynabarn.errors import DynabarnError, unknown_choice
 from dynabarn.planners.base import EpisodeInfo, Observation, ObstacleState, Planner
+from dynabarn.planners.dwa import DWAPlanner
 from dynabarn.planners.simple import StopPlanner, StraightPlanner
 
 ENTRY_POINT_GROUP = "dynabarn.planners"
 
 _BUILTIN: dict[str, Callable[..., Planner]] = {
+    "dwa": DWAPlanner,
     "straight": StraightPlanner,
     "stop": StopPlanner,
 }

@@ -1,0 +1,204 @@
+"""`dwa`: the Dynamic Window Approach (Fox, Burgard, Thrun 1997) as ROS's
+base_local_planner / dwa_local_planner do it, vectorised.
+
+Per control tick:
+1. update the rolling local costmap from the scan (`costmap.py`);
+2. take the global plan (Dijkstra on the static map) and a local goal `lookahead` metres
+   along it;
+3. sample (v, w) inside the dynamic window reachable within one control period under the
+   acceleration limits (`vx_samples` x `vth_samples`, plus w = 0 and the current command);
+4. forward-simulate each sample as a constant-velocity arc for `sim_time` seconds;
+5. reject trajectories that pass within `collision_radius` of an obstacle cell; score the
+   rest as dwa_local_planner does:
+   `path_distance_bias * d(end, path) + goal_distance_bias * d(front, local goal)
+   + path_distance_bias * d(front, path) + occdist_scale * max cost`
+   (distances in costmap cells, as ROS counts them; `front` is the end point pushed
+   `forward_point_distance` ahead along the final heading);
+6. if nothing is admissible, escape: back up at `escape_vel` turning to the freer side,
+   or rotate in place when even that is blocked.
+
+Every parameter is a field of `DWAConfig` with its default; `--planner-config` overrides
+them (`dwa.max_vel_x=1.5` style keys, or a JSON file).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields
+
+import numpy as np
+
+from dynabarn.planners.base import EpisodeInfo, Observation, Planner
+from dynabarn.planners.costmap import CostmapConfig, LocalCostmap
+from dynabarn.planners.global_planner import GlobalPlanner
+
+
+@dataclass
+class DWAConfig:
+    max_vel_x: float = 2.0
+    """Top forward speed sampled [m/s] (the Jackal's)."""
+    min_vel_x: float = 0.0
+    """Lowest forward speed sampled in normal operation [m/s]; backing up is the escape."""
+    max_vel_theta: float = 3.0
+    """Largest |w| sampled [rad/s]."""
+    acc_lim_x: float = 2.5
+    """Linear acceleration limit the window assumes [m/s^2] (base_local_planner default)."""
+    acc_lim_theta: float = 5.0
+    """Angular acceleration limit the window assumes [rad/s^2]."""
+    sim_time: float = 1.7
+    """Forward-simulation horizon [s] (base_local_planner default)."""
+    sim_dt: float = 0.1
+    """Forward-simulation step [s]."""
+    vx_samples: int = 8
+    vth_samples: int = 21
+    path_distance_bias: float = 32.0
+    """Weight of staying on the global path (ROS default)."""
+    goal_distance_bias: float = 24.0
+    """Weight of approaching the local goal (ROS default)."""
+    occdist_scale: float = 0.02
+    """Weight of the highest cost along the trajectory (ROS default 0.01)."""
+    forward_point_distance: float = 0.325
+    """Distance ahead of the end pose scored against the goal and path [m] (ROS default)."""
+    lookahead: float = 3.0
+    """Local goal distance along the global path [m]."""
+    collision_radius: float = 0.36
+    """Trajectories passing closer than this to an obstacle cell are rejected [m]
+    (the footprint's circumscribed radius 0.333 plus a margin)."""
+    escape_vel: float = -0.3
+    """Backing-up speed when nothing is admissible [m/s]."""
+    costmap: CostmapConfig = field(default_factory=CostmapConfig)
+
+    @classmethod
+    def from_kwargs(cls, **kwargs) -> DWAConfig:
+        cm = dict(kwargs.pop("costmap", {}) or {})
+        for key in [k for k in kwargs if k.startswith("costmap.")]:
+            cm[key.split(".", 1)[1]] = kwargs.pop(key)
+        known = {f.name for f in fields(cls)}
+        unknown = set(kwargs) - known
+        if unknown:
+            raise TypeError(f"unknown DWA parameter(s) {sorted(unknown)}; known: {sorted(known)}")
+        cfg = cls(**kwargs, costmap=CostmapConfig(**cm))
+        if cfg.vx_samples < 1 or cfg.vth_samples < 1 or cfg.sim_time <= 0 or cfg.sim_dt <= 0:
+            raise TypeError("vx_samples, vth_samples, sim_time and sim_dt must be positive")
+        return cfg
+
+
+def rollout(pose: np.ndarray, v: np.ndarray, w: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Constant-velocity arcs: poses (n_samples, n_times, 3) from pose (3,) for each (v, w)."""
+    x0, y0, th0 = float(pose[0]), float(pose[1]), float(pose[2])
+    v = v[:, None]
+    w = w[:, None]
+    t = times[None, :]
+    th = th0 + w * t
+    straight = np.abs(w) < 1e-6
+    w_safe = np.where(straight, 1.0, w)
+    x_arc = x0 + v / w_safe * (np.sin(th) - math.sin(th0))
+    y_arc = y0 - v / w_safe * (np.cos(th) - math.cos(th0))
+    x_line = x0 + v * t * math.cos(th0)
+    y_line = y0 + v * t * math.sin(th0)
+    x = np.where(straight, x_line, x_arc)
+    y = np.where(straight, y_line, y_arc)
+    return np.stack([x, y, np.broadcast_to(th, x.shape)], axis=-1)
+
+
+def distance_to_polyline(points: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """Distance from each point (n, 2) to the polyline path (m, 2)."""
+    if len(path) == 1:
+        return np.hypot(*(points - path[0]).T)
+    a = path[:-1][None]  # (1, m-1, 2)
+    ab = (path[1:] - path[:-1])[None]
+    ap = points[:, None, :] - a
+    denom = np.maximum((ab * ab).sum(-1), 1e-12)
+    u = np.clip((ap * ab).sum(-1) / denom, 0.0, 1.0)
+    closest = a + u[..., None] * ab
+    return np.hypot(*(points[:, None, :] - closest).transpose(2, 0, 1)).min(axis=1)
+
+
+class DWAPlanner(Planner):
+    """Dynamic Window Approach local planner with a Dijkstra global plan."""
+
+    name = "dwa"
+
+    def __init__(self, **config) -> None:
+        self.cfg = DWAConfig.from_kwargs(**config)
+        self._times = np.arange(1, round(self.cfg.sim_time / self.cfg.sim_dt) + 1) * self.cfg.sim_dt
+        self._last_plan = np.zeros((0, 2))
+
+    def config(self) -> dict:
+        return asdict(self.cfg)
+
+    def reset(self, info: EpisodeInfo) -> None:
+        self.info = info
+        self.costmap = LocalCostmap(self.cfg.costmap)
+        inflation = 0.5 * math.hypot(*info.footprint) + 0.05
+        self.global_planner = GlobalPlanner(info.walls, info.goal, inflation=inflation)
+        self.period = info.control_period
+        self._last_plan = np.zeros((0, 2))
+        self._prev = np.zeros(2)
+
+    def debug(self) -> dict:
+        return {"local_plan": self._last_plan} if len(self._last_plan) else {}
+
+    def act(self, obs: Observation) -> tuple[float, float]:
+        cfg, info = self.cfg, self.info
+        pose = obs.pose
+        self.costmap.update(pose, obs.scan, info.laser_angles, info.laser_offset, info.laser_range[1])
+        local_goal, path = self.global_planner.local_goal(pose[0], pose[1], cfg.lookahead)
+        # The part of the plan near the robot (scored against), at most `lookahead` + 1 m long.
+        near = path[: max(2, int((cfg.lookahead + 1.0) / self.global_planner.resolution) + 2)]
+
+        v_now, w_now = float(obs.velocity[0]), float(obs.velocity[1])  # odometry, as in ROS
+        dv, dw = cfg.acc_lim_x * self.period, cfg.acc_lim_theta * self.period
+        v_lo, v_hi = max(cfg.min_vel_x, v_now - dv), min(cfg.max_vel_x, v_now + dv)
+        w_lo, w_hi = max(-cfg.max_vel_theta, w_now - dw), min(cfg.max_vel_theta, w_now + dw)
+        if v_lo > v_hi:  # coming out of an escape: let the window reach min_vel_x
+            v_lo = v_hi = min(max(cfg.min_vel_x, v_now + dv), cfg.max_vel_x)
+        vs = np.linspace(v_lo, v_hi, cfg.vx_samples)
+        ws = np.unique(np.concatenate([np.linspace(w_lo, w_hi, cfg.vth_samples), [0.0] if w_lo <= 0 <= w_hi else []]))
+        v, w = np.meshgrid(vs, ws, indexing="ij")
+        v, w = v.ravel(), w.ravel()
+
+        traj = rollout(pose, v, w, self._times)  # (N, K, 3)
+        xy = traj[..., :2]
+        dist = self.costmap.lookup(xy, self.costmap.distance, outside=np.inf)  # (N, K)
+        ok = dist.min(axis=1) >= cfg.collision_radius
+        if not ok.any():
+            return self._escape(obs)
+        res = self.costmap.cfg.resolution
+        end = xy[:, -1]
+        heading = traj[:, -1, 2]
+        front = end + cfg.forward_point_distance * np.column_stack([np.cos(heading), np.sin(heading)])
+        path_cost = distance_to_polyline(end, near) / res
+        align_cost = distance_to_polyline(front, near) / res
+        goal_cost = np.hypot(*(front - local_goal).T) / res
+        occ_cost = self.costmap.lookup(xy).max(axis=1)
+        total = (
+            cfg.path_distance_bias * (path_cost + align_cost)
+            + cfg.goal_distance_bias * goal_cost
+            + cfg.occdist_scale * occ_cost
+        )
+        total[~ok] = np.inf
+        best = int(np.argmin(total))
+        self._last_plan = xy[best]
+        self._prev = np.array([v[best], w[best]])
+        return float(v[best]), float(w[best])
+
+    def _escape(self, obs: Observation) -> tuple[float, float]:
+        """Nothing admissible: back up turning to the freer side, else rotate in place."""
+        cfg = self.cfg
+        angles = self.info.laser_angles
+        left = obs.scan[angles > 0].mean()
+        right = obs.scan[angles < 0].mean()
+        turn = 1.0 if left >= right else -1.0
+        ws = turn * np.linspace(0.0, cfg.max_vel_theta * 0.5, 5)
+        traj = rollout(obs.pose, np.full(ws.shape, cfg.escape_vel), ws, self._times[self._times <= 1.0])
+        dist = self.costmap.lookup(traj[..., :2], self.costmap.distance, outside=np.inf).min(axis=1)
+        here = float(self.costmap.lookup(obs.pose[None, :2], self.costmap.distance, outside=np.inf)[0])
+        k = int(np.argmax(dist))
+        if dist[k] > here:
+            self._last_plan = traj[k, :, :2]
+            self._prev = np.array([cfg.escape_vel, ws[k]])
+        else:
+            self._last_plan = np.zeros((0, 2))
+            self._prev = np.array([0.0, turn * cfg.max_vel_theta * 0.5])
+        return float(self._prev[0]), float(self._prev[1])
