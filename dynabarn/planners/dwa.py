@@ -169,8 +169,14 @@ class DWAPlanner(Planner):
         heading = traj[:, -1, 2]
         front = end + cfg.forward_point_distance * np.column_stack([np.cos(heading), np.sin(heading)])
         path_cost = distance_to_polyline(end, near) / res
-        align_cost = distance_to_polyline(front, near) / res
-        goal_cost = np.hypot(*(front - local_goal).T) / res
+        if np.hypot(*(pose[:2] - info.goal)) < cfg.lookahead:
+            # The goal itself is in reach: bring the robot's centre (not the point ahead of
+            # it) onto the goal, and stop scoring the heading (dwa_local_planner's goal latch).
+            align_cost = 0.0
+            goal_cost = np.hypot(*(end - info.goal).T) / res
+        else:
+            align_cost = distance_to_polyline(front, near) / res
+            goal_cost = np.hypot(*(front - local_goal).T) / res
         occ_cost = self.costmap.lookup(xy).max(axis=1)
         total = (
             cfg.path_distance_bias * (path_cost + align_cost)
