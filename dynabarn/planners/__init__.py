@@ -15,11 +15,13 @@ from dynabarn.errors import DynabarnError, unknown_choice
 from dynabarn.planners.base import EpisodeInfo, Observation, ObstacleState, Planner
 from dynabarn.planners.dwa import DWAPlanner
 from dynabarn.planners.simple import StopPlanner, StraightPlanner
+from dynabarn.planners.teb import TEBPlanner
 
 ENTRY_POINT_GROUP = "dynabarn.planners"
 
 _BUILTIN: dict[str, Callable[..., Planner]] = {
     "dwa": DWAPlanner,
+    "teb": TEBPlanner,
     "straight": StraightPlanner,
     "stop": StopPlanner,
 }

@@ -1,0 +1,284 @@
+"""`teb`: a Timed Elastic Band (Roesmann et al. 2012, 2013), optimised with sparse least
+squares, after teb_local_planner.
+
+The band is a sequence of poses s_i = (x_i, y_i, theta_i), i = 0..N-1, and the time
+intervals dT_i between them. The first pose is the robot's, the last the local goal
+(`lookahead` metres along the Dijkstra global plan, heading along the plan); the poses in
+between and all dT_i (as log dT, so intervals stay positive) are optimised with
+`scipy.optimize.least_squares` (Levenberg-Marquardt, MINPACK) against teb_local_planner's
+soft constraints, each a weighted residual. The Jacobian is banded (each residual touches
+one or two neighbouring poses); it is computed by forward differences in a single
+batched evaluation of all residuals, which for a band this small is faster than scipy's
+sparse finite differences:
+
+| term | residual | weight (default) |
+|---|---|---|
+| time optimality | dT_i | `weight_optimaltime` 1 |
+| non-holonomic kinematics | (cos th_i + cos th_i+1) dy_i - (sin th_i + sin th_i+1) dx_i | `weight_kinematics_nh` 1000 |
+| forward drive | max(0, -(direction of motion . heading)) | `weight_kinematics_forward_drive` 1 |
+| velocity limits | max(0, abs(v_i) - max_vel_x), max(0, abs(w_i) - max_vel_theta) | `weight_max_vel_x` 2, `weight_max_vel_theta` 1 |
+| acceleration limits | max(0, abs(dv_i / dt) - acc_lim_x), max(0, abs(dw_i / dt) - acc_lim_theta) | `weight_acc_lim_x` 1, `weight_acc_lim_theta` 1 |
+| obstacle clearance | max(0, min_obstacle_dist - d(s_i, nearest laser point)) | `weight_obstacle` 50 |
+| inflation | max(0, inflation_dist - d(s_i, nearest laser point)) | `weight_inflation` 0.5 |
+
+Laser returns within `obstacle_range` (one in `obstacle_stride` beams) are the obstacles,
+as teb_local_planner sees costmap cells without a costmap converter; like the paper's
+TEB it does not predict obstacle motion. The band is warm-started from the previous tick
+(resampled to start at the robot). The command is the first segment's velocity:
+v = |s_1 - s_0| / dT_0 (signed by direction), w = (theta_1 - theta_0) / dT_0. When the band's
+first poses stay in collision after optimisation, the planner backs up away from the
+nearest obstacle (recovery), as move_base would.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from dynabarn.planners.base import EpisodeInfo, Observation, Planner
+from dynabarn.planners.global_planner import GlobalPlanner
+
+
+@dataclass
+class TEBConfig:
+    n_poses: int = 12
+    """Poses in the band (including start and goal)."""
+    lookahead: float = 3.0
+    """Local goal distance along the global plan [m]."""
+    max_vel_x: float = 2.0
+    max_vel_x_backwards: float = 0.5
+    max_vel_theta: float = 3.0
+    acc_lim_x: float = 2.5
+    acc_lim_theta: float = 5.0
+    min_obstacle_dist: float = 0.45
+    """Required distance from a band pose to a laser point [m] (footprint radius 0.333 + margin)."""
+    inflation_dist: float = 0.9
+    obstacle_range: float = 5.0
+    obstacle_stride: int = 4
+    weight_optimaltime: float = 1.0
+    weight_kinematics_nh: float = 1000.0
+    weight_kinematics_forward_drive: float = 1.0
+    weight_max_vel_x: float = 2.0
+    weight_max_vel_theta: float = 1.0
+    weight_acc_lim_x: float = 1.0
+    weight_acc_lim_theta: float = 1.0
+    weight_obstacle: float = 50.0
+    weight_inflation: float = 0.5
+    max_iterations: int = 12
+    """Residual evaluations allowed per tick (least_squares `max_nfev`)."""
+
+    @classmethod
+    def from_kwargs(cls, **kwargs) -> TEBConfig:
+        known = {f.name for f in fields(cls)}
+        unknown = set(kwargs) - known
+        if unknown:
+            raise TypeError(f"unknown TEB parameter(s) {sorted(unknown)}; known: {sorted(known)}")
+        cfg = cls(**kwargs)
+        if cfg.n_poses < 3:
+            raise TypeError("n_poses must be at least 3")
+        return cfg
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+class TEBPlanner(Planner):
+    """Timed Elastic Band local planner with a Dijkstra global plan."""
+
+    name = "teb"
+
+    def __init__(self, **config) -> None:
+        self.cfg = TEBConfig.from_kwargs(**config)
+        n = self.cfg.n_poses
+        self._n_free = n - 2
+        c = self.cfg
+        self._sqrt_weights = np.sqrt(
+            [
+                c.weight_optimaltime,
+                c.weight_kinematics_nh,
+                c.weight_kinematics_forward_drive,
+                c.weight_max_vel_x,
+                c.weight_max_vel_theta,
+                c.weight_acc_lim_x,
+                c.weight_acc_lim_theta,
+                c.weight_obstacle,
+                c.weight_inflation,
+            ]
+        )
+        self._band: np.ndarray | None = None  # (n, 3)
+        self._dts: np.ndarray | None = None  # (n - 1,)
+
+    def config(self) -> dict:
+        return asdict(self.cfg)
+
+    def reset(self, info: EpisodeInfo) -> None:
+        self.info = info
+        inflation = 0.5 * math.hypot(*info.footprint) + 0.05
+        self.global_planner = GlobalPlanner(info.walls, info.goal, inflation=inflation)
+        self._band = None
+        self._dts = None
+        self._beams = np.arange(0, len(info.laser_angles), self.cfg.obstacle_stride)
+
+    def debug(self) -> dict:
+        return {"local_plan": self._band[:, :2]} if self._band is not None else {}
+
+    # -- band construction -----------------------------------------------------------------
+    def _initial_band(self, start: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = self.cfg.n_poses
+        u = np.linspace(0.0, 1.0, n)[:, None]
+        xy = start[None, :2] + u * (goal[None, :2] - start[None, :2])
+        heading = math.atan2(goal[1] - start[1], goal[0] - start[0])
+        th = np.full(n, heading)
+        th[0], th[-1] = start[2], goal[2]
+        band = np.column_stack([xy, th])
+        seg = np.hypot(*np.diff(band[:, :2], axis=0).T)
+        return band, np.maximum(seg / (0.7 * self.cfg.max_vel_x), 0.05)
+
+    def _warm_band(self, start: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Previous band re-anchored at the robot and the new goal, resampled along its length."""
+        if self._band is None:
+            return self._initial_band(start, goal)
+        prev = self._band
+        # Drop the poses the robot has passed: keep from the band pose closest to it.
+        k = int(np.argmin(np.hypot(*(prev[:, :2] - start[:2]).T)))
+        pts = np.vstack([start[None, :2], prev[k + 1 : -1, :2], goal[None, :2]])
+        seg = np.hypot(*np.diff(pts, axis=0).T)
+        along = np.concatenate([[0.0], np.cumsum(seg)])
+        if along[-1] < 1e-6:
+            return self._initial_band(start, goal)
+        s = np.linspace(0.0, along[-1], self.cfg.n_poses)
+        xy = np.column_stack([np.interp(s, along, pts[:, 0]), np.interp(s, along, pts[:, 1])])
+        d = np.diff(xy, axis=0)
+        th = np.empty(self.cfg.n_poses)
+        th[:-1] = np.arctan2(d[:, 1], d[:, 0])
+        th[0], th[-1] = start[2], goal[2]
+        dseg = np.hypot(*d.T)
+        total_time = float(self._dts[k:].sum()) if k < len(self._dts) else along[-1] / self.cfg.max_vel_x
+        dts = np.maximum(dseg / max(along[-1], 1e-6) * max(total_time, 0.1), 0.02)
+        return np.column_stack([xy, th]), dts
+
+    # -- optimisation --------------------------------------------------------------------------
+    def _pack(self, band: np.ndarray, dts: np.ndarray) -> np.ndarray:
+        return np.concatenate([band[1:-1].ravel(), np.log(dts)])
+
+    def _unpack(self, z: np.ndarray, start: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Band (..., n, 3) and intervals (..., n - 1) from variables z (..., n_var)."""
+        m = self._n_free
+        lead = z.shape[:-1]
+        inner = z[..., : 3 * m].reshape(*lead, m, 3)
+        band = np.concatenate(
+            [np.broadcast_to(start, (*lead, 1, 3)), inner, np.broadcast_to(goal, (*lead, 1, 3))], axis=-2
+        )
+        return band, np.exp(z[..., 3 * m :])
+
+    def _residuals(self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray) -> np.ndarray:
+        """Weighted residuals (..., n_res) for variables z (..., n_var): batched over leading axes."""
+        cfg = self.cfg
+        band, dts = self._unpack(z, start, goal)
+        x, y, th = band[..., 0], band[..., 1], band[..., 2]
+        dx, dy = np.diff(x, axis=-1), np.diff(y, axis=-1)
+        dth = _wrap(np.diff(th, axis=-1))
+        dist = np.hypot(dx, dy)
+        c, s = np.cos(th), np.sin(th)
+        # Direction of motion relative to the heading: + forwards, - backwards.
+        along = dx * c[..., :-1] + dy * s[..., :-1]
+        v = np.sign(along) * dist / dts
+        w = dth / dts
+        nh = (c[..., :-1] + c[..., 1:]) * dy - (s[..., :-1] + s[..., 1:]) * dx
+        fwd = np.maximum(0.0, -along)
+        v_over = np.maximum(0.0, v - cfg.max_vel_x) + np.maximum(0.0, -v - cfg.max_vel_x_backwards)
+        w_over = np.maximum(0.0, np.abs(w) - cfg.max_vel_theta)
+        mid_dt = 0.5 * (dts[..., :-1] + dts[..., 1:])
+        a_over = np.maximum(0.0, np.abs(np.diff(v, axis=-1) / mid_dt) - cfg.acc_lim_x)
+        alpha_over = np.maximum(0.0, np.abs(np.diff(w, axis=-1) / mid_dt) - cfg.acc_lim_theta)
+        if len(obstacles):
+            ox, oy = obstacles[:, 0], obstacles[:, 1]
+            d = np.hypot(x[..., 1:-1, None] - ox, y[..., 1:-1, None] - oy).min(axis=-1)
+        else:
+            d = np.full(x[..., 1:-1].shape, np.inf)
+        w_ = self._sqrt_weights
+        return np.concatenate(
+            [
+                w_[0] * dts,
+                w_[1] * nh,
+                w_[2] * fwd,
+                w_[3] * v_over,
+                w_[4] * w_over,
+                w_[5] * a_over,
+                w_[6] * alpha_over,
+                w_[7] * np.maximum(0.0, cfg.min_obstacle_dist - d),
+                w_[8] * np.maximum(0.0, cfg.inflation_dist - d),
+            ],
+            axis=-1,
+        )
+
+    def _jacobian(self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray) -> np.ndarray:
+        """Forward-difference Jacobian, all columns in one batched residual evaluation."""
+        h = 1e-6 * np.maximum(1.0, np.abs(z))
+        batch = z[None, :] + np.diag(h)
+        r = self._residuals(np.vstack([z[None], batch]), start, goal, obstacles)
+        return ((r[1:] - r[0]) / h[:, None]).T
+
+    def _obstacle_points(self, obs: Observation) -> np.ndarray:
+        info = self.info
+        idx = self._beams
+        r = obs.scan[idx]
+        keep = (r < self.cfg.obstacle_range) & (r < info.laser_range[1] - 1e-6)
+        a = info.laser_angles[idx][keep] + obs.pose[2]
+        x0, y0, yaw = obs.pose
+        lx = x0 + math.cos(yaw) * info.laser_offset[0]
+        ly = y0 + math.sin(yaw) * info.laser_offset[0]
+        return np.column_stack([lx + r[keep] * np.cos(a), ly + r[keep] * np.sin(a)])
+
+    def act(self, obs: Observation) -> tuple[float, float]:
+        cfg = self.cfg
+        start = obs.pose.astype(np.float64).copy()
+        local_goal, path = self.global_planner.local_goal(start[0], start[1], cfg.lookahead)
+        if np.hypot(*(start[:2] - self.info.goal)) < cfg.lookahead:
+            goal_heading = math.atan2(local_goal[1] - start[1], local_goal[0] - start[0])
+        else:
+            k = min(int(np.searchsorted(np.cumsum(np.hypot(*np.diff(path, axis=0).T)), cfg.lookahead)), len(path) - 2)
+            goal_heading = math.atan2(path[k + 1, 1] - path[k, 1], path[k + 1, 0] - path[k, 0])
+        goal = np.array([local_goal[0], local_goal[1], goal_heading])
+        obstacles = self._obstacle_points(obs)
+        band, dts = self._warm_band(start, goal)
+        # Headings unwrapped around the start so the optimiser never sees a 2 pi jump.
+        band[:, 2] = start[2] + _wrap(band[:, 2] - start[2])
+        goal[2] = band[-1, 2]
+        z0 = self._pack(band, dts)
+        sol = least_squares(
+            self._residuals,
+            z0,
+            jac=self._jacobian,
+            args=(start, goal, obstacles),
+            method="lm",
+            max_nfev=cfg.max_iterations,
+            x_scale="jac",
+        )
+        band, dts = self._unpack(sol.x, start, goal)
+        self._band, self._dts = band, dts
+        if len(obstacles):
+            d = np.hypot(band[:3, None, 0] - obstacles[None, :, 0], band[:3, None, 1] - obstacles[None, :, 1]).min()
+            if d < 0.5 * math.hypot(*self.info.footprint):
+                return self._recover(start, obstacles)
+        d0 = band[1, :2] - band[0, :2]
+        along = d0[0] * math.cos(start[2]) + d0[1] * math.sin(start[2])
+        v = math.copysign(math.hypot(*d0), along) / dts[0]
+        w = float(_wrap(np.array([band[1, 2] - band[0, 2]]))[0]) / dts[0]
+        v = min(max(v, -cfg.max_vel_x_backwards), cfg.max_vel_x)
+        w = min(max(w, -cfg.max_vel_theta), cfg.max_vel_theta)
+        return v, w
+
+    def _recover(self, start: np.ndarray, obstacles: np.ndarray) -> tuple[float, float]:
+        """Back up away from the nearest obstacle point, turning the other way."""
+        self._band = None
+        k = int(np.argmin(np.hypot(*(obstacles - start[:2]).T)))
+        rel = obstacles[k] - start[:2]
+        bearing = _wrap(np.array([math.atan2(rel[1], rel[0]) - start[2]]))[0]
+        if abs(bearing) < math.pi / 2:  # obstacle ahead: reverse, turning away
+            return -self.cfg.max_vel_x_backwards, -math.copysign(1.0, bearing)
+        return 0.5, math.copysign(1.0, bearing)
