@@ -143,7 +143,8 @@ class DWAPlanner(Planner):
         cfg, info = self.cfg, self.info
         pose = obs.pose
         self.costmap.update(pose, obs.scan, info.laser_angles, info.laser_offset, info.laser_range[1])
-        local_goal, path = self.global_planner.local_goal(pose[0], pose[1], cfg.lookahead)
+        path = self.global_planner.plan_around(pose[0], pose[1], self.costmap, block_radius=cfg.collision_radius)
+        local_goal, path = self.global_planner.local_goal(pose[0], pose[1], cfg.lookahead, path)
         # The part of the plan near the robot (scored against), at most `lookahead` + 1 m long.
         near = path[: max(2, int((cfg.lookahead + 1.0) / self.global_planner.resolution) + 2)]
 

@@ -7,6 +7,12 @@ Dijkstra runs once per (map, goal) from the goal over the 8-connected free cells
 yields a cost-to-go field with predecessors; any robot position then gets its path by
 following predecessors, and a local goal by walking `lookahead` metres along that path.
 The field is cached, so episodes in the same layout share it.
+
+Replanning as needed: the static map does not know the obstacles the laser sees. When the
+path's stretch inside the local costmap passes through an obstacle (closer than
+`block_radius`), `plan_around` runs Dijkstra inside the costmap window from the robot,
+with edge costs raised by the inflated costs (navfn-style) and blocked cells removed, and
+joins it to the static field at the window cell with the least total cost to the goal.
 """
 
 from __future__ import annotations
@@ -94,6 +100,7 @@ class GlobalPlanner:
         f = self.field
         self._cx = x0 + (np.arange(f.nx) + 0.5) * resolution
         self._cy = y0 + (np.arange(f.ny) + 0.5) * resolution
+        self._replanner: LocalReplanner | None = None
 
     def cost_to_go(self, x: float, y: float) -> float:
         f = self.field
@@ -119,9 +126,62 @@ class GlobalPlanner:
         pts = np.column_stack([self._cx[ij[1]], self._cy[ij[0]]])
         return np.vstack([[x, y], pts[1:], self.goal])
 
-    def local_goal(self, x: float, y: float, lookahead: float) -> tuple[np.ndarray, np.ndarray]:
-        """(point `lookahead` metres along the path from (x, y), the path itself), world frame."""
+    def plan_around(self, x: float, y: float, costmap, *, block_radius: float) -> np.ndarray:
+        """The static plan, or, when it runs into an obstacle the costmap holds, a plan that
+        goes around it inside the costmap window and follows the static field beyond."""
         path = self.plan(x, y)
+        dist = costmap.lookup(path, costmap.distance, outside=np.inf)
+        if dist[1:].min(initial=np.inf) >= block_radius:
+            return path
+        n = costmap.n
+        if self._replanner is None or self._replanner.n != n:
+            self._replanner = LocalReplanner(n, costmap.cfg.resolution)
+        row, col = costmap.world_to_cell(np.array([x, y]))
+        if not (0 <= row < n and 0 <= col < n):
+            return path
+        blocked = costmap.distance < block_radius
+        blocked[row, col] = False  # never block the start
+        local, pred = self._replanner.search(int(row * n + col), costmap.cost, blocked)
+        res = costmap.cfg.resolution
+        centres_x = (costmap.origin[0] + np.arange(n) + 0.5) * res
+        centres_y = (costmap.origin[1] + np.arange(n) + 0.5) * res
+        gx, gy = np.meshgrid(centres_x, centres_y)
+        f = self.field
+        cells_i = np.clip(((gy - BOUNDS[2]) / self.resolution).astype(np.int64), 0, f.ny - 1)
+        cells_j = np.clip(((gx - BOUNDS[0]) / self.resolution).astype(np.int64), 0, f.nx - 1)
+        total = local + f.cost[cells_i, cells_j].ravel()
+        # Hand over to the static field only on the window's border (or at the goal):
+        # inside, the static cost-to-go ignores the obstacles the detour goes around.
+        handover = self._border_mask(n).copy()
+        grow, gcol = costmap.world_to_cell(self.goal)
+        if 0 <= grow < n and 0 <= gcol < n:
+            handover[grow, gcol] = True
+        total[~handover.ravel()] = np.inf
+        best = int(np.argmin(total))
+        if not math.isfinite(total[best]):
+            return path
+        chain = []
+        c = best
+        while c >= 0 and len(chain) < n * n:
+            chain.append(c)
+            c = pred[c]
+        r, cc = np.divmod(np.array(chain[::-1]), n)
+        detour = np.column_stack([centres_x[cc], centres_y[r]])
+        onward = self.plan(float(detour[-1, 0]), float(detour[-1, 1]))
+        return np.vstack([[x, y], detour[1:], onward[1:]])
+
+    @staticmethod
+    @functools.cache
+    def _border_mask(n: int) -> np.ndarray:
+        mask = np.zeros((n, n), dtype=bool)
+        mask[0, :] = mask[-1, :] = mask[:, 0] = mask[:, -1] = True
+        return mask
+
+    def local_goal(
+        self, x: float, y: float, lookahead: float, path: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(point `lookahead` metres along the path from (x, y), the path itself), world frame."""
+        path = self.plan(x, y) if path is None else path
         seg = np.hypot(*np.diff(path, axis=0).T)
         along = np.concatenate([[0.0], np.cumsum(seg)])
         if along[-1] <= lookahead:
@@ -129,6 +189,46 @@ class GlobalPlanner:
         k = int(np.searchsorted(along, lookahead))
         u = (lookahead - along[k - 1]) / max(seg[k - 1], 1e-12)
         return path[k - 1] + u * (path[k] - path[k - 1]), path
+
+
+class LocalReplanner:
+    """Dijkstra inside a costmap window, joined to a static cost-to-go field."""
+
+    def __init__(self, n: int, resolution: float, *, cost_factor: float = 3.0) -> None:
+        from scipy.sparse import csr_matrix
+
+        self.n = n
+        self.resolution = resolution
+        self.cost_factor = cost_factor
+        idx = np.arange(n * n)
+        i, j = np.divmod(idx, n)
+        src, dst, length = [], [], []
+        for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1), (0, -1), (-1, 0), (-1, -1), (-1, 1)):
+            ii, jj = i + di, j + dj
+            ok = (ii >= 0) & (ii < n) & (jj >= 0) & (jj < n)
+            src.append(idx[ok])
+            dst.append(ii[ok] * n + jj[ok])
+            length.append(np.full(int(ok.sum()), resolution * math.hypot(di, dj)))
+        self._src = np.concatenate(src)
+        self._dst = np.concatenate(dst)
+        self._len = np.concatenate(length)
+        order = np.lexsort((self._dst, self._src))
+        self._src, self._dst, self._len = self._src[order], self._dst[order], self._len[order]
+        self._graph = csr_matrix((self._len.copy(), (self._src, self._dst)), shape=(n * n, n * n))
+        self._graph.sort_indices()
+
+    def search(self, start_cell: int, cost: np.ndarray, blocked: np.ndarray) -> tuple[np.ndarray, list[int]]:
+        """Distances [m, weighted] from start_cell over the window and predecessors."""
+        from scipy.sparse.csgraph import dijkstra
+
+        c = cost.ravel() / 252.0
+        w = self._len * (1.0 + self.cost_factor * 0.5 * (c[self._src] + c[self._dst]))
+        b = blocked.ravel()
+        w[b[self._src] | b[self._dst]] = 1e6  # effectively impassable, keeps the structure fixed
+        self._graph.data[:] = w
+        dist, pred = dijkstra(self._graph, directed=True, indices=start_cell, return_predecessors=True)
+        dist[dist >= 1e6] = np.inf
+        return dist, pred.tolist()
 
 
 def to_robot_frame(points: np.ndarray, pose: np.ndarray) -> np.ndarray:

@@ -39,6 +39,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner
+from dynabarn.planners.costmap import CostmapConfig, LocalCostmap
 from dynabarn.planners.global_planner import GlobalPlanner
 
 
@@ -121,27 +122,36 @@ class TEBPlanner(Planner):
         self.global_planner = GlobalPlanner(info.walls, info.goal, inflation=inflation)
         self._band = None
         self._dts = None
+        self._rerouted = self._was_rerouted = False
+        self.costmap = LocalCostmap(CostmapConfig())
         self._beams = np.arange(0, len(info.laser_angles), self.cfg.obstacle_stride)
 
     def debug(self) -> dict:
         return {"local_plan": self._band[:, :2]} if self._band is not None else {}
 
     # -- band construction -----------------------------------------------------------------
-    def _initial_band(self, start: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _initial_band(self, start: np.ndarray, goal: np.ndarray, path: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A fresh band along the global plan from the robot to the local goal."""
         n = self.cfg.n_poses
-        u = np.linspace(0.0, 1.0, n)[:, None]
-        xy = start[None, :2] + u * (goal[None, :2] - start[None, :2])
-        heading = math.atan2(goal[1] - start[1], goal[0] - start[0])
-        th = np.full(n, heading)
+        seg = np.hypot(*np.diff(path, axis=0).T)
+        along = np.concatenate([[0.0], np.cumsum(seg)])
+        length = min(self.cfg.lookahead, along[-1])
+        s = np.linspace(0.0, length, n)
+        xy = np.column_stack([np.interp(s, along, path[:, 0]), np.interp(s, along, path[:, 1])])
+        xy[0], xy[-1] = start[:2], goal[:2]
+        d = np.diff(xy, axis=0)
+        th = np.empty(n)
+        th[:-1] = np.arctan2(d[:, 1], d[:, 0])
         th[0], th[-1] = start[2], goal[2]
         band = np.column_stack([xy, th])
-        seg = np.hypot(*np.diff(band[:, :2], axis=0).T)
-        return band, np.maximum(seg / (0.7 * self.cfg.max_vel_x), 0.05)
+        dseg = np.hypot(*d.T)
+        return band, np.maximum(dseg / (0.7 * self.cfg.max_vel_x), 0.05)
 
-    def _warm_band(self, start: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Previous band re-anchored at the robot and the new goal, resampled along its length."""
-        if self._band is None:
-            return self._initial_band(start, goal)
+    def _warm_band(self, start: np.ndarray, goal: np.ndarray, path: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Previous band re-anchored at the robot and the new goal, resampled along its length;
+        a fresh band along the plan when there is none or the plan was rerouted."""
+        if self._band is None or self._rerouted:
+            return self._initial_band(start, goal, path)
         prev = self._band
         # Drop the poses the robot has passed: keep from the band pose closest to it.
         k = int(np.argmin(np.hypot(*(prev[:, :2] - start[:2]).T)))
@@ -149,7 +159,7 @@ class TEBPlanner(Planner):
         seg = np.hypot(*np.diff(pts, axis=0).T)
         along = np.concatenate([[0.0], np.cumsum(seg)])
         if along[-1] < 1e-6:
-            return self._initial_band(start, goal)
+            return self._initial_band(start, goal, path)
         s = np.linspace(0.0, along[-1], self.cfg.n_poses)
         xy = np.column_stack([np.interp(s, along, pts[:, 0]), np.interp(s, along, pts[:, 1])])
         d = np.diff(xy, axis=0)
@@ -237,7 +247,13 @@ class TEBPlanner(Planner):
     def act(self, obs: Observation) -> tuple[float, float]:
         cfg = self.cfg
         start = obs.pose.astype(np.float64).copy()
-        local_goal, path = self.global_planner.local_goal(start[0], start[1], cfg.lookahead)
+        info = self.info
+        self.costmap.update(start, obs.scan, info.laser_angles, info.laser_offset, info.laser_range[1])
+        path = self.global_planner.plan_around(start[0], start[1], self.costmap, block_radius=cfg.min_obstacle_dist)
+        rerouted = len(path) != len(self.global_planner.plan(start[0], start[1]))
+        self._rerouted = rerouted and not self._was_rerouted
+        self._was_rerouted = rerouted
+        local_goal, path = self.global_planner.local_goal(start[0], start[1], cfg.lookahead, path)
         if np.hypot(*(start[:2] - self.info.goal)) < cfg.lookahead:
             goal_heading = math.atan2(local_goal[1] - start[1], local_goal[0] - start[0])
         else:
@@ -245,7 +261,7 @@ class TEBPlanner(Planner):
             goal_heading = math.atan2(path[k + 1, 1] - path[k, 1], path[k + 1, 0] - path[k, 0])
         goal = np.array([local_goal[0], local_goal[1], goal_heading])
         obstacles = self._obstacle_points(obs)
-        band, dts = self._warm_band(start, goal)
+        band, dts = self._warm_band(start, goal, path)
         # Headings unwrapped around the start so the optimiser never sees a 2 pi jump.
         band[:, 2] = start[2] + _wrap(band[:, 2] - start[2])
         goal[2] = band[-1, 2]
