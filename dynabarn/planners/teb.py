@@ -11,15 +11,16 @@ one or two neighbouring poses); it is computed by forward differences in a singl
 batched evaluation of all residuals, which for a band this small is faster than scipy's
 sparse finite differences:
 
-| term | residual | weight (default) |
-|---|---|---|
-| time optimality | dT_i | `weight_optimaltime` 1 |
-| non-holonomic kinematics | (cos th_i + cos th_i+1) dy_i - (sin th_i + sin th_i+1) dx_i | `weight_kinematics_nh` 1000 |
-| forward drive | max(0, -(direction of motion . heading)) | `weight_kinematics_forward_drive` 1 |
-| velocity limits | max(0, abs(v_i) - max_vel_x), max(0, abs(w_i) - max_vel_theta) | `weight_max_vel_x` 2, `weight_max_vel_theta` 1 |
-| acceleration limits | max(0, abs(dv_i / dt) - acc_lim_x), max(0, abs(dw_i / dt) - acc_lim_theta) | `weight_acc_lim_x` 1, `weight_acc_lim_theta` 1 |
-| obstacle clearance | max(0, min_obstacle_dist - d(s_i, nearest laser point)) | `weight_obstacle` 50 |
-| inflation | max(0, inflation_dist - d(s_i, nearest laser point)) | `weight_inflation` 0.5 |
+- time optimality: dT_i (`weight_optimaltime` 1);
+- non-holonomic kinematics: (cos th_i + cos th_i+1) dy_i - (sin th_i + sin th_i+1) dx_i
+  (`weight_kinematics_nh` 1000);
+- forward drive: max(0, -(direction of motion . heading)) (`weight_kinematics_forward_drive` 1);
+- velocity limits: max(0, abs(v_i) - max_vel_x) (backwards: max_vel_x_backwards),
+  max(0, abs(w_i) - max_vel_theta) (`weight_max_vel_x` 2, `weight_max_vel_theta` 1);
+- acceleration limits: max(0, abs(dv / dt) - acc_lim_x), max(0, abs(dw / dt) - acc_lim_theta)
+  (`weight_acc_lim_x` 1, `weight_acc_lim_theta` 1);
+- obstacle clearance: max(0, min_obstacle_dist - d(s_i, nearest laser point)) (`weight_obstacle` 50);
+- inflation: max(0, inflation_dist - d(s_i, nearest laser point)) (`weight_inflation` 0.5).
 
 Laser returns within `obstacle_range` (one in `obstacle_stride` beams) are the obstacles,
 as teb_local_planner sees costmap cells without a costmap converter; like the paper's
@@ -183,7 +184,7 @@ class TEBPlanner(Planner):
         band = np.concatenate(
             [np.broadcast_to(start, (*lead, 1, 3)), inner, np.broadcast_to(goal, (*lead, 1, 3))], axis=-2
         )
-        return band, np.exp(z[..., 3 * m :])
+        return band, np.exp(np.clip(z[..., 3 * m :], -7.0, 3.0))  # dT in [1 ms, 20 s]
 
     def _residuals(self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray) -> np.ndarray:
         """Weighted residuals (..., n_res) for variables z (..., n_var): batched over leading axes."""
