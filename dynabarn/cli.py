@@ -276,7 +276,86 @@ def _run_episode(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- dynabarn-bench ----------------------------------------------------------------------
+
+
+def bench_main(argv: Sequence[str] | None = None) -> int:
+    import os
+
+    parser = _parser(
+        "dynabarn-bench",
+        "Run planners over a world set and trials in parallel; resumable; summary table, CSV, Markdown "
+        "and a Fig. 5-style PNG in --out.",
+    )
+    parser.add_argument("--planner", default="dwa", help="planner(s), comma separated, e.g. dwa,teb")
+    parser.add_argument(
+        "--planner-config", default=None, help="parameters for every planner: a .json file or key=value[,...]"
+    )
+    parser.add_argument("--set", default="paper60", help="world set: paper60, dynabarn300, or a folder with index.json")
+    parser.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
+    parser.add_argument("--trials", type=int, default=10, help="trials (seeds 0..N-1) per world")
+    parser.add_argument("--protocol", default="barn", help="barn, paper2022, or a .json file")
+    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel workers")
+    parser.add_argument("--backend", choices=["local", "ray"], default="local", help="where episodes run")
+    parser.add_argument("--address", default=None, help="Ray cluster address (ray backend); default: a local Ray")
+    parser.add_argument(
+        "--record", choices=["none", "failures", "all"], default="none", help="which episodes to keep as MCAP"
+    )
+    parser.add_argument("--out", type=Path, required=True, help="output folder (results.jsonl, summary, fig5.png)")
+    parser.add_argument("--force", action="store_true", help="start over in an --out that holds another sweep")
+    args = parser.parse_args(argv)
+    return _run(_bench, args)
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from dynabarn import bench
+    from dynabarn.planners import get_planner
+    from dynabarn.protocol import get_protocol
+
+    if args.trials < 1 or args.jobs < 1:
+        raise DynabarnError("--trials and --jobs must be at least 1")
+    config = _planner_config(args.planner_config)
+    names = [p.strip() for p in args.planner.split(",") if p.strip()]
+    for name in names:
+        get_planner(name, **config)  # fail fast on an unknown planner or bad configuration
+    protocol = get_protocol(args.protocol)
+    worlds = bench.world_set(args.set, bench.parse_ids(args.worlds))
+    jobs = bench.make_jobs(
+        [(n, config) for n in names],
+        worlds,
+        protocol,
+        args.trials,
+        record=args.record,
+        recordings_dir=args.out / "recordings",
+    )
+    bench.check_or_write_metadata(args.out, bench.metadata(bench.jsonable_args(args), jobs), force=args.force)
+
+    def progress(stream, total):
+        return tqdm(stream, total=total, desc="episodes", unit="ep", disable=None, smoothing=0.05)
+
+    try:
+        report = bench.run_sweep(
+            jobs, args.out, backend=args.backend, n_workers=args.jobs, address=args.address, progress=progress
+        )
+    except KeyboardInterrupt:
+        print(f"interrupted; finished episodes are in {args.out / bench.RESULTS}; rerun to resume", file=sys.stderr)
+        raise
+    summary = bench.summarise(report.rows)
+    title = f"{args.set}, protocol {protocol.name}, {args.trials} trials"
+    paths = bench.write_summary(summary, args.out, title=title)
+    print(bench.format_table(summary))
+    print(
+        f"{report.ran} episodes run, {report.skipped} already done, {report.errors} errors, "
+        f"{report.wall_time:.1f} s; wrote {paths['csv']}, {paths['md']}, {paths['png']}"
+    )
+    return 0
+
+
 if __name__ == "__main__":  # pragma: no cover - `python -m dynabarn.cli run ...` / `... worlds ...`
     if len(sys.argv) > 1 and sys.argv[1] == "run":
         sys.exit(run_main(sys.argv[2:]))
+    if len(sys.argv) > 1 and sys.argv[1] == "bench":
+        sys.exit(bench_main(sys.argv[2:]))
     sys.exit(worlds_main())
