@@ -461,6 +461,7 @@ def check_or_write_metadata(out_dir: Path, meta: dict, *, force: bool) -> None:
     """Refuse to mix sweeps in one folder: same planners/protocol/worlds, or --force."""
     path = out_dir / METADATA
     out_dir.mkdir(parents=True, exist_ok=True)
+    meta = json.loads(json.dumps(meta))  # compare as stored (tuples become lists)
     if path.is_file() and not force:
         old = json.loads(path.read_text())
         for key in ("protocol", "worlds_digest"):

@@ -1,0 +1,151 @@
+"""dynabarn-bench: correctness against individual runs, resuming, errors, the Ray backend."""
+
+import json
+
+import pytest
+
+from dynabarn import bench
+from dynabarn.cli import bench_main
+from dynabarn.mjcf import resolve_world
+from dynabarn.planners import get_planner, register_planner
+from dynabarn.planners.base import Planner
+from dynabarn.protocol import get_protocol
+from dynabarn.sim import run_episode
+
+WALL_CLOCK = {"rtf", "wall_time", "planner_ms_mean", "planner_ms_p95"}
+BARN = get_protocol("barn")
+
+
+def _strip(row: dict) -> dict:
+    return {k: v for k, v in row.items() if k not in WALL_CLOCK}
+
+
+def _jobs(planner="straight", worlds="0,1,200", trials=2):
+    return bench.make_jobs([(planner, {})], bench.world_set("dynabarn300", bench.parse_ids(worlds)), BARN, trials)
+
+
+def test_wilson_interval_known_values():
+    lo, hi = bench.wilson_interval(8, 10)
+    assert lo == pytest.approx(0.4902, abs=1e-3) and hi == pytest.approx(0.9433, abs=1e-3)
+    assert bench.wilson_interval(0, 20)[0] == 0.0
+    assert bench.parse_ids("0,5,100-102") == [0, 5, 100, 101, 102]
+
+
+def test_sweep_rows_and_summary_match_individual_runs(tmp_path):
+    jobs = _jobs()
+    report = bench.run_sweep(jobs, tmp_path, n_workers=2)
+    assert report.ran == 6 and report.errors == 0
+    rows = bench.read_results(tmp_path / bench.RESULTS)
+    assert len(rows) == 6
+    by_key = {r["key"]: r for r in rows}
+    for job in jobs:
+        direct = run_episode(resolve_world(job.world_id), get_planner("straight"), BARN, seed=job.seed).to_dict()
+        row = by_key[job.key]
+        assert {k: row[k] for k in _strip(direct)} == _strip(direct)
+        assert row["versions"]["mujoco"] and len(row["world_sha256"]) == 64
+    summary = {(s["planner"], s["difficulty"]): s for s in bench.summarise(rows)}
+    easy = [r for r in rows if r["difficulty"] == "easy"]
+    assert summary[("straight", "easy")]["episodes"] == len(easy) == 4
+    assert summary[("straight", "easy")]["success"] == sum(r["outcome"] == "success" for r in easy) / 4
+    assert summary[("straight", "all")]["episodes"] == 6
+
+
+def test_interrupted_sweep_resumes_to_the_same_results(tmp_path):
+    jobs = _jobs(trials=3)
+    full = bench.run_sweep(jobs, tmp_path / "full", n_workers=1)
+
+    def interrupt_after(n):
+        def progress(stream, total):
+            for i, row in enumerate(stream):
+                if i == n:
+                    raise KeyboardInterrupt
+                yield row
+
+        return progress
+
+    with pytest.raises(KeyboardInterrupt):
+        bench.run_sweep(jobs, tmp_path / "cut", n_workers=1, progress=interrupt_after(4))
+    assert len(bench.read_results(tmp_path / "cut" / bench.RESULTS)) == 4
+    # A crash mid-write leaves a torn line: it is ignored and rewritten.
+    with (tmp_path / "cut" / bench.RESULTS).open("a") as f:
+        f.write('{"key": "half a li')
+    resumed = bench.run_sweep(jobs, tmp_path / "cut", n_workers=2)
+    assert resumed.skipped == 4 and resumed.ran == len(jobs) - 4
+    a = sorted((_strip(r) for r in full.rows), key=lambda r: r["key"])
+    b = sorted((_strip(r) for r in resumed.rows), key=lambda r: r["key"])
+    assert a == b
+
+
+class Explodes(Planner):
+    name = "explodes"
+
+    def act(self, obs):
+        raise ZeroDivisionError("nope")
+
+
+def test_error_episodes_are_recorded_and_the_sweep_goes_on(tmp_path):
+    register_planner("explodes", Explodes)
+    jobs = bench.make_jobs([("explodes", {}), ("straight", {})], bench.world_set("dynabarn300", [0]), BARN, 1)
+    report = bench.run_sweep(jobs, tmp_path, n_workers=1)
+    rows = {r["planner"]: r for r in report.rows}
+    assert rows["explodes"]["outcome"] == "error" and "ZeroDivisionError" in rows["explodes"]["reason"]
+    assert rows["straight"]["outcome"] == "success"
+
+
+def test_cli_writes_summary_files_and_records_failures(tmp_path, capsys):
+    out = tmp_path / "b"
+    argv = [
+        "--planner",
+        "straight",
+        "--worlds",
+        "0,200",
+        "--trials",
+        "2",
+        "--jobs",
+        "2",
+        "--record",
+        "failures",
+        "--out",
+        str(out),
+    ]
+    assert bench_main(argv) == 0
+    text = capsys.readouterr().out
+    assert "straight" in text and "success [95% CI]" in text
+    for name in ("results.jsonl", "summary.csv", "summary.md", "fig5.png", "metadata.json"):
+        assert (out / name).is_file(), name
+    rows = bench.read_results(out / "results.jsonl")
+    failures = [r for r in rows if r["outcome"] != "success"]
+    assert failures and all((out / "recordings").joinpath(r["recording"].split("/")[-1]).is_file() for r in failures)
+    assert not any("recording" in r for r in rows if r["outcome"] == "success")
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["planners"] == ["straight"] and meta["episodes"] == 4
+    # Same command again: nothing to do.
+    assert bench_main(argv) == 0
+    assert "0 episodes run, 4 already done" in capsys.readouterr().out
+    # Another protocol into the same folder is refused without --force.
+    assert bench_main([*argv, "--protocol", "paper2022"]) == 2
+    assert "different sweep" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--planner", "nope"], "unknown planner"),
+        (["--set", "nowhere"], "unknown world set"),
+        (["--worlds", "1-x"], "bad --worlds item"),
+        (["--worlds", "400"], "not in set"),
+    ],
+)
+def test_bad_input(tmp_path, capsys, argv, message):
+    assert bench_main([*argv, "--out", str(tmp_path / "o")]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_ray_backend_gives_identical_results(tmp_path):
+    pytest.importorskip("ray", reason="the ray extra is not installed")
+    jobs = _jobs(worlds="0,150", trials=2)
+    local = bench.run_sweep(jobs, tmp_path / "local", n_workers=2)
+    ray = bench.run_sweep(jobs, tmp_path / "ray", backend="ray", n_workers=2)
+    a = sorted((_strip(r) for r in local.rows), key=lambda r: r["key"])
+    b = sorted((_strip(r) for r in ray.rows), key=lambda r: r["key"])
+    assert a == b and len(a) == 4
