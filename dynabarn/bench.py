@@ -34,7 +34,7 @@ from pathlib import Path
 
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import Outcome
-from dynabarn.mjcf import GENERATED_WORLDS, read_world
+from dynabarn.mjcf import GENERATED_WORLDS
 from dynabarn.protocol import EvalProtocol
 from dynabarn.world import PAPER60
 
