@@ -4,6 +4,13 @@ The public surface, in the order data flows: profiles -> trajectories -> worlds 
 -> simulation -> recording.
 """
 
+import os as _os
+
+# Offscreen rendering needs an OpenGL platform before mujoco is imported: without a display,
+# use EGL (Mesa, no GPU needed); with one (or Xvfb), MuJoCo's default GLFW.
+if "MUJOCO_GL" not in _os.environ and not _os.environ.get("DISPLAY"):
+    _os.environ["MUJOCO_GL"] = "egl"
+
 from dynabarn.errors import DynabarnError, ProfileError, WorldError
 from dynabarn.metrics import EpisodeResult, Outcome
 from dynabarn.mjcf import load_model, read_world, resolve_world, write_world

@@ -3,7 +3,8 @@
 Measures, on one core:
 1. the bare loop: mj_step + obstacle schedules + 720-ray scans at 10 Hz, nothing else;
 2. the runner with `straight` and `stop` on a hard world, without and with MCAP recording;
-3. world generation (300 worlds) and MCAP recovery.
+3. world generation (300 worlds) and MCAP recovery;
+4. DWA's and TEB's compute time per call over six worlds of all difficulties.
 Each figure is the best of `--repeat` runs (the least disturbed by other processes).
 """
 
@@ -68,6 +69,24 @@ def runner(world_id: int, planner: str, seeds: range, *, record: bool) -> tuple[
     return sim_time / wall, sim_time
 
 
+def planner_compute(planner: str, worlds: tuple[int, ...] = (0, 15, 105, 155, 205, 215)) -> tuple[float, float, int]:
+    """(mean, p95 [ms], calls) of `planner.act` over episodes in easy, medium and hard worlds."""
+    times: list[float] = []
+
+    class Timer:
+        def on_start(self, start): ...
+        def on_tick(self, tick):
+            times.append(tick.planner_ms)
+
+        def on_poses(self, t, p): ...
+        def on_end(self, result): ...
+
+    for w in worlds:
+        run_episode(resolve_world(w), get_planner(planner), get_protocol("barn"), seed=0, observers=[Timer()])
+    arr = np.array(times)
+    return float(arr.mean()), float(np.percentile(arr, 95)), len(arr)
+
+
 def recovery_speed() -> float:
     """MB/s at which a recording is read back (100 s, ~1000 scans)."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -110,6 +129,10 @@ def main(argv: list[str] | None = None) -> int:
     for label, rtf, ratio in rows:
         print(f"{label:<66}{rtf:>12.0f}{ratio:>9.2f}")
     print(f"{'generate 300 worlds [s]':<66}{world_generation():>12.2f}")
+    print(f"{'planner compute per call':<44}{'mean [ms]':>11}{'p95 [ms]':>11}{'calls':>8}")
+    for planner in ("dwa", "teb"):
+        mean, p95, calls = planner_compute(planner)
+        print(f"{planner:<44}{mean:>11.2f}{p95:>11.2f}{calls:>8}")
     print(f"{'read back a recording [MB/s]':<66}{recovery_speed():>12.1f}")
     return 0
 

@@ -232,6 +232,8 @@ def run_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print the full result as JSON instead of one line")
     parser.add_argument("--dt", type=float, default=0.005, help="physics step [s], at most 0.01")
     parser.add_argument("--control-rate", type=float, default=10.0, help="planner and laser rate [Hz]")
+    parser.add_argument("--video", type=Path, default=None, help="also render the episode to this .mp4 or .gif")
+    parser.add_argument("--camera", choices=["top", "follow"], default="top", help="camera of --video")
     args = parser.parse_args(argv)
     return _run(_run_episode, args)
 
@@ -252,8 +254,15 @@ def _run_episode(args: argparse.Namespace) -> int:
     sim = Simulation(world_path, config=SimConfig(dt=args.dt, control_rate=args.control_rate))
     log_path = None
     observers = []
+    if args.video is not None and args.video.suffix.lower() not in (".mp4", ".gif"):
+        raise DynabarnError(f"--video must end in .mp4 or .gif, got {args.video.name!r}")
     if not args.no_log:
         log_path = args.log or default_run_path(args.runs_dir, sim.world.name, args.planner, protocol.name, args.seed)
+    elif args.video is not None:  # the video is rendered from a recording: keep a temporary one
+        import tempfile
+
+        log_path = Path(tempfile.mkdtemp()) / "episode.mcap"
+    if log_path is not None:
         observers.append(McapRecorder(log_path))
     try:
         result = run_episode(sim, planner, protocol, seed=args.seed, observers=observers, planner_name=args.planner)
@@ -263,16 +272,130 @@ def _run_episode(args: argparse.Namespace) -> int:
         raise
     if args.json:
         d = result.to_dict()
-        d["recording"] = str(log_path) if log_path else None
+        d["recording"] = str(log_path) if log_path and not args.no_log else None
         print(json.dumps(d, indent=1, sort_keys=True))
     else:
         print(result.summary())
-        if log_path:
+        if log_path and not args.no_log:
             print(f"recording: {log_path}")
+    if args.video is not None:
+        _render_video(log_path, args.video, args.camera, 20.0, "640x480")
+        if args.no_log:
+            import shutil
+
+            shutil.rmtree(log_path.parent, ignore_errors=True)
     if result.outcome is Outcome.ERROR:
         if not args.json:
             print(f"error: {result.reason}", file=sys.stderr)
         return EXIT_EPISODE_ERROR
+    return 0
+
+
+# -- dynabarn-replay / dynabarn-render ----------------------------------------------------------
+
+
+def replay_main(argv: Sequence[str] | None = None) -> int:
+    parser = _parser(
+        "dynabarn-replay",
+        "Show MCAP recordings in rerun: the scene, the scan, the robot's path and the plots on a sim_time "
+        "timeline. Several recordings of one world open together for comparison.",
+    )
+    parser.add_argument("recordings", nargs="+", type=Path, help="MCAP recordings (from dynabarn-run)")
+    parser.add_argument("--save", type=Path, default=None, help="write an .rrd file instead of opening a viewer")
+    parser.add_argument("--web", action="store_true", help="serve rerun's web viewer on loopback instead")
+    args = parser.parse_args(argv)
+    return _run(_replay, args)
+
+
+def _replay(args: argparse.Namespace) -> int:
+    import os
+    import time
+
+    from dynabarn.recording import read_recording
+    from dynabarn.replay import open_viewer, save_rrd
+
+    recs = []
+    for path in args.recordings:
+        rec = read_recording(path)
+        if rec.truncated:
+            print(f"warning: {path} is truncated ({rec.error}); replaying up to the cut", file=sys.stderr)
+        if rec.metadata is None:
+            raise DynabarnError(f"{path}: no /world/metadata message; not a dynabarn recording")
+        recs.append(rec)
+    worlds = {r.metadata["world"]["name"] for r in recs}
+    if len(worlds) > 1:
+        print(
+            f"warning: recordings of different worlds ({', '.join(sorted(worlds))}); walls of the first shown",
+            file=sys.stderr,
+        )
+    save = args.save
+    if save is None and not args.web and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        save = args.recordings[0].with_suffix(".rrd")
+        print(f"no display: saving to {save} instead (open it with `rerun {save}`)", file=sys.stderr)
+    t0 = time.perf_counter()
+    if save is not None:
+        counts = save_rrd(recs, save)
+        total = sum(c.scans for c in counts)
+        print(f"wrote {save} ({len(recs)} recording(s), {total} scans) in {time.perf_counter() - t0:.2f} s")
+        return 0
+    open_viewer(recs, web=args.web)
+    if args.web:
+        print("serving rerun's web viewer on loopback; Ctrl-C to stop", file=sys.stderr)
+        try:
+            while True:
+                time.sleep(1.0)
+        except KeyboardInterrupt:
+            return 0
+    return 0
+
+
+def render_main(argv: Sequence[str] | None = None) -> int:
+    parser = _parser(
+        "dynabarn-render",
+        "Render a recorded episode to a video offscreen with MuJoCo (EGL or OSMesa, no GPU needed).",
+    )
+    parser.add_argument("recording", type=Path, help="MCAP recording (from dynabarn-run)")
+    parser.add_argument("--out", type=Path, required=True, help="video file, .mp4 or .gif")
+    parser.add_argument("--camera", choices=["top", "follow"], default="top", help="whole arena or behind the robot")
+    parser.add_argument("--fps", type=float, default=20.0, help="frames per second of the video")
+    parser.add_argument("--size", default="640x480", help="frame size WIDTHxHEIGHT")
+    args = parser.parse_args(argv)
+    return _run(_render, args)
+
+
+def _parse_size(text: str) -> tuple[int, int]:
+    w, sep, h = text.lower().partition("x")
+    if not sep or not w.isdigit() or not h.isdigit() or int(w) < 16 or int(h) < 16:
+        raise DynabarnError(f"bad --size {text!r}: use WIDTHxHEIGHT, e.g. 640x480")
+    return int(w), int(h)
+
+
+def _render_video(recording: Path, out: Path, camera: str, fps: float, size: str) -> None:
+    from tqdm import tqdm
+
+    from dynabarn.recording import read_recording
+    from dynabarn.render import render_recording
+
+    if fps <= 0:
+        raise DynabarnError("--fps must be positive")
+    width, height = _parse_size(size)
+    rec = read_recording(recording)
+    if rec.truncated:
+        print(f"warning: {recording} is truncated ({rec.error}); rendering up to the cut", file=sys.stderr)
+    info = render_recording(
+        rec,
+        out,
+        camera=camera,
+        fps=fps,
+        width=width,
+        height=height,
+        progress=lambda it: tqdm(it, desc="rendering", unit="frame", disable=None, leave=False),
+    )
+    print(f"wrote {info.path}: {info.frames} frames, {info.duration:.2f} s at {info.fps:g} fps, {width}x{height}")
+
+
+def _render(args: argparse.Namespace) -> int:
+    _render_video(args.recording, args.out, args.camera, args.fps, args.size)
     return 0
 
 

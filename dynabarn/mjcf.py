@@ -49,6 +49,9 @@ def build_world_spec(world: WorldSpec) -> mujoco.MjSpec:
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.visual.global_.offwidth = 1280
     spec.visual.global_.offheight = 720
+    # Bright, even light for top-down pictures: headlight plus a sun straight above.
+    spec.visual.headlight.ambient = [0.35, 0.35, 0.35]
+    spec.visual.headlight.diffuse = [0.45, 0.45, 0.45]
 
     spec.add_texture(
         name="grid",
@@ -67,14 +70,19 @@ def build_world_spec(world: WorldSpec) -> mujoco.MjSpec:
 
     wb = spec.worldbody
     wb.add_light(
-        name="sun", pos=[0, 0, 20], dir=[0, 0, -1], type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, castshadow=False
+        name="sun",
+        pos=[0, 0, 20],
+        dir=[0, 0, -1],
+        type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+        castshadow=False,
+        diffuse=[0.5, 0.5, 0.5],
     )
     half = world.layout.arena_half_size
     wb.add_geom(
         name="floor",
         type=mujoco.mjtGeom.mjGEOM_PLANE,
-        size=[half + 4, half + 4, 0.1],
-        pos=[2, 0, 0],
+        size=[half + 7, half + 7, 0.1],
+        pos=[1, 0, 0],
         material="floor",
         contype=0,
         conaffinity=0,

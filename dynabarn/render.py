@@ -1,0 +1,174 @@
+"""Offscreen videos of recorded episodes with `mujoco.Renderer` (EGL or OSMesa, no GPU).
+
+A recording holds everything needed: the world (metadata and keyframes), the obstacles'
+clock offset and the robot's poses. The world is recompiled from that, the obstacles are
+replayed from their schedules at each frame time (exact, not interpolated from the 10 Hz
+updates), the robot is put at its recorded pose (interpolated between the 50 Hz poses),
+and each frame is drawn with the goal region, the robot's path so far and short trails
+behind the obstacles. Cameras: `top` (the whole arena from above) or `follow` (behind the
+robot). Output: `.mp4` (H.264 through imageio-ffmpeg's bundled ffmpeg) or `.gif`.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from dynabarn.errors import DynabarnError
+from dynabarn.mjcf import load_model, write_world
+from dynabarn.recording import TOPIC_POSE, Recording
+from dynabarn.schedule import SchedulePlayer
+from dynabarn.world import WorldSpec
+
+TRAIL_SECONDS = 2.0
+
+
+@dataclass(frozen=True, slots=True)
+class VideoInfo:
+    path: Path
+    frames: int
+    fps: float
+    duration: float
+    width: int
+    height: int
+
+
+def world_from_recording(rec: Recording) -> WorldSpec:
+    meta = rec.metadata
+    if not meta or "world" not in meta or "keyframes" not in meta:
+        raise DynabarnError(f"{rec.path}: no world metadata in this recording")
+    world = meta["world"]
+    keyframes = [np.asarray(meta["keyframes"][o["name"]]) for o in world["obstacles"]]
+    return WorldSpec.from_dict(world, keyframes)
+
+
+def _pose_track(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
+    poses = rec.topic(TOPIC_POSE)
+    if not poses:
+        raise DynabarnError(f"{rec.path}: the recording holds no robot poses")
+    t = np.array([p[0] for p in poses])
+    xyyaw = np.array(
+        [
+            [m.pose.position.x, m.pose.position.y, 2 * math.atan2(m.pose.orientation.z, m.pose.orientation.w)]
+            for _, m in poses
+        ]
+    )
+    xyyaw[:, 2] = np.unwrap(xyyaw[:, 2])
+    return t, xyyaw
+
+
+def _add_geom(scene: mujoco.MjvScene, gtype: int, size, pos, rgba, mat=None) -> None:
+    if scene.ngeom >= scene.maxgeom:
+        return
+    mujoco.mjv_initGeom(
+        scene.geoms[scene.ngeom],
+        gtype,
+        np.asarray(size, float),
+        np.asarray(pos, float),
+        np.eye(3).ravel() if mat is None else mat,
+        np.asarray(rgba, np.float32),
+    )
+    scene.ngeom += 1
+
+
+def _add_line(scene: mujoco.MjvScene, a, b, width: float, rgba) -> None:
+    if scene.ngeom >= scene.maxgeom:
+        return
+    g = scene.geoms[scene.ngeom]
+    mujoco.mjv_initGeom(
+        g, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3), np.eye(3).ravel(), np.asarray(rgba, np.float32)
+    )
+    mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_CAPSULE, width, np.asarray(a, float), np.asarray(b, float))
+    scene.ngeom += 1
+
+
+def render_recording(
+    rec: Recording,
+    out: Path,
+    *,
+    camera: str = "top",
+    fps: float = 20.0,
+    width: int = 640,
+    height: int = 480,
+    progress=None,
+) -> VideoInfo:
+    """Render the recorded episode to `out` (.mp4 or .gif); returns what was written."""
+    import imageio.v2 as imageio
+
+    out = Path(out)
+    if out.suffix.lower() not in (".mp4", ".gif"):
+        raise DynabarnError(f"video must end in .mp4 or .gif, got {out.name!r}")
+    if camera not in ("top", "follow"):
+        raise DynabarnError(f"unknown camera {camera!r}; available: follow, top")
+    world = world_from_recording(rec)
+    meta = rec.metadata
+    t_pose, track = _pose_track(rec)
+    duration = float(t_pose[-1])
+    n_frames = int(math.floor(duration * fps + 1e-9)) + 1
+    frame_times = np.arange(n_frames) / fps
+
+    with tempfile.TemporaryDirectory() as tmp:
+        xml = Path(tmp) / f"{world.name}.xml"
+        write_world(world, xml)
+        model = load_model(xml, beam_sensors=False)
+    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    data = mujoco.MjData(model)
+    player = SchedulePlayer(world, clock_offset=float(meta.get("clock_offset", 0.0)))
+    obstacle_xy, _ = player.positions_at(frame_times)
+    trail_steps = np.arange(-TRAIL_SECONDS, 0.0001, 0.25)
+    trail_xy, _ = player.positions_at(np.clip(frame_times[:, None] + trail_steps, 0, None).ravel())
+    trail_xy = trail_xy.reshape(n_frames, len(trail_steps), -1, 2)
+    robot = np.column_stack([np.interp(frame_times, t_pose, track[:, k]) for k in range(3)])
+    n_obs = len(world.obstacles)
+    goal = world.layout.goal
+    tol = meta.get("protocol", {}).get("goal_tolerance", 1.0)
+
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    opt = mujoco.MjvOption()
+    opt.sitegroup[:] = 0  # the laser sites would clutter the picture
+    writer = (
+        imageio.get_writer(out, fps=fps, codec="libx264", quality=7, macro_block_size=8, pixelformat="yuv420p")
+        if out.suffix.lower() == ".mp4"
+        else imageio.get_writer(out, mode="I", duration=1000.0 / fps, loop=0)
+    )
+    frames = range(n_frames) if progress is None else progress(range(n_frames))
+    try:
+        with mujoco.Renderer(model, height, width) as renderer:
+            for k in frames:
+                data.qpos[:3] = robot[k]
+                data.mocap_pos[:n_obs, :2] = obstacle_xy[k]
+                mujoco.mj_kinematics(model, data)
+                x, y, yaw = robot[k]
+                if camera == "top":
+                    cam.lookat[:] = [0.5, 0.0, 0.0]
+                    cam.distance, cam.elevation, cam.azimuth = 27.0, -90.0, 90.0
+                else:
+                    cam.lookat[:] = [x, y, 0.3]
+                    cam.distance, cam.elevation, cam.azimuth = 7.0, -35.0, math.degrees(yaw)
+                renderer.update_scene(data, cam, opt)
+                scene = renderer.scene
+                _add_geom(
+                    scene,
+                    mujoco.mjtGeom.mjGEOM_CYLINDER,
+                    [tol, 0.005, 0],
+                    [goal[0], goal[1], 0.006],
+                    [0.1, 0.85, 0.2, 0.45],
+                )
+                past = robot[: k + 1 : max(1, int(fps // 5)), :2]
+                for a, b in zip(past[:-1], past[1:], strict=True):
+                    _add_line(scene, [*a, 0.03], [*b, 0.03], 0.04, [0.15, 0.35, 0.95, 1.0])
+                for i in range(n_obs):
+                    tr = trail_xy[k, :, i]
+                    for a, b in zip(tr[:-1], tr[1:], strict=True):
+                        _add_line(scene, [*a, 0.02], [*b, 0.02], 0.06, [0.95, 0.45, 0.35, 0.6])
+                writer.append_data(renderer.render())
+    finally:
+        writer.close()
+    return VideoInfo(path=out, frames=n_frames, fps=fps, duration=duration, width=width, height=height)

@@ -1,0 +1,319 @@
+"""MCAP recordings -> rerun: the scene, the scan, the path and the plots on `sim_time`.
+
+Entity tree (one per recording; several recordings of one world go under
+`runs/<label>/...` and share the walls):
+
+| entity | archetype | when |
+|---|---|---|
+| world/walls, world/goal | Boxes3D, Cylinders3D | static |
+| <run>/obstacles | Cylinders3D (one per obstacle) | every obstacle update |
+| <run>/robot | Transform3D (pose) + Boxes3D (footprint, static) | every pose |
+| <run>/robot_path | LineStrips3D: the path so far (at most 400 vertices) | every control tick |
+| <run>/scan | Points3D: laser returns in the world frame | every scan |
+| <run>/scan_beams | LineStrips3D: one beam in four from the laser to its return | every scan |
+| <run>/local_plan | LineStrips3D | when the planner recorded one |
+| metrics/<run>/v, w, clearance, distance_to_goal | Scalars | every control tick |
+| description | TextDocument: world, planner, outcome | static |
+
+Everything per-time is sent in bulk with `rr.send_columns`, one call per entity. rerun's
+own `rerun mcap convert` leaves LaserScan as raw columns; this module does the mapping.
+All `rr.` calls of the package live here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from dynabarn.recording import (
+    TOPIC_CMD,
+    TOPIC_DEBUG,
+    TOPIC_METRICS,
+    TOPIC_OBSTACLES,
+    TOPIC_POSE,
+    TOPIC_SCAN,
+    Recording,
+)
+
+APP_ID = "dynabarn_replay"
+TIMELINE = "sim_time"
+PATH_VERTICES = 400
+BEAM_STRIDE = 4
+
+_COLORS = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (148, 103, 189), (140, 86, 75), (227, 119, 194)]
+
+
+@dataclass(frozen=True, slots=True)
+class ReplayCounts:
+    """How many rows of each stream were sent (to check against the MCAP)."""
+
+    scans: int
+    poses: int
+    obstacle_updates: int
+    ticks: int
+
+
+def _quat_z(yaw: np.ndarray) -> np.ndarray:
+    """(n, 4) xyzw quaternions of rotations by yaw about z."""
+    return np.column_stack([np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2), np.cos(yaw / 2)])
+
+
+def _times(msgs: list) -> np.ndarray:
+    return np.array([t for t, _ in msgs], dtype=np.float64)
+
+
+def _time_column(times: np.ndarray) -> rr.TimeColumn:
+    return rr.TimeColumn(TIMELINE, duration=times)
+
+
+def log_static_world(meta: dict, stream: rr.RecordingStream) -> None:
+    """Walls, goal and the description; static."""
+    layout = meta["world"]["layout"]
+    walls = layout["walls"]
+    stream.log(
+        "world/walls",
+        rr.Boxes3D(
+            centers=[[w["centre"][0], w["centre"][1], w["size"][2] / 2] for w in walls],
+            sizes=[w["size"] for w in walls],
+            colors=[(140, 140, 155)] * len(walls),
+            fill_mode="solid",
+        ),
+        static=True,
+    )
+    gx, gy = layout["goal"]
+    tol = meta["protocol"]["goal_tolerance"]
+    stream.log(
+        "world/goal",
+        rr.Cylinders3D(lengths=[0.02], radii=[tol], centers=[[gx, gy, 0.01]], colors=[(30, 200, 60, 120)]),
+        static=True,
+    )
+    stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+
+
+def log_recording(
+    rec: Recording, stream: rr.RecordingStream, *, run: str = "run", color_index: int = 0
+) -> ReplayCounts:
+    """Send one recording's time series under entity `run` (and `metrics/run`)."""
+    meta = rec.metadata or {}
+    color = _COLORS[color_index % len(_COLORS)]
+    robot = meta.get("robot", {})
+    length, width = robot.get("footprint", [0.508, 0.430])
+
+    # Robot pose: Transform3D columns, footprint box static under it.
+    poses = rec.topic(TOPIC_POSE)
+    pt = _times(poses)
+    pxy = np.array([[m.pose.position.x, m.pose.position.y] for _, m in poses]).reshape(-1, 2)
+    pyaw = np.array([2.0 * math.atan2(m.pose.orientation.z, m.pose.orientation.w) for _, m in poses])
+    if len(pt):
+        stream.send_columns(
+            f"{run}/robot",
+            indexes=[_time_column(pt)],
+            columns=rr.Transform3D.columns(
+                translation=np.column_stack([pxy, np.zeros(len(pt))]), quaternion=_quat_z(pyaw)
+            ),
+        )
+    stream.log(
+        f"{run}/robot/body",
+        rr.Boxes3D(
+            half_sizes=[[length / 2, width / 2, 0.125]], centers=[[0, 0, 0.125]], colors=[color], fill_mode="solid"
+        ),
+        static=True,
+    )
+    stream.log(
+        f"{run}/robot/heading", rr.Arrows3D(origins=[[0, 0, 0.26]], vectors=[[0.5, 0, 0]], colors=[color]), static=True
+    )
+
+    # Scans: returns (not max-range) as points in the world, every fourth beam as a line.
+    scans = rec.topic(TOPIC_SCAN)
+    st = _times(scans)
+    pts_all, beams_all, n_pts, n_beams = [], [], [], []
+    for _, m in scans:
+        r = np.asarray(m.ranges)
+        a = np.linspace(m.start_angle, m.end_angle, len(r))
+        ox, oy = m.pose.position.x, m.pose.position.y
+        yaw = 2.0 * math.atan2(m.pose.orientation.z, m.pose.orientation.w)
+        hit = r < robot.get("laser_range", [0.1, 30.0])[1] - 1e-6
+        ang = a[hit] + yaw
+        xy = np.column_stack([ox + r[hit] * np.cos(ang), oy + r[hit] * np.sin(ang)])
+        pts_all.append(np.column_stack([xy, np.full(len(xy), m.pose.position.z)]))
+        n_pts.append(len(xy))
+        sel = slice(None, None, BEAM_STRIDE)
+        bxy = xy[sel]
+        origin = np.array([ox, oy, m.pose.position.z])
+        beams_all.append(
+            np.stack(
+                [np.broadcast_to(origin, (len(bxy), 3)), np.column_stack([bxy, np.full(len(bxy), origin[2])])], axis=1
+            )
+        )
+        n_beams.append(len(bxy))
+    if len(st):
+        stream.send_columns(
+            f"{run}/scan",
+            indexes=[_time_column(st)],
+            columns=rr.Points3D.columns(positions=np.concatenate(pts_all)).partition(n_pts),
+        )
+        strips = [b for per_scan in beams_all for b in per_scan]
+        stream.send_columns(
+            f"{run}/scan_beams",
+            indexes=[_time_column(st)],
+            columns=rr.LineStrips3D.columns(strips=strips).partition(n_beams),
+        )
+        stream.log(f"{run}/scan", rr.Points3D.from_fields(colors=[color], radii=[0.04]), static=True)
+        stream.log(f"{run}/scan_beams", rr.LineStrips3D.from_fields(colors=[(*color, 60)], radii=[0.005]), static=True)
+
+    # Obstacles: cylinders per update.
+    obstacles = rec.topic(TOPIC_OBSTACLES)
+    ot = _times(obstacles)
+    centers, radii, lengths, counts = [], [], [], []
+    for _, m in obstacles:
+        cyl = m.entities[0].cylinders if m.entities else []
+        counts.append(len(cyl))
+        for c in cyl:
+            centers.append([c.pose.position.x, c.pose.position.y, c.pose.position.z])
+            radii.append(c.size.x / 2)
+            lengths.append(c.size.z)
+    if len(ot):
+        stream.send_columns(
+            f"{run}/obstacles",
+            indexes=[_time_column(ot)],
+            columns=rr.Cylinders3D.columns(
+                centers=np.array(centers).reshape(-1, 3), radii=np.array(radii), lengths=np.array(lengths)
+            ).partition(counts),
+        )
+        stream.log(
+            f"{run}/obstacles", rr.Cylinders3D.from_fields(colors=[(215, 40, 30)], fill_mode="solid"), static=True
+        )
+
+    # The path so far, at the control ticks, decimated to PATH_VERTICES.
+    ticks = rec.topic(TOPIC_CMD)
+    tt = _times(ticks)
+    if len(tt) and len(pt):
+        strips = []
+        for t in tt:
+            k = int(np.searchsorted(pt, t, side="right"))
+            idx = np.unique(np.linspace(0, max(k - 1, 0), min(k, PATH_VERTICES)).astype(int))
+            strips.append(np.column_stack([pxy[idx], np.full(len(idx), 0.02)]))
+        stream.send_columns(
+            f"{run}/robot_path", indexes=[_time_column(tt)], columns=rr.LineStrips3D.columns(strips=strips)
+        )
+        stream.log(f"{run}/robot_path", rr.LineStrips3D.from_fields(colors=[color], radii=[0.03]), static=True)
+
+    # Local plans, when the planner recorded them.
+    plans = [(t, m["local_plan"]) for t, m in rec.topic(TOPIC_DEBUG) if m.get("local_plan")]
+    if plans:
+        stream.send_columns(
+            f"{run}/local_plan",
+            indexes=[_time_column(np.array([t for t, _ in plans]))],
+            columns=rr.LineStrips3D.columns(
+                strips=[np.column_stack([np.asarray(p)[:, :2], np.full(len(p), 0.05)]) for _, p in plans]
+            ),
+        )
+        stream.log(f"{run}/local_plan", rr.LineStrips3D.from_fields(colors=[(250, 200, 0)], radii=[0.04]), static=True)
+
+    # Time series.
+    cmd = rec.topic(TOPIC_CMD)
+    met = rec.topic(TOPIC_METRICS)
+    series = {
+        "v": (_times(cmd), [m["v"] for _, m in cmd]),
+        "w": (_times(cmd), [m["w"] for _, m in cmd]),
+        "clearance": (_times(met), [m["clearance"] if m["clearance"] is not None else np.nan for _, m in met]),
+        "distance_to_goal": (_times(met), [m["distance_to_goal"] for _, m in met]),
+    }
+    for name, (times, values) in series.items():
+        if len(times):
+            stream.send_columns(
+                f"metrics/{run}/{name}",
+                indexes=[_time_column(times)],
+                columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)),
+            )
+            stream.log(f"metrics/{run}/{name}", rr.SeriesLines(colors=[color], names=[f"{run} {name}"]), static=True)
+    return ReplayCounts(scans=len(st), poses=len(pt), obstacle_updates=len(ot), ticks=len(tt))
+
+
+def describe(recs: list[tuple[str, Recording]]) -> str:
+    lines = ["# DynaBARN replay", ""]
+    for run, rec in recs:
+        meta, res = rec.metadata or {}, rec.result or {}
+        outcome = res.get("outcome", "unfinished (truncated recording)")
+        lines.append(
+            f"- **{run}**: {meta.get('world', {}).get('name', '?')}, planner `{meta.get('planner', '?')}`, protocol "
+            f"`{meta.get('protocol', {}).get('name', '?')}`, seed {meta.get('seed', '?')}: **{outcome}**"
+            + (f" after {res['time']:.2f} s ({res.get('reason', '')})" if "time" in res else "")
+        )
+    return "\n".join(lines)
+
+
+def blueprint(runs: list[str]) -> rrb.Blueprint:
+    """Top-down 3D scene beside the scan and the plots."""
+    plots = [
+        rrb.TimeSeriesView(name=name, origin="/metrics", contents=[f"/metrics/*/{name}"])
+        for name in ("v", "w", "clearance", "distance_to_goal")
+    ]
+    scene = rrb.Spatial3DView(name="world", origin="/")
+    scans = rrb.Spatial3DView(
+        name="scan", origin="/", contents=[f"/{r}/scan/**" for r in runs] + [f"/{r}/robot/**" for r in runs]
+    )
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(scene, rrb.TextDocumentView(origin="/description", name="episode"), row_shares=[4, 1]),
+            rrb.Vertical(scans, rrb.Grid(*plots), row_shares=[2, 3]),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+def run_label(rec: Recording, taken: set[str]) -> str:
+    meta = rec.metadata or {}
+    base = f"runs/{meta.get('planner', 'run')}_s{meta.get('seed', 0)}"
+    label, k = base, 2
+    while label in taken:
+        label, k = f"{base}_{k}", k + 1
+    return label
+
+
+def build_stream(recs: list[Recording], stream: rr.RecordingStream) -> list[ReplayCounts]:
+    """Log several recordings (of one world) into one stream; returns their counts."""
+    labels: list[str] = []
+    for rec in recs:
+        labels.append(run_label(rec, set(labels)))
+    if recs and recs[0].metadata:
+        log_static_world(recs[0].metadata, stream)
+    counts = [
+        log_recording(rec, stream, run=label, color_index=i)
+        for i, (label, rec) in enumerate(zip(labels, recs, strict=True))
+    ]
+    stream.log(
+        "description",
+        rr.TextDocument(describe(list(zip(labels, recs, strict=True))), media_type="text/markdown"),
+        static=True,
+    )
+    stream.send_blueprint(blueprint(labels))
+    return counts
+
+
+def save_rrd(recs: list[Recording], path: Path) -> list[ReplayCounts]:
+    """Write an .rrd file with the recordings and the blueprint."""
+    stream = rr.RecordingStream(APP_ID, make_default=False, make_thread_default=False)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    stream.save(str(path))
+    counts = build_stream(recs, stream)
+    stream.flush()
+    stream.disconnect()
+    return counts
+
+
+def open_viewer(recs: list[Recording], *, web: bool = False) -> list[ReplayCounts]:
+    """Spawn the native viewer (or serve the web viewer on loopback) and stream the recordings."""
+    stream = rr.RecordingStream(APP_ID, make_default=False, make_thread_default=False)
+    if web:
+        server_uri = stream.serve_grpc()
+        rr.serve_web_viewer(connect_to=server_uri, open_browser=False)
+    else:
+        stream.spawn()
+    return build_stream(recs, stream)
