@@ -11,6 +11,7 @@ robot). Output: `.mp4` (H.264 through imageio-ffmpeg's bundled ffmpeg) or `.gif`
 
 from __future__ import annotations
 
+import itertools
 import math
 import tempfile
 from dataclasses import dataclass
@@ -109,7 +110,7 @@ def render_recording(
     meta = rec.metadata
     t_pose, track = _pose_track(rec)
     duration = float(t_pose[-1])
-    n_frames = int(math.floor(duration * fps + 1e-9)) + 1
+    n_frames = math.floor(duration * fps + 1e-9) + 1
     frame_times = np.arange(n_frames) / fps
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -162,11 +163,11 @@ def render_recording(
                     [0.1, 0.85, 0.2, 0.45],
                 )
                 past = robot[: k + 1 : max(1, int(fps // 5)), :2]
-                for a, b in zip(past[:-1], past[1:], strict=True):
+                for a, b in itertools.pairwise(past):
                     _add_line(scene, [*a, 0.03], [*b, 0.03], 0.04, [0.15, 0.35, 0.95, 1.0])
                 for i in range(n_obs):
                     tr = trail_xy[k, :, i]
-                    for a, b in zip(tr[:-1], tr[1:], strict=True):
+                    for a, b in itertools.pairwise(tr):
                         _add_line(scene, [*a, 0.02], [*b, 0.02], 0.06, [0.95, 0.45, 0.35, 0.6])
                 writer.append_data(renderer.render())
     finally:
