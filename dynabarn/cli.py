@@ -81,6 +81,13 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
         default="table1",
         help="motion profile set: table1 = the paper's Table I; release2022 = measured from the 2022 release",
     )
+    g.add_argument(
+        "--interpolation",
+        choices=["linear", "spline"],
+        default="linear",
+        help="playback between waypoints: linear (the paper) or spline (Gazebo's PoseAnimation)",
+    )
+    g.add_argument("--end", choices=["loop", "hold"], default="loop", help="after the last waypoint")
 
     im = sub.add_parser(
         "import", help="import worlds from another format", formatter_class=argparse.ArgumentDefaultsHelpFormatter
@@ -111,7 +118,12 @@ def _worlds_generate(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     index = generate_worlds(
-        get_profile_set(args.profiles), args.out, base_seed=args.seed, progress=_progress("generating", N_WORLDS)
+        get_profile_set(args.profiles),
+        args.out,
+        base_seed=args.seed,
+        interpolation=args.interpolation,
+        end_behavior=args.end,
+        progress=_progress("generating", N_WORLDS),
     )
     print(f"wrote {N_WORLDS} worlds and {index} in {time.perf_counter() - t0:.1f} s")
     return 0

@@ -15,7 +15,15 @@ from pathlib import Path
 from dynabarn.errors import WorldError
 from dynabarn.mjcf import GENERATED_WORLDS, write_world
 from dynabarn.profiles import ProfileSet
-from dynabarn.world import DEFAULT_BASE_SEED, N_WORLDS, PAPER60, WorldSpec, generate_world
+from dynabarn.world import (
+    DEFAULT_BASE_SEED,
+    N_WORLDS,
+    PAPER60,
+    EndBehavior,
+    Interpolation,
+    WorldSpec,
+    generate_world,
+)
 
 INDEX_NAME = "index.json"
 
@@ -70,11 +78,22 @@ def generate_worlds(
     *,
     base_seed: int = DEFAULT_BASE_SEED,
     world_ids: Iterable[int] = range(N_WORLDS),
+    interpolation: str = "linear",
+    end_behavior: str = "loop",
     progress: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> Path:
     """Generate and write the benchmark's worlds; returns the index path."""
     ids = list(world_ids)
-    worlds = (generate_world(i, profile_set, base_seed=base_seed) for i in ids)
+    worlds = (
+        generate_world(
+            i,
+            profile_set,
+            base_seed=base_seed,
+            interpolation=Interpolation(interpolation),
+            end_behavior=EndBehavior(end_behavior),
+        )
+        for i in ids
+    )
     sets = {
         "all": ids,
         "paper60": [i for i in PAPER60 if i in ids],
