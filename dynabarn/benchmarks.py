@@ -4,7 +4,8 @@ Measures, on one core:
 1. the bare loop: mj_step + obstacle schedules + 720-ray scans at 10 Hz, nothing else;
 2. the runner with `straight` and `stop` on a hard world, without and with MCAP recording;
 3. world generation (300 worlds) and MCAP recovery;
-4. DWA's and TEB's compute time per call over six worlds of all difficulties.
+4. DWA's and TEB's compute time per call over six worlds of all difficulties;
+5. converting a 60 s recording to a rerun .rrd (and its ratio to the recording's length).
 Each figure is the best of `--repeat` runs (the least disturbed by other processes).
 """
 
@@ -99,6 +100,24 @@ def recovery_speed() -> float:
         return path.stat().st_size / 1e6 / (time.perf_counter() - t0)
 
 
+def replay_conversion() -> tuple[float, float]:
+    """(seconds to convert a 60 s recording to .rrd, its length in simulated seconds)."""
+    from dynabarn.protocol import EvalProtocol
+    from dynabarn.replay import save_rrd
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "r.mcap"
+        result = run_episode(
+            resolve_world(HARD_WORLD),
+            get_planner("stop"),
+            EvalProtocol("sixty", time_limit=60.0),
+            observers=[McapRecorder(path)],
+        )
+        t0 = time.perf_counter()
+        save_rrd([read_recording(path)], Path(tmp) / "r.rrd")
+        return time.perf_counter() - t0, result.sim_time
+
+
 def world_generation() -> float:
     from dynabarn.profiles import get_profile_set
     from dynabarn.worldset import generate_worlds
@@ -134,6 +153,8 @@ def main(argv: list[str] | None = None) -> int:
         mean, p95, calls = planner_compute(planner)
         print(f"{planner:<44}{mean:>11.2f}{p95:>11.2f}{calls:>8}")
     print(f"{'read back a recording [MB/s]':<66}{recovery_speed():>12.1f}")
+    conv, length = min(replay_conversion() for _ in range(args.repeat))
+    print(f"{f'convert a {length:.0f} s recording to .rrd [s]':<66}{conv:>12.2f}{conv / length:>9.3f}")
     return 0
 
 
