@@ -12,7 +12,7 @@ Entity tree (one per recording; several recordings of one world go under
 | <run>/scan | Points3D: laser returns in the world frame | every scan |
 | <run>/scan_beams | LineStrips3D: one beam in four from the laser to its return | every scan |
 | <run>/local_plan | LineStrips3D | when the planner recorded one |
-| metrics/<run>/v, w, clearance, distance_to_goal | Scalars | every control tick |
+| metrics/{v, w, clearance, distance_to_goal}/<run> | Scalars | every control tick |
 | description | TextDocument: world, planner, outcome | static |
 
 Everything per-time is sent in bulk with `rr.send_columns`, one call per entity. rerun's
@@ -227,11 +227,11 @@ def log_recording(
     for name, (times, values) in series.items():
         if len(times):
             stream.send_columns(
-                f"metrics/{run}/{name}",
+                f"metrics/{name}/{run}",
                 indexes=[_time_column(times)],
                 columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)),
             )
-            stream.log(f"metrics/{run}/{name}", rr.SeriesLines(colors=[color], names=[f"{run} {name}"]), static=True)
+            stream.log(f"metrics/{name}/{run}", rr.SeriesLines(colors=[color], names=[f"{run} {name}"]), static=True)
     return ReplayCounts(scans=len(st), poses=len(pt), obstacle_updates=len(ot), ticks=len(tt))
 
 
@@ -251,12 +251,16 @@ def describe(recs: list[tuple[str, Recording]]) -> str:
 def blueprint(runs: list[str]) -> rrb.Blueprint:
     """Top-down 3D scene beside the scan and the plots."""
     plots = [
-        rrb.TimeSeriesView(name=name, origin="/metrics", contents=[f"/metrics/*/{name}"])
-        for name in ("v", "w", "clearance", "distance_to_goal")
+        rrb.TimeSeriesView(name=name, origin=f"/metrics/{name}") for name in ("v", "w", "clearance", "distance_to_goal")
     ]
-    scene = rrb.Spatial3DView(name="world", origin="/")
+    # Looking down on the arena from above its centre, +x to the right.
+    top_down = rrb.EyeControls3D(position=[0.5, -6.0, 30.0], look_target=[0.5, 0.0, 0.0], eye_up=[0.0, 0.0, 1.0])
+    scene = rrb.Spatial3DView(name="world", origin="/", eye_controls=top_down)
     scans = rrb.Spatial3DView(
-        name="scan", origin="/", contents=[f"/{r}/scan/**" for r in runs] + [f"/{r}/robot/**" for r in runs]
+        name="scan",
+        origin="/",
+        contents=[f"/{r}/scan/**" for r in runs] + [f"/{r}/robot/**" for r in runs],
+        eye_controls=rrb.EyeControls3D(tracking_entity=f"/{runs[0]}/robot") if runs else None,
     )
     return rrb.Blueprint(
         rrb.Horizontal(
@@ -264,6 +268,7 @@ def blueprint(runs: list[str]) -> rrb.Blueprint:
             rrb.Vertical(scans, rrb.Grid(*plots), row_shares=[2, 3]),
             column_shares=[3, 2],
         ),
+        rrb.TimePanel(timeline=TIMELINE, state="collapsed", play_state="following"),
         collapse_panels=True,
     )
 

@@ -56,7 +56,7 @@ def test_rrd_verifies_and_holds_every_message(recordings, tmp_path):
     assert rows[f"{run}/scan"]["Points3D:positions"] == len(rec.topic("/scan")) == counts.scans
     assert rows[f"{run}/robot"]["Transform3D:translation"] == len(rec.topic("/robot/pose")) == counts.poses
     assert rows[f"{run}/obstacles"]["Cylinders3D:centers"] == len(rec.topic("/world/obstacles"))
-    assert rows[f"/metrics{run}/v"]["Scalars:scalars"] == len(rec.topic("/cmd_vel"))
+    assert rows[f"/metrics/v{run}"]["Scalars:scalars"] == len(rec.topic("/cmd_vel"))
     assert rows[f"{run}/local_plan"]["LineStrips3D:strips"] == len(rec.topic("/planner/debug"))
     assert "/world/walls" in rows and "/description" in rows
 
