@@ -343,7 +343,7 @@ def run_episode(
                     positions=batch_xy[0].copy(),
                     velocities=batch_vel[0].copy(),
                     radii=sim.radii.copy(),
-                    predict=lambda tf: player.positions_at(np.array([tf]))[0][0],
+                    predict=_predictor(player),
                 )
             observation = Observation(
                 time=t,
@@ -469,6 +469,17 @@ def run_episode(
     for obs_ in observers:
         obs_.on_end(result)
     return result
+
+
+def _predictor(player: SchedulePlayer):
+    """Exact future obstacle positions: (n, 2) for a time, (T, n, 2) for an array of times."""
+
+    def predict(t_future):
+        arr = np.asarray(t_future, dtype=np.float64)
+        pos, _ = player.positions_at(np.atleast_1d(arr))
+        return pos if arr.ndim else pos[0]
+
+    return predict
 
 
 def portable_path(path: Path) -> str:

@@ -14,6 +14,7 @@ from importlib.metadata import entry_points
 from dynabarn.errors import DynabarnError, unknown_choice
 from dynabarn.planners.base import EpisodeInfo, Observation, ObstacleState, Planner
 from dynabarn.planners.dwa import DWAPlanner
+from dynabarn.planners.oracle import OraclePlanner
 from dynabarn.planners.simple import StopPlanner, StraightPlanner
 from dynabarn.planners.teb import TEBPlanner
 
@@ -22,6 +23,7 @@ ENTRY_POINT_GROUP = "dynabarn.planners"
 _BUILTIN: dict[str, Callable[..., Planner]] = {
     "dwa": DWAPlanner,
     "teb": TEBPlanner,
+    "oracle": OraclePlanner,
     "straight": StraightPlanner,
     "stop": StopPlanner,
 }

@@ -24,7 +24,8 @@ class ObstacleState:
         positions: (n_obstacles, 2) centres in the world frame [m].
         velocities: (n_obstacles, 2) [m/s].
         radii: (n_obstacles,) [m].
-        predict: positions (n_obstacles, 2) at a future world time [s] (exact schedules).
+        predict: exact positions at future world time(s) [s]: (n_obstacles, 2) for one time,
+            (T, n_obstacles, 2) for an array of T times.
     """
 
     positions: np.ndarray

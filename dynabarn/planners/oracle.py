@@ -1,0 +1,144 @@
+"""`oracle`: a privileged demonstrator that knows every obstacle's schedule.
+
+Synthetic demonstrations where no person is available. It plans against the obstacles'
+exact future positions (from their schedules and the trial's clock offset, through
+`Observation.obstacles.predict`), which no real robot knows: recordings and datasets mark
+its episodes as synthetic (`source: oracle`).
+
+Per tick it searches two-segment controls: (v1, w1) for `t1` seconds, then (v2, w2) for
+`t2` seconds, on a grid of speeds and turn rates (all combinations, vectorised). Every
+candidate is rolled out at `dt` and checked against the walls (exact box distances) and
+against each obstacle at the same future time; among the collision-free candidates it
+takes the one whose end point has the lowest cost-to-go on the static Dijkstra field,
+with a penalty for passing close to obstacles. With no collision-free candidate it takes
+the one that stays clear longest.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
+
+from dynabarn.planners.base import EpisodeInfo, Observation, Planner
+from dynabarn.planners.global_planner import BOUNDS, GlobalPlanner
+
+
+@dataclass
+class OracleConfig:
+    v_samples: tuple = (-0.5, 0.0, 0.5, 1.0, 1.5, 2.0)
+    """Forward speeds tried in each segment [m/s]."""
+    w_samples: tuple = (-2.5, -1.2, -0.5, 0.0, 0.5, 1.2, 2.5)
+    """Turn rates tried in each segment [rad/s]."""
+    t1: float = 0.8
+    """First segment [s] (re-planned every control period)."""
+    t2: float = 1.6
+    """Second segment [s]."""
+    dt: float = 0.1
+    """Rollout step [s]."""
+    safety: float = 0.15
+    """Clearance required beyond touching [m]."""
+    comfort: float = 0.6
+    """Clearance below which a candidate is penalised [m]."""
+    clearance_weight: float = 3.0
+
+    @classmethod
+    def from_kwargs(cls, **kwargs) -> OracleConfig:
+        known = {f.name for f in fields(cls)}
+        unknown = set(kwargs) - known
+        if unknown:
+            raise TypeError(f"unknown oracle parameter(s) {sorted(unknown)}; known: {sorted(known)}")
+        return cls(**kwargs)
+
+
+class OraclePlanner(Planner):
+    """Privileged planner: time-aware search against the obstacles' known schedules."""
+
+    name = "oracle"
+    privileged = True
+
+    def __init__(self, **config) -> None:
+        self.cfg = OracleConfig.from_kwargs(**config)
+        c = self.cfg
+        v = np.asarray(c.v_samples, dtype=float)
+        w = np.asarray(c.w_samples, dtype=float)
+        v1, w1, v2, w2 = np.meshgrid(v, w, v, w, indexing="ij")
+        self._v1, self._w1, self._v2, self._w2 = (a.ravel() for a in (v1, w1, v2, w2))
+        n1 = round(c.t1 / c.dt)
+        n2 = round(c.t2 / c.dt)
+        self._steps = np.arange(1, n1 + n2 + 1) * c.dt  # (K,)
+        self._in_first = np.arange(1, n1 + n2 + 1) <= n1
+        self._last: np.ndarray | None = None
+
+    def config(self) -> dict:
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self.cfg).items()}
+
+    def reset(self, info: EpisodeInfo) -> None:
+        self.info = info
+        self.global_planner = GlobalPlanner(info.walls, info.goal, inflation=0.5 * math.hypot(*info.footprint))
+        self.radius = 0.5 * math.hypot(*info.footprint)
+        self._last = None
+
+    def debug(self) -> dict:
+        return {"local_plan": self._last} if self._last is not None else {}
+
+    def _rollout(self, pose: np.ndarray) -> np.ndarray:
+        """(N, K, 3) poses of every two-segment candidate."""
+        c = self.cfg
+        dt = c.dt
+        v = np.where(self._in_first[None, :], self._v1[:, None], self._v2[:, None])  # (N, K)
+        w = np.where(self._in_first[None, :], self._w1[:, None], self._w2[:, None])
+        th = pose[2] + np.cumsum(w * dt, axis=1)
+        th_mid = th - 0.5 * w * dt
+        x = pose[0] + np.cumsum(v * np.cos(th_mid) * dt, axis=1)
+        y = pose[1] + np.cumsum(v * np.sin(th_mid) * dt, axis=1)
+        return np.stack([x, y, th], axis=-1)
+
+    def _wall_distance(self, xy: np.ndarray) -> np.ndarray:
+        d = np.full(xy.shape[:-1], np.inf)
+        for cx, cy, sx, sy in self.info.walls:
+            dx = np.maximum(np.abs(xy[..., 0] - cx) - sx / 2, 0.0)
+            dy = np.maximum(np.abs(xy[..., 1] - cy) - sy / 2, 0.0)
+            d = np.minimum(d, np.hypot(dx, dy))
+        return d
+
+    def _cost_to_go(self, xy: np.ndarray) -> np.ndarray:
+        f = self.global_planner.field
+        res = self.global_planner.resolution
+        i = np.clip(((xy[..., 1] - BOUNDS[2]) / res).astype(np.int64), 0, f.ny - 1)
+        j = np.clip(((xy[..., 0] - BOUNDS[0]) / res).astype(np.int64), 0, f.nx - 1)
+        cost = f.cost[i, j]
+        # Unreachable cells (inside inflated walls): fall back to the straight-line distance.
+        straight = np.hypot(xy[..., 0] - self.info.goal[0], xy[..., 1] - self.info.goal[1]) + 5.0
+        return np.where(np.isfinite(cost), cost, straight)
+
+    def act(self, obs: Observation) -> tuple[float, float]:
+        if obs.obstacles is None:
+            raise RuntimeError("the oracle needs privileged observations (Planner.privileged)")
+        c = self.cfg
+        traj = self._rollout(obs.pose)  # (N, K, 3)
+        xy = traj[..., :2]
+        future = obs.obstacles.predict(obs.time + self._steps)  # (K, n, 2)
+        if future.shape[1]:
+            d = np.hypot(xy[:, :, None, 0] - future[None, :, :, 0], xy[:, :, None, 1] - future[None, :, :, 1])
+            clear = (d - obs.obstacles.radii[None, None, :]).min(axis=2) - self.radius  # (N, K)
+        else:
+            clear = np.full(xy.shape[:2], np.inf)
+        clear = np.minimum(clear, self._wall_distance(xy) - self.radius)
+        min_clear = clear.min(axis=1)
+        ok = min_clear > c.safety
+        goal_d = np.hypot(*(xy[..., 0] - obs.goal_in_world[0], xy[..., 1] - obs.goal_in_world[1]))
+        reached = (goal_d < 0.2).any(axis=1)
+        cost = self._cost_to_go(xy[:, -1]) + c.clearance_weight * np.maximum(0.0, c.comfort - min_clear)
+        # Reaching the goal beats any cost-to-go; reaching it sooner beats later.
+        cost = np.where(reached, -10.0 + 0.01 * np.argmax(goal_d < 0.2, axis=1), cost)
+        if ok.any():
+            cost = np.where(ok, cost, np.inf)
+            best = int(np.argmin(cost))
+        else:
+            # Nothing is safe for the whole horizon: stay clear for as long as possible.
+            first_hit = np.where(clear <= c.safety, np.arange(clear.shape[1])[None, :], clear.shape[1]).min(axis=1)
+            best = int(np.argmax(first_hit * 1000.0 + min_clear))
+        self._last = xy[best]
+        return float(self._v1[best]), float(self._w1[best])
