@@ -7,6 +7,7 @@ traceback appears only with `--debug`. Ctrl-C exits 130.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -408,6 +409,160 @@ def _render_video(recording: Path, out: Path, camera: str, fps: float, size: str
 
 def _render(args: argparse.Namespace) -> int:
     _render_video(args.recording, args.out, args.camera, args.fps, args.size)
+    return 0
+
+
+# -- dynabarn-teleop / dynabarn-demos ------------------------------------------------------
+
+
+def teleop_main(argv: Sequence[str] | None = None) -> int:
+    parser = _parser(
+        "dynabarn-teleop",
+        "Drive the Jackal yourself in MuJoCo's viewer and record a demonstration. Keys: Up/Down speed, "
+        "Left/Right turn, Space stop, 1 slow mode, 2 fast mode, Escape end. A gamepad works when pygame sees one.",
+    )
+    parser.add_argument("--world", required=True, help="generated world id (0-299) or path of a world .xml")
+    parser.add_argument("--protocol", default="barn", help="barn, paper2022, or a .json file")
+    parser.add_argument("--seed", type=int, default=0, help="trial seed: obstacle clock offset and laser noise")
+    parser.add_argument("--operator", default="human", help="your name, stored with the demonstration")
+    parser.add_argument("--demos-dir", type=Path, default=Path("demos"), help="folder of demonstrations")
+    parser.add_argument(
+        "--out", type=Path, default=None, help="recording file (default: DEMOS_DIR/<world>_<operator>_<NNN>.mcap)"
+    )
+    parser.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall-clock second")
+    args = parser.parse_args(argv)
+    return _run(_teleop, args)
+
+
+def _teleop(args: argparse.Namespace) -> int:
+    import os
+
+    from dynabarn.metrics import Outcome
+    from dynabarn.mjcf import read_world, resolve_world
+    from dynabarn.protocol import get_protocol
+    from dynabarn.teleop import append_manifest, next_demo_path, run_teleop
+
+    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+        raise DynabarnError("dynabarn-teleop needs a display (or Xvfb); none is set")
+    if args.speed <= 0:
+        raise DynabarnError("--speed must be positive")
+    world_path = resolve_world(args.world)
+    protocol = get_protocol(args.protocol)
+    world = read_world(world_path)
+    out = args.out or next_demo_path(args.demos_dir, world.name, args.operator)
+    result, pad = run_teleop(world_path, protocol, out, operator=args.operator, seed=args.seed, speed=args.speed)
+    append_manifest(
+        out.parent,
+        {
+            "file": out.name,
+            "world": world.name,
+            "world_id": world.world_id,
+            "protocol": protocol.name,
+            "seed": args.seed,
+            "outcome": result.outcome.value,
+            "reason": result.reason,
+            "time": result.time,
+            "operator": args.operator,
+            "source": "human",
+            "gamepad": pad,
+        },
+    )
+    print(result.summary())
+    print(f"demonstration: {out} (manifest: {out.parent / 'manifest.jsonl'})")
+    operator_stop = result.outcome is Outcome.ERROR and result.reason == "ended by the operator"
+    return EXIT_EPISODE_ERROR if result.outcome is Outcome.ERROR and not operator_stop else 0
+
+
+def demos_main(argv: Sequence[str] | None = None) -> int:
+    from dynabarn.demos import DEFAULT_LOOKAHEAD
+
+    parser = _parser("dynabarn-demos", "Collect synthetic demonstrations and export datasets for learning.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    ex = sub.add_parser(
+        "export",
+        help="recordings -> dataset.npz of (720 ranges, local goal) -> (v, w) rows",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    ex.add_argument("demos", nargs="+", type=Path, help="recordings or folders of recordings")
+    ex.add_argument("--out", type=Path, required=True, help="dataset file (.npz)")
+    ex.add_argument("--all", action="store_true", help="keep unsuccessful episodes too")
+    ex.add_argument("--lookahead", type=float, default=DEFAULT_LOOKAHEAD, help="local goal distance along the plan [m]")
+    co = sub.add_parser(
+        "collect",
+        help="record oracle demonstrations at scale (synthetic, marked so)",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    co.add_argument("--set", default="paper60", help="world set: paper60, dynabarn300, or a folder with index.json")
+    co.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
+    co.add_argument("--trials", type=int, default=1, help="seeds 0..N-1 per world")
+    co.add_argument("--protocol", default="barn", help="barn, paper2022, or a .json file")
+    co.add_argument("--planner", default="oracle", help="demonstrator planner")
+    co.add_argument("--jobs", type=int, default=__import__("os").cpu_count() or 1, help="parallel workers")
+    co.add_argument("--out", type=Path, default=Path("demos"), help="folder of demonstrations")
+    args = parser.parse_args(argv)
+    return _run(_demos_export if args.command == "export" else _demos_collect, args)
+
+
+def _demos_export(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from dynabarn.demos import export
+
+    if args.out.suffix != ".npz":
+        raise DynabarnError(f"--out must be a .npz file, got {args.out.name!r}")
+    meta = export(
+        args.demos,
+        args.out,
+        include_all=args.all,
+        lookahead=args.lookahead,
+        progress=lambda it: tqdm(it, desc="reading", unit="rec", disable=None, leave=False),
+    )
+    print(f"wrote {args.out}: {meta['episodes']} episodes, {meta['rows']} rows ({len(meta['skipped'])} skipped)")
+    return 0
+
+
+def _demos_collect(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from dynabarn import bench
+    from dynabarn.planners import get_planner
+    from dynabarn.protocol import get_protocol
+    from dynabarn.teleop import MANIFEST, append_manifest
+
+    get_planner(args.planner)
+    protocol = get_protocol(args.protocol)
+    worlds = bench.world_set(args.set, bench.parse_ids(args.worlds))
+    jobs = bench.make_jobs([(args.planner, {})], worlds, protocol, args.trials, record="all", recordings_dir=args.out)
+    report = bench.run_sweep(
+        jobs,
+        args.out / ".collect",
+        n_workers=args.jobs,
+        progress=lambda stream, total: tqdm(stream, total=total, desc="demos", unit="ep", disable=None),
+    )
+    listed = set()
+    if (args.out / MANIFEST).is_file():
+        listed = {json.loads(line)["file"] for line in (args.out / MANIFEST).read_text().splitlines() if line}
+    for row in sorted(report.rows, key=lambda r: r["key"]):
+        name = Path(row.get("recording", "")).name
+        if not name or name in listed:
+            continue
+        append_manifest(
+            args.out,
+            {
+                "file": name,
+                "world": row.get("world"),
+                "world_id": row["world_id"],
+                "protocol": row["protocol"],
+                "seed": row["seed"],
+                "outcome": row["outcome"],
+                "reason": row.get("reason", ""),
+                "time": row.get("time"),
+                "operator": "",
+                "source": "oracle" if args.planner == "oracle" else "planner",
+            },
+        )
+    ok = sum(r["outcome"] == "success" for r in report.rows)
+    print(f"{len(report.rows)} demonstrations in {args.out} ({ok} successful); manifest: {args.out / MANIFEST}")
     return 0
 
 

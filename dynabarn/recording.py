@@ -112,6 +112,9 @@ def default_run_path(runs_dir: Path, world: str, planner: str, protocol: str, se
     return Path(runs_dir) / f"{world}_{planner}_{protocol}_s{seed}.mcap"
 
 
+SOURCES = {"teleop": "human", "oracle": "oracle"}
+"""Planner name -> source of the demonstration (anything else: `planner`)."""
+
 _WORLD_FRAME = wire.string(2, "world")
 _OBSTACLE_COLOR = wire.color(0.85, 0.15, 0.12, 1.0)
 _WALL_COLOR = wire.color(0.55, 0.55, 0.6, 1.0)
@@ -126,12 +129,21 @@ class McapRecorder:
         chunk_size: uncompressed chunk size [bytes]; small chunks bound what a killed
             process loses.
         extra_channels: further JSON topics a caller logs to with `log_json`.
+        extra_metadata: fields added to `/world/metadata` (e.g. the operator's name).
     """
 
-    def __init__(self, path: Path | str, *, chunk_size: int = CHUNK_SIZE, extra_channels: tuple[str, ...] = ()):
+    def __init__(
+        self,
+        path: Path | str,
+        *,
+        chunk_size: int = CHUNK_SIZE,
+        extra_channels: tuple[str, ...] = (),
+        extra_metadata: dict | None = None,
+    ):
         self.path = Path(path)
         self.chunk_size = chunk_size
         self.extra_channels = extra_channels
+        self.extra_metadata = dict(extra_metadata or {})
         self._writer = None
         self._json: dict[str, foxglove.Channel] = {}
 
@@ -264,6 +276,10 @@ class McapRecorder:
             "keyframes": {
                 o.name: np.column_stack([o.trajectory.times, o.trajectory.xy]) for o in start.world.obstacles
             },
+            # Where the commands came from: a person, the privileged oracle (synthetic), a planner.
+            "source": SOURCES.get(start.planner, "planner"),
+            "synthetic": start.planner == "oracle",
+            **self.extra_metadata,
         }
 
     def _log_static(self, start: EpisodeStart) -> None:

@@ -360,6 +360,9 @@ def run_episode(
                 raw_v, raw_w = float(raw[0]), float(raw[1])
             except KeyboardInterrupt:
                 raise
+            except EndEpisode as exc:  # ended on purpose (e.g. the operator pressed Escape)
+                outcome, reason = Outcome.ERROR, str(exc) or "ended by the planner"
+                break
             except Exception as exc:  # the planner is foreign code: report, don't crash
                 outcome, reason = Outcome.ERROR, f"planner raised {type(exc).__name__}: {exc}"
                 break

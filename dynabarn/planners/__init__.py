@@ -61,6 +61,7 @@ def get_planner(name: str, **config) -> Planner:
 
 
 __all__ = [
+    "EndEpisode",
     "EpisodeInfo",
     "Observation",
     "ObstacleState",

@@ -94,6 +94,10 @@ class EpisodeInfo:
     extra: dict = field(default_factory=dict)
 
 
+class EndEpisode(Exception):
+    """Raised by a planner to end its episode on purpose (outcome `error`, this reason)."""
+
+
 class Planner(abc.ABC):
     """Base class of local planners. Subclasses set `name` and implement `act`."""
 

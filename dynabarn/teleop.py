@@ -1,0 +1,242 @@
+"""Demonstration collection: a person drives the Jackal in MuJoCo's viewer.
+
+The paper's pipeline recorded people driving a Jackal in Gazebo with a joystick into ROS
+bags. Here: MuJoCo's passive viewer (a follow camera, the goal region drawn), the keyboard
+(or a gamepad when pygame sees one), the episode run by the same loop and judged by the
+same protocol as any planner, and an MCAP recording written as it goes with the runner's
+topics plus the raw input on `/teleop/input`. The simulation is paced to real time.
+
+Keys (GLFW codes in the viewer's key callback):
+- Up / Down: forward speed +- one step; Left / Right: turn rate +- one step;
+- Space: stop (v = w = 0);
+- 1 / 2: slow mode (0.1 m/s and 0.3 rad/s steps, at most 1 m/s) / fast mode (0.25 m/s and
+  0.6 rad/s steps, up to the Jackal's 2 m/s), like the original gamepad's two buttons;
+- Escape (or closing the window): end the episode early.
+A gamepad's left stick sets v and w directly; its buttons 0 and 1 choose slow and fast.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from dynabarn.planners.base import EndEpisode, EpisodeInfo, Observation, Planner
+from dynabarn.recording import McapRecorder
+
+TOPIC_INPUT = "/teleop/input"
+MANIFEST = "manifest.jsonl"
+
+KEY_UP, KEY_DOWN, KEY_LEFT, KEY_RIGHT = 265, 264, 263, 262
+KEY_SPACE, KEY_ESCAPE, KEY_1, KEY_2 = 32, 256, 49, 50
+KEY_NAMES = {
+    KEY_UP: "up", KEY_DOWN: "down", KEY_LEFT: "left", KEY_RIGHT: "right",
+    KEY_SPACE: "space", KEY_ESCAPE: "escape", KEY_1: "slow", KEY_2: "fast",
+}  # fmt: skip
+
+MODES = {"slow": (0.1, 0.3, 1.0), "fast": (0.25, 0.6, 2.0)}
+"""mode -> (v step [m/s], w step [rad/s], v max [m/s])."""
+
+
+class OperatorStop(EndEpisode):
+    """The operator ended the episode (Escape or closed window)."""
+
+
+@dataclass
+class TeleopState:
+    """The command the operator has set, changed by key presses (from the viewer's thread)."""
+
+    v: float = 0.0
+    w: float = 0.0
+    mode: str = "slow"
+    stop_requested: bool = False
+    pending: list[str] = field(default_factory=list)
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def press(self, keycode: int) -> None:
+        name = KEY_NAMES.get(keycode)
+        if name is None:
+            return
+        with self.lock:
+            dv, dw, vmax = MODES[self.mode]
+            if name == "up":
+                self.v = min(self.v + dv, vmax)
+            elif name == "down":
+                self.v = max(self.v - dv, -0.5)
+            elif name == "left":
+                self.w = min(self.w + dw, 3.14)
+            elif name == "right":
+                self.w = max(self.w - dw, -3.14)
+            elif name == "space":
+                self.v = self.w = 0.0
+            elif name in ("slow", "fast"):
+                self.mode = name
+                self.v = min(self.v, MODES[name][2])
+            elif name == "escape":
+                self.stop_requested = True
+            self.pending.append(name)
+
+    def take(self) -> tuple[float, float, str, list[str], bool]:
+        with self.lock:
+            keys, self.pending = self.pending, []
+            return self.v, self.w, self.mode, keys, self.stop_requested
+
+
+class Gamepad:
+    """The first joystick pygame finds, if any (pygame is optional)."""
+
+    def __init__(self) -> None:
+        self.joystick = None
+        try:
+            import os
+
+            os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+            import pygame
+
+            pygame.init()
+            pygame.joystick.init()
+            if pygame.joystick.get_count():
+                self.joystick = pygame.joystick.Joystick(0)
+                self.joystick.init()
+            self._pygame = pygame
+        except Exception:  # no pygame, no SDL: keyboard only
+            self.joystick = None
+
+    @property
+    def name(self) -> str | None:
+        return self.joystick.get_name() if self.joystick is not None else None
+
+    def poll(self, state: TeleopState) -> dict | None:
+        if self.joystick is None:
+            return None
+        self._pygame.event.pump()
+        axes = [float(self.joystick.get_axis(i)) for i in range(min(2, self.joystick.get_numaxes()))]
+        buttons = [int(self.joystick.get_button(i)) for i in range(min(2, self.joystick.get_numbuttons()))]
+        with state.lock:
+            if buttons and buttons[0]:
+                state.mode = "slow"
+            if len(buttons) > 1 and buttons[1]:
+                state.mode = "fast"
+            vmax = MODES[state.mode][2]
+            if len(axes) == 2:
+                state.v = float(np.clip(-axes[1] * vmax, -0.5, vmax))
+                state.w = float(np.clip(-axes[0] * 3.14, -3.14, 3.14))
+        return {"axes": axes, "buttons": buttons}
+
+
+class TeleopPlanner(Planner):
+    """A 'planner' whose commands come from a person; logs every input to the recording."""
+
+    name = "teleop"
+
+    def __init__(self, state: TeleopState, recorder: McapRecorder | None = None, gamepad: Gamepad | None = None):
+        self.state = state
+        self.recorder = recorder
+        self.gamepad = gamepad
+
+    def reset(self, info: EpisodeInfo) -> None:
+        self.info = info
+
+    def act(self, obs: Observation) -> tuple[float, float]:
+        pad = self.gamepad.poll(self.state) if self.gamepad is not None else None
+        v, w, mode, keys, stop = self.state.take()
+        if self.recorder is not None:
+            self.recorder.log_json(TOPIC_INPUT, obs.time, {"keys": keys, "v": v, "w": w, "mode": mode, "gamepad": pad})
+        if stop:
+            raise OperatorStop("ended by the operator")
+        return v, w
+
+
+def next_demo_path(demos_dir: Path, world: str, operator: str) -> Path:
+    """demos/<world>_<operator>_<NNN>.mcap, the first number not taken."""
+    demos_dir.mkdir(parents=True, exist_ok=True)
+    k = 1
+    while (demos_dir / f"{world}_{operator}_{k:03d}.mcap").exists():
+        k += 1
+    return demos_dir / f"{world}_{operator}_{k:03d}.mcap"
+
+
+def append_manifest(demos_dir: Path, entry: dict) -> None:
+    with (demos_dir / MANIFEST).open("a") as f:
+        f.write(json.dumps(entry, sort_keys=True) + "\n")
+
+
+class ViewerSync:
+    """An EpisodeObserver that shows the episode in MuJoCo's passive viewer at real time."""
+
+    def __init__(self, viewer, state: TeleopState, *, speed: float = 1.0) -> None:
+        self.viewer = viewer
+        self.state = state
+        self.speed = speed
+        self._t0 = None
+
+    def on_start(self, start) -> None:
+        self._t0 = time.perf_counter()
+
+    def on_tick(self, tick) -> None:
+        if not self.viewer.is_running():
+            with self.state.lock:
+                self.state.stop_requested = True
+            return
+        self.viewer.sync()
+        lag = self._t0 + tick.time / self.speed - time.perf_counter()
+        if lag > 0:
+            time.sleep(lag)
+
+    def on_poses(self, times, poses) -> None: ...
+
+    def on_end(self, result) -> None:
+        if self.viewer.is_running():
+            self.viewer.sync()
+
+
+def run_teleop(
+    world_path: Path,
+    protocol,
+    out: Path,
+    *,
+    operator: str = "human",
+    seed: int = 0,
+    speed: float = 1.0,
+):
+    """Open the viewer, run one episode driven by the operator, record it; returns the result."""
+    import mujoco
+    import mujoco.viewer
+
+    from dynabarn.sim import Simulation, run_episode
+
+    sim = Simulation(world_path)
+    state = TeleopState()
+    recorder = McapRecorder(
+        out, extra_channels=(TOPIC_INPUT,), extra_metadata={"source": "human", "operator": operator}
+    )
+    gamepad = Gamepad()
+    planner = TeleopPlanner(state, recorder, gamepad)
+    sim.reset(protocol.spawn)
+    mujoco.mj_forward(sim.model, sim.data)
+    with mujoco.viewer.launch_passive(
+        sim.model, sim.data, key_callback=state.press, show_left_ui=False, show_right_ui=False
+    ) as viewer:
+        robot = sim.model.body("jackal/base_link").id
+        viewer.cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
+        viewer.cam.trackbodyid = robot
+        viewer.cam.distance, viewer.cam.elevation, viewer.cam.azimuth = 6.0, -35.0, 180.0
+        goal = sim.goal
+        with viewer.lock():
+            scn = viewer.user_scn
+            mujoco.mjv_initGeom(
+                scn.geoms[0],
+                mujoco.mjtGeom.mjGEOM_CYLINDER,
+                np.array([protocol.goal_tolerance, 0.01, 0]),
+                np.array([goal[0], goal[1], 0.01]),
+                np.eye(3).ravel(),
+                np.array([0.1, 0.9, 0.2, 0.5], np.float32),
+            )
+            scn.ngeom = 1
+        sync = ViewerSync(viewer, state, speed=speed)
+        result = run_episode(sim, planner, protocol, seed=seed, observers=[recorder, sync], planner_name="teleop")
+    return result, gamepad.name
