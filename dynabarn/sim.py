@@ -41,7 +41,7 @@ from dynabarn.metrics import (
     sum_abs_change,
 )
 from dynabarn.mjcf import REPO_ROOT, ROBOT_PREFIX, load_model, read_world
-from dynabarn.planners.base import EpisodeInfo, Observation, ObstacleState, Planner
+from dynabarn.planners.base import EndEpisode, EpisodeInfo, Observation, ObstacleState, Planner
 from dynabarn.protocol import EvalProtocol, GoalRegion
 from dynabarn.robot import JACKAL, LASER_GEOM_GROUPS, JackalParams
 from dynabarn.schedule import SchedulePlayer
