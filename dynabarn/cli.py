@@ -648,4 +648,6 @@ if __name__ == "__main__":  # pragma: no cover - `python -m dynabarn.cli run ...
         sys.exit(run_main(sys.argv[2:]))
     if len(sys.argv) > 1 and sys.argv[1] == "bench":
         sys.exit(bench_main(sys.argv[2:]))
+    if len(sys.argv) > 1 and sys.argv[1] == "teleop":
+        sys.exit(teleop_main(sys.argv[2:]))
     sys.exit(worlds_main())
