@@ -34,6 +34,7 @@ from dynabarn.metrics import (
     Outcome,
     compute_percentiles,
     footprint_clearance,
+    footprint_clearance_at,
     mean_abs_jerk,
     path_length,
     spl,
@@ -248,6 +249,185 @@ def _goal_in_robot(pose: np.ndarray, goal: np.ndarray) -> np.ndarray:
     return np.array([c * dx + s * dy, -s * dx + c * dy])
 
 
+class Episode:
+    """One episode's state, advanced one control period at a time.
+
+    `observe()` places the obstacles for the current time and casts the scan; `apply(v, w)`
+    limits the command and runs the physics steps of one control period, checking contacts,
+    the goal and the clock after every step. `run_episode` and the Gymnasium environment
+    both drive episodes through this class.
+
+    Args:
+        sim: the compiled world.
+        protocol: the rules.
+        seed: the trial seed (obstacle clock offset in [0, 5) s, laser noise).
+        privileged: include the true obstacle states in observations.
+    """
+
+    def __init__(self, sim: Simulation, protocol: EvalProtocol, *, seed: int = 0, privileged: bool = False) -> None:
+        self.sim = sim
+        self.protocol = protocol
+        self.seed = seed
+        self.privileged = privileged
+        config = sim.config
+        self.rng = np.random.default_rng(np.random.SeedSequence(seed))
+        self.clock_offset = float(self.rng.uniform(0.0, MAX_CLOCK_OFFSET))
+        self.player = SchedulePlayer(sim.world, clock_offset=self.clock_offset)
+        self.info = sim.episode_info(protocol, seed)
+        self.dt = config.dt
+        self.k = config.steps_per_tick
+        self.period = config.control_period
+        # Longest possible episode: the clock may start as late as `limit`, then run `limit`.
+        max_steps = math.ceil(2 * protocol.time_limit / self.dt) + 2 * self.k
+        self.poses = np.zeros((max_steps + 1, 3))  # robot pose after every physics step
+        n_ticks_max = max_steps // self.k + 2
+        self.tick_v = np.zeros(n_ticks_max)
+        self.tick_w = np.zeros(n_ticks_max)
+        self.tick_w_cmd = np.zeros(n_ticks_max)
+        self.planner_ms = np.zeros(n_ticks_max)
+        self._step_offsets = np.arange(self.k) * self.dt
+        sim.reset(protocol.spawn)
+        self.poses[0] = protocol.spawn
+        self.outcome: Outcome | None = None
+        self.reason = ""
+        self.t_start: float | None = 0.0 if protocol.timer_start_distance == 0.0 else None
+        self.step = 0
+        self.n_ticks = 0
+        self.prev_cmd = np.zeros(2)
+        self.wall_t0 = time.perf_counter()
+        self._batch_xy = self._batch_vel = None
+
+    @property
+    def time(self) -> float:
+        return self.step * self.dt
+
+    def observe(self) -> Observation:
+        """Place the obstacles for now, cast the scan, and return what a planner sees."""
+        sim = self.sim
+        model, data = sim.model, sim.data
+        t = self.time
+        # All obstacle positions of this control period in one vectorised call.
+        self._batch_xy, self._batch_vel = self.player.positions_at(t + self._step_offsets)
+        sim.set_obstacles(self._batch_xy[0])
+        mujoco.mj_kinematics(model, data)
+        qpos, qvel = data.qpos, data.qvel
+        pose = qpos[:3].copy()
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        velocity = np.array([c * qvel[0] + s * qvel[1], qvel[2]])
+        scan = sim.laser.scan(model, data, pose[2], self.rng)
+        privileged = None
+        if self.privileged:
+            privileged = ObstacleState(
+                positions=self._batch_xy[0].copy(),
+                velocities=self._batch_vel[0].copy(),
+                radii=sim.radii.copy(),
+                predict=_predictor(self.player),
+            )
+        self._obs = Observation(
+            time=t,
+            scan=scan,
+            pose=pose,
+            velocity=velocity,
+            goal_in_robot=_goal_in_robot(pose, sim.goal),
+            goal_in_world=sim.goal.copy(),
+            obstacles=privileged,
+        )
+        return self._obs
+
+    def end(self, outcome: Outcome, reason: str) -> None:
+        self.outcome, self.reason = outcome, reason
+
+    def apply(self, raw_v: float, raw_w: float) -> Outcome | None:
+        """Limit the command, then run one control period of physics; the outcome if it ended."""
+        if not (math.isfinite(raw_v) and math.isfinite(raw_w)):
+            self.end(Outcome.ERROR, f"planner returned a non-finite command ({raw_v}, {raw_w})")
+            return self.outcome
+        sim, cfg, p = self.sim, self.sim.config, JACKAL
+        data, model = sim.data, sim.model
+        v = min(max(raw_v, p.v_min), p.v_max)
+        w = min(max(raw_w, -p.w_max), p.w_max)
+        dv, dw = cfg.max_linear_accel * self.period, cfg.max_angular_accel * self.period
+        prev = self.prev_cmd
+        v = min(max(v, prev[0] - dv), prev[0] + dv)
+        w = min(max(w, prev[1] - dw), prev[1] + dw)
+        self.prev_cmd = np.array([v, w])
+        data.ctrl[0], data.ctrl[1], data.ctrl[2] = v, 0.0, w
+        n = self.n_ticks
+        self.tick_v[n], self.tick_w[n], self.tick_w_cmd[n] = self._obs.velocity[0], self._obs.velocity[1], w
+        self.n_ticks += 1
+
+        protocol = self.protocol
+        dt, poses, batch_xy = self.dt, self.poses, self._batch_xy
+        robot_qpos = data.qpos[:3]  # views reused every physics step
+        mocap_xy = data.mocap_pos[: sim.radii.size, :2]
+        gx, gy = float(sim.goal[0]), float(sim.goal[1])
+        sx, sy = protocol.spawn[0], protocol.spawn[1]
+        start_r2 = protocol.timer_start_distance**2
+        tol = protocol.goal_tolerance
+        tol2 = tol * tol
+        goal_disc = protocol.goal_region == GoalRegion.DISC
+        limit = protocol.time_limit
+        step, t_start = self.step, self.t_start
+        outcome = None
+        for j in range(self.k):
+            mocap_xy[...] = batch_xy[j]
+            mujoco.mj_step(model, data)
+            step += 1
+            poses[step] = robot_qpos
+            x, y = robot_qpos[0], robot_qpos[1]
+            if data.ncon:
+                self.reason = f"hit {_contact_partner(model, data, sim.robot_geoms)}"
+                outcome = Outcome.COLLISION
+                break
+            ts = step * dt
+            if t_start is None and (x - sx) ** 2 + (y - sy) ** 2 >= start_r2:
+                t_start = ts
+            dx, dy = x - gx, y - gy
+            if (dx * dx + dy * dy < tol2) if goal_disc else (abs(dx) < tol and abs(dy) < tol):
+                outcome, self.reason = Outcome.SUCCESS, "reached the goal"
+                break
+            if ts - (t_start if t_start is not None else 0.0) >= limit:
+                outcome, self.reason = Outcome.TIMEOUT, f"time limit {limit:g} s"
+                break
+        self.step, self.t_start, self.outcome = step, t_start, outcome
+        return outcome
+
+    def tick_record(self, raw: tuple[float, float], debug: dict) -> Tick:
+        """The last observation and command, for observers."""
+        obs, sim = self._obs, self.sim
+        laser_xy = sim.data.site_xpos[sim.laser.site]
+        pose = obs.pose
+        return Tick(
+            time=obs.time,
+            scan=obs.scan,
+            laser_pose=np.array([laser_xy[0], laser_xy[1], pose[2]]),
+            pose=pose,
+            velocity=obs.velocity,
+            command=self.prev_cmd.copy(),
+            raw_command=np.array(raw, dtype=np.float64),
+            obstacles=self._batch_xy[0].copy(),
+            clearance=footprint_clearance_at(
+                pose[0], pose[1], pose[2], self._batch_xy[0], sim.radii, (JACKAL.length / 2, JACKAL.width / 2)
+            ),
+            distance_to_goal=math.hypot(sim.goal[0] - pose[0], sim.goal[1] - pose[1]),
+            planner_ms=float(self.planner_ms[self.n_ticks - 1]) if self.n_ticks else 0.0,
+            debug=debug,
+        )
+
+    def poses_between(self, first: int) -> tuple[np.ndarray, np.ndarray]:
+        """Times and poses at the pose rate after physics step `first` up to now (the last
+        pose always included once the episode has ended)."""
+        every = self.sim.config.pose_every
+        first_idx = 0 if first == 0 else first + every - first % every
+        idx = np.arange(first_idx, self.step + 1, every)
+        if self.step % every and self.outcome is not None:
+            idx = np.append(idx, self.step)
+        return idx * self.dt, self.poses[idx].copy()
+
+    def result(self, start: EpisodeStart) -> EpisodeResult:
+        return _finish(self, start)
+
+
 def run_episode(
     world: Path | str | Simulation,
     planner: Planner,
@@ -265,95 +445,26 @@ def run_episode(
     observers finish (the recording is closed and complete), then re-raises.
     """
     sim = world if isinstance(world, Simulation) else Simulation(world, config=config)
-    config = sim.config
-    model, data, laser = sim.model, sim.data, sim.laser
-    params = JACKAL
-    rng = np.random.default_rng(np.random.SeedSequence(seed))
-    clock_offset = float(rng.uniform(0.0, MAX_CLOCK_OFFSET))
-    player = SchedulePlayer(sim.world, clock_offset=clock_offset)
-    info = sim.episode_info(protocol, seed)
-    name = planner_name or getattr(planner, "name", type(planner).__name__)
+    episode = Episode(sim, protocol, seed=seed, privileged=planner.privileged)
     start = EpisodeStart(
         world=sim.world,
         world_path=sim.world_path,
         world_sha256=sim.world_sha256,
         protocol=protocol,
-        planner=name,
+        planner=planner_name or getattr(planner, "name", type(planner).__name__),
         planner_config=planner.config(),
         seed=seed,
-        clock_offset=clock_offset,
-        config=config,
-        info=info,
+        clock_offset=episode.clock_offset,
+        config=sim.config,
+        info=episode.info,
         versions=versions(),
     )
-
-    dt = config.dt
-    k = config.steps_per_tick
-    period = config.control_period
-    pose_every = config.pose_every
-    goal = (float(sim.goal[0]), float(sim.goal[1]))
-    sx, sy = protocol.spawn[0], protocol.spawn[1]
-    start_r2 = protocol.timer_start_distance**2
-    limit = protocol.time_limit
-    # Longest possible episode: the clock may start as late as `limit`, then run `limit`.
-    max_steps = math.ceil(2 * limit / dt) + 2 * k
-    poses = np.zeros((max_steps + 1, 3))  # robot pose after every physics step
-    n_ticks_max = max_steps // k + 2
-    tick_v = np.zeros(n_ticks_max)
-    tick_w = np.zeros(n_ticks_max)
-    tick_w_cmd = np.zeros(n_ticks_max)
-    planner_ms = np.zeros(n_ticks_max)
-    step_offsets = np.arange(k) * dt
-
-    sim.reset(protocol.spawn)
-    poses[0] = protocol.spawn
-    outcome: Outcome | None = None
-    reason = ""
-    t_start: float | None = 0.0 if start_r2 == 0.0 else None
-    step = 0
-    n_ticks = 0
-    prev_cmd = np.zeros(2)
-    qpos, qvel = data.qpos, data.qvel
-    robot_qpos = qpos[:3]  # views reused every physics step
-    mocap_xy = data.mocap_pos[: sim.radii.size, :2]
-    gx, gy = goal
-    tol = protocol.goal_tolerance
-    tol2 = tol * tol
-    goal_disc = protocol.goal_region == GoalRegion.DISC
-    wall_t0 = time.perf_counter()
     for obs_ in observers:
         obs_.on_start(start)
     try:
-        planner.reset(info)
-        while outcome is None:
-            t = step * dt
-            # All obstacle positions of this control period in one vectorised call.
-            batch_xy, batch_vel = player.positions_at(t + step_offsets)
-            sim.set_obstacles(batch_xy[0])
-            mujoco.mj_kinematics(model, data)
-            pose = qpos[:3].copy()
-            c, s = math.cos(pose[2]), math.sin(pose[2])
-            v_meas = c * qvel[0] + s * qvel[1]
-            velocity = np.array([v_meas, qvel[2]])
-            scan = laser.scan(model, data, pose[2], rng)
-            goal_robot = _goal_in_robot(pose, sim.goal)
-            privileged = None
-            if planner.privileged:
-                privileged = ObstacleState(
-                    positions=batch_xy[0].copy(),
-                    velocities=batch_vel[0].copy(),
-                    radii=sim.radii.copy(),
-                    predict=_predictor(player),
-                )
-            observation = Observation(
-                time=t,
-                scan=scan,
-                pose=pose,
-                velocity=velocity,
-                goal_in_robot=goal_robot,
-                goal_in_world=sim.goal.copy(),
-                obstacles=privileged,
-            )
+        planner.reset(episode.info)
+        while episode.outcome is None:
+            observation = episode.observe()
             c0 = time.perf_counter()
             try:
                 raw = planner.act(observation)
@@ -361,114 +472,30 @@ def run_episode(
             except KeyboardInterrupt:
                 raise
             except EndEpisode as exc:  # ended on purpose (e.g. the operator pressed Escape)
-                outcome, reason = Outcome.ERROR, str(exc) or "ended by the planner"
+                episode.end(Outcome.ERROR, str(exc) or "ended by the planner")
                 break
             except Exception as exc:  # the planner is foreign code: report, don't crash
-                outcome, reason = Outcome.ERROR, f"planner raised {type(exc).__name__}: {exc}"
+                episode.end(Outcome.ERROR, f"planner raised {type(exc).__name__}: {exc}")
                 break
-            planner_ms[n_ticks] = (time.perf_counter() - c0) * 1e3
-            if not (math.isfinite(raw_v) and math.isfinite(raw_w)):
-                outcome, reason = Outcome.ERROR, f"planner returned a non-finite command ({raw_v}, {raw_w})"
+            episode.planner_ms[episode.n_ticks] = (time.perf_counter() - c0) * 1e3
+            first = episode.step
+            if episode.apply(raw_v, raw_w) is Outcome.ERROR:
                 break
-            v = min(max(raw_v, params.v_min), params.v_max)
-            w = min(max(raw_w, -params.w_max), params.w_max)
-            dv, dw = config.max_linear_accel * period, config.max_angular_accel * period
-            v = min(max(v, prev_cmd[0] - dv), prev_cmd[0] + dv)
-            w = min(max(w, prev_cmd[1] - dw), prev_cmd[1] + dw)
-            prev_cmd = np.array([v, w])
-            data.ctrl[0], data.ctrl[1], data.ctrl[2] = v, 0.0, w
-            tick_v[n_ticks], tick_w[n_ticks], tick_w_cmd[n_ticks] = v_meas, qvel[2], w
-            n_ticks += 1
-
             if observers:
-                laser_xy = data.site_xpos[laser.site]
-                tick = Tick(
-                    time=t,
-                    scan=scan,
-                    laser_pose=np.array([laser_xy[0], laser_xy[1], pose[2]]),
-                    pose=pose,
-                    velocity=velocity,
-                    command=prev_cmd.copy(),
-                    raw_command=np.array([raw_v, raw_w]),
-                    obstacles=batch_xy[0].copy(),
-                    clearance=float(
-                        footprint_clearance(pose[None], batch_xy[:1], sim.radii, (params.length / 2, params.width / 2))[
-                            0
-                        ]
-                    ),
-                    distance_to_goal=math.hypot(goal[0] - pose[0], goal[1] - pose[1]),
-                    planner_ms=float(planner_ms[n_ticks - 1]),
-                    debug=planner.debug(),
-                )
+                tick = episode.tick_record((raw_v, raw_w), planner.debug())
                 for obs_ in observers:
                     obs_.on_tick(tick)
-
-            first = step
-            for j in range(k):
-                mocap_xy[...] = batch_xy[j]
-                mujoco.mj_step(model, data)
-                step += 1
-                poses[step] = robot_qpos
-                x, y = robot_qpos[0], robot_qpos[1]
-                if data.ncon:
-                    other = _contact_partner(model, data, sim.robot_geoms)
-                    outcome, reason = Outcome.COLLISION, f"hit {other}"
-                    break
-                ts = step * dt
-                if t_start is None and (x - sx) ** 2 + (y - sy) ** 2 >= start_r2:
-                    t_start = ts
-                dx, dy = x - gx, y - gy
-                if (dx * dx + dy * dy < tol2) if goal_disc else (abs(dx) < tol and abs(dy) < tol):
-                    outcome, reason = Outcome.SUCCESS, "reached the goal"
-                    break
-                if ts - (t_start if t_start is not None else 0.0) >= limit:
-                    outcome, reason = Outcome.TIMEOUT, f"time limit {limit:g} s"
-                    break
-            if observers:
-                first_idx = 0 if first == 0 else first + pose_every - first % pose_every
-                idx = np.arange(first_idx, step + 1, pose_every)
-                if step % pose_every and outcome is not None:
-                    idx = np.append(idx, step)  # always hand over the final pose
-                if idx.size:
+                times, poses = episode.poses_between(first)
+                if len(times):
                     for obs_ in observers:
-                        obs_.on_poses(idx * dt, poses[idx].copy())
+                        obs_.on_poses(times, poses)
     except KeyboardInterrupt:
-        outcome, reason = Outcome.ERROR, "interrupted"
-        result = _finish(
-            sim,
-            start,
-            outcome,
-            reason,
-            step,
-            t_start,
-            poses,
-            tick_v,
-            tick_w,
-            tick_w_cmd,
-            planner_ms,
-            n_ticks,
-            player,
-            wall_t0,
-        )
+        episode.end(Outcome.ERROR, "interrupted")
+        result = episode.result(start)
         for obs_ in observers:
             obs_.on_end(result)
         raise
-    result = _finish(
-        sim,
-        start,
-        outcome,
-        reason,
-        step,
-        t_start,
-        poses,
-        tick_v,
-        tick_w,
-        tick_w_cmd,
-        planner_ms,
-        n_ticks,
-        player,
-        wall_t0,
-    )
+    result = episode.result(start)
     for obs_ in observers:
         obs_.on_end(result)
     return result
@@ -500,36 +527,25 @@ def _contact_partner(model: mujoco.MjModel, data: mujoco.MjData, robot_geoms: se
     return model.geom(other).name or f"geom {other}"
 
 
-def _finish(
-    sim: Simulation,
-    start: EpisodeStart,
-    outcome: Outcome,
-    reason: str,
-    step: int,
-    t_start: float | None,
-    poses: np.ndarray,
-    tick_v: np.ndarray,
-    tick_w: np.ndarray,
-    tick_w_cmd: np.ndarray,
-    planner_ms: np.ndarray,
-    n_ticks: int,
-    player: SchedulePlayer,
-    wall_t0: float,
-) -> EpisodeResult:
+def _finish(episode: Episode, start: EpisodeStart) -> EpisodeResult:
+    sim = episode.sim
     cfg = sim.config
     protocol = start.protocol
+    outcome, reason, step, t_start = episode.outcome, episode.reason, episode.step, episode.t_start
+    n_ticks = episode.n_ticks
     sim_time = step * cfg.dt
-    traj = poses[: step + 1]
+    traj = episode.poses[: step + 1]
     # The protocol's clock: from the first `timer_start_distance` of motion, if any.
     ep_time = sim_time - t_start if t_start is not None else sim_time
     success = outcome is Outcome.SUCCESS
     length = path_length(traj[:, :2])
     # Clearance at every physics step, from one batched schedule evaluation.
-    obstacle_xy, _ = player.positions_at(np.arange(step + 1) * cfg.dt)
+    obstacle_xy, _ = episode.player.positions_at(np.arange(step + 1) * cfg.dt)
     clearance = footprint_clearance(traj, obstacle_xy, sim.radii, (JACKAL.length / 2, JACKAL.width / 2))
-    mean_ms, p95_ms = compute_percentiles(planner_ms[:n_ticks])
-    wall = time.perf_counter() - wall_t0
+    mean_ms, p95_ms = compute_percentiles(episode.planner_ms[:n_ticks])
+    wall = time.perf_counter() - episode.wall_t0
     goal = (float(sim.goal[0]), float(sim.goal[1]))
+    tick_v, tick_w, tick_w_cmd = episode.tick_v, episode.tick_w, episode.tick_w_cmd
     return EpisodeResult(
         world=sim.world.name,
         planner=start.planner,
