@@ -15,9 +15,9 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e .
 	touch $(STAMP)
 
-# Plus the test tools and the optional extras the tests exercise (Ray).
+# Plus the test tools and the optional extras the tests exercise (Ray, PyTorch CPU, Gymnasium).
 $(TEST_STAMP): $(STAMP)
-	$(BIN)/python -m pip install --quiet -e '.[test,ray]'
+	$(BIN)/python -m pip install --quiet -e '.[test,ray,learn]'
 	touch $(TEST_STAMP)
 
 install: $(STAMP)

@@ -231,6 +231,9 @@ def run_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--planner-config", default=None, help="planner parameters: a .json file or key=value[,key=value]"
     )
+    parser.add_argument(
+        "--policy", type=Path, default=None, help="weights for bc/td3 (default: the policy shipped in the package)"
+    )
     parser.add_argument("--protocol", default="barn", help="evaluation protocol: barn, paper2022, or a .json file")
     parser.add_argument("--seed", type=int, default=0, help="trial seed: obstacle clock offset and laser noise")
     log = parser.add_mutually_exclusive_group()
@@ -263,7 +266,10 @@ def _run_episode(args: argparse.Namespace) -> int:
 
     world_path = resolve_world(args.world)
     protocol = get_protocol(args.protocol)
-    planner = get_planner(args.planner, **_planner_config(args.planner_config))
+    config = _planner_config(args.planner_config)
+    if args.policy is not None:
+        config["policy"] = str(args.policy)
+    planner = get_planner(args.planner, **config)
     sim = Simulation(world_path, config=SimConfig(dt=args.dt, control_rate=args.control_rate))
     log_path = None
     observers = []
@@ -566,6 +572,89 @@ def _demos_collect(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- dynabarn-train ----------------------------------------------------------------------
+
+
+def train_main(argv: Sequence[str] | None = None) -> int:
+    parser = _parser(
+        "dynabarn-train", "Train the learned baselines (needs the learn extra: pip install -e '.[learn]')."
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    bc = sub.add_parser(
+        "bc", help="behaviour cloning from a dataset", formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
+    bc.add_argument("--data", type=Path, required=True, help="dataset from `dynabarn-demos export`")
+    bc.add_argument("--out", type=Path, required=True, help="policy file to write (.pt)")
+    bc.add_argument("--epochs", type=int, default=30, help="passes over the data")
+    bc.add_argument("--batch-size", type=int, default=256, help="rows per gradient step")
+    bc.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate")
+    bc.add_argument("--seed", type=int, default=0, help="torch seed")
+    td = sub.add_parser(
+        "td3", help="TD3 reinforcement learning", formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
+    td.add_argument("--set", default="paper60", help="world set to train in")
+    td.add_argument("--difficulty", default="easy", help="easy, medium, hard or all")
+    td.add_argument("--protocol", default="barn", help="barn, paper2022 or a .json file")
+    td.add_argument("--steps", type=int, default=20_000, help="environment steps in total")
+    td.add_argument("--envs", type=int, default=1, help="parallel environments (one process each when > 1)")
+    td.add_argument("--eval-every", type=int, default=5_000, help="steps between evaluations and checkpoints")
+    td.add_argument("--eval-episodes", type=int, default=10, help="episodes per evaluation")
+    td.add_argument("--start-steps", type=int, default=2_000, help="uniformly random actions first")
+    td.add_argument("--seed", type=int, default=0, help="seed of torch, the buffer and the environments")
+    td.add_argument("--out", type=Path, required=True, help="folder for checkpoints, policy.pt and the learning curve")
+    args = parser.parse_args(argv)
+    return _run(_train, args)
+
+
+def _train(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise DynabarnError("dynabarn-train needs the learn extra: pip install -e '.[learn]'") from None
+    if args.command == "bc":
+        from dynabarn.learn.bc import train_bc
+
+        report = train_bc(
+            args.data,
+            args.out,
+            epochs=args.epochs,
+            batch_size=args.batch_size,
+            lr=args.lr,
+            seed=args.seed,
+            progress=lambda it: tqdm(it, desc="epochs", disable=None, leave=False),
+        )
+        print(
+            f"wrote {args.out}: {report.rows} rows, {report.epochs} epochs in {report.seconds:.1f} s, "
+            f"loss {report.losses[0]:.4f} -> {report.losses[-1]:.4f}"
+        )
+        return 0
+    from dynabarn.learn.td3 import TD3Config, train_td3
+
+    cfg = TD3Config(
+        steps=args.steps,
+        envs=args.envs,
+        world_set=args.set,
+        difficulty=args.difficulty,
+        protocol=args.protocol,
+        eval_every=args.eval_every,
+        eval_episodes=args.eval_episodes,
+        start_steps=args.start_steps,
+        seed=args.seed,
+    )
+    if cfg.steps < 1 or cfg.envs < 1:
+        raise DynabarnError("--steps and --envs must be positive")
+    report = train_td3(cfg, args.out, progress=lambda total: tqdm(total=total, desc="steps", disable=None))
+    last = report.evaluations[-1]
+    print(
+        f"wrote {args.out / 'policy.pt'} after {report.steps} steps ({report.episodes} episodes) in "
+        f"{report.seconds:.0f} s; last evaluation: success {last['success']:.2f}, return {last['return']:.1f}; "
+        f"curve: {args.out / 'learning_curve.png'}"
+    )
+    return 0
+
+
 # -- dynabarn-bench ----------------------------------------------------------------------
 
 
@@ -607,6 +696,8 @@ def _bench(args: argparse.Namespace) -> int:
     if args.trials < 1 or args.jobs < 1:
         raise DynabarnError("--trials and --jobs must be at least 1")
     config = _planner_config(args.planner_config)
+    if args.policy is not None:
+        config["policy"] = str(args.policy.resolve())
     names = [p.strip() for p in args.planner.split(",") if p.strip()]
     for name in names:
         get_planner(name, **config)  # fail fast on an unknown planner or bad configuration

@@ -149,3 +149,10 @@ def test_ray_backend_gives_identical_results(tmp_path):
     a = sorted((_strip(r) for r in local.rows), key=lambda r: r["key"])
     b = sorted((_strip(r) for r in ray.rows), key=lambda r: r["key"])
     assert a == b and len(a) == 4
+
+
+def test_wilson_interval_contains_the_rate():
+    for n in (1, 7, 20, 200):
+        for k in (0, n // 2, n):
+            lo, hi = bench.wilson_interval(k, n)
+            assert lo <= k / n <= hi

@@ -20,10 +20,25 @@ from dynabarn.planners.teb import TEBPlanner
 
 ENTRY_POINT_GROUP = "dynabarn.planners"
 
+
+def _bc(**config) -> Planner:
+    from dynabarn.planners.learned import BCPlanner
+
+    return BCPlanner(**config)
+
+
+def _td3(**config) -> Planner:
+    from dynabarn.planners.learned import TD3Planner
+
+    return TD3Planner(**config)
+
+
 _BUILTIN: dict[str, Callable[..., Planner]] = {
     "dwa": DWAPlanner,
     "teb": TEBPlanner,
     "oracle": OraclePlanner,
+    "bc": _bc,  # the learned ones load torch only when used
+    "td3": _td3,
     "straight": StraightPlanner,
     "stop": StopPlanner,
 }

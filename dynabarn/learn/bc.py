@@ -1,0 +1,68 @@
+"""Behaviour cloning (paper Sec. IV-b): the Fig. 4 actor regressed onto demonstrated actions."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from dynabarn.demos import load_dataset
+from dynabarn.learn.env import command_to_action
+from dynabarn.learn.models import Actor, save_policy
+
+
+@dataclass
+class BCReport:
+    epochs: int
+    rows: int
+    losses: list[float]
+    seconds: float
+
+
+def train_bc(
+    data: Path,
+    out: Path,
+    *,
+    epochs: int = 30,
+    batch_size: int = 256,
+    lr: float = 1e-3,
+    seed: int = 0,
+    progress=None,
+) -> BCReport:
+    """Fit the actor to (state, action) rows of a dataset by mean squared error."""
+    ds = load_dataset(data)
+    import json
+
+    lookahead = float(json.loads(str(ds["metadata"]))["lookahead"])
+    obs = torch.from_numpy(np.concatenate([ds["scans"], ds["local_goal"]], axis=1).astype(np.float32))
+    target = torch.from_numpy(command_to_action(ds["actions"][:, 0], ds["actions"][:, 1]))
+    torch.manual_seed(seed)
+    gen = torch.Generator().manual_seed(seed)
+    actor = Actor(lookahead)
+    optim = torch.optim.Adam(actor.parameters(), lr=lr)
+    losses = []
+    t0 = time.perf_counter()
+    epochs_iter = range(epochs) if progress is None else progress(range(epochs))
+    for _ in epochs_iter:
+        perm = torch.randperm(len(obs), generator=gen)
+        total = 0.0
+        for i in range(0, len(obs), batch_size):
+            idx = perm[i : i + batch_size]
+            loss = torch.mean((actor(obs[idx]) - target[idx]) ** 2)
+            optim.zero_grad()
+            loss.backward()
+            optim.step()
+            total += float(loss) * len(idx)
+        losses.append(total / len(obs))
+    seconds = time.perf_counter() - t0
+    save_policy(
+        actor,
+        out,
+        kind="bc",
+        lookahead=lookahead,
+        notes={"data": Path(data).name, "rows": len(obs), "epochs": epochs, "final_loss": losses[-1]},
+    )
+    return BCReport(epochs=epochs, rows=len(obs), losses=losses, seconds=seconds)

@@ -1,0 +1,105 @@
+"""The networks of the paper's Fig. 4, in PyTorch.
+
+Actor: 722 inputs -> feature layers 512, 256, 128 -> actor layers 64, 32 -> 2 outputs, tanh
+after every layer (the output in [-1, 1] is the normalised action of `DynaBARN-v0`).
+Critic (TD3): the same layers on the state and action (724 inputs) with one output, the
+value ("only the final layer of the actor network is modified to output the value").
+Inputs are scaled inside the network (ranges / 30 m, local goal / lookahead), so
+planners and datasets feed raw observations.
+
+Policies are saved as plain state dicts with a small header, and loaded with
+`torch.load(weights_only=True)`: no pickled code.
+"""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import torch
+from torch import nn
+
+OBS_DIM = 722
+ACT_DIM = 2
+FEATURES = (512, 256, 128)
+HEAD = (64, 32)
+RANGE_MAX = 30.0
+POLICY_FORMAT = "dynabarn-policy-v1"
+
+
+def _mlp(sizes: list[int], *, out_activation: bool) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for i, (a, b) in enumerate(itertools.pairwise(sizes)):
+        layers.append(nn.Linear(a, b))
+        if i < len(sizes) - 2 or out_activation:
+            layers.append(nn.Tanh())
+    return nn.Sequential(*layers)
+
+
+class ObsScale(nn.Module):
+    def __init__(self, lookahead: float = 2.0) -> None:
+        super().__init__()
+        scale = torch.ones(OBS_DIM)
+        scale[: OBS_DIM - 2] = 1.0 / RANGE_MAX
+        scale[OBS_DIM - 2 :] = 1.0 / lookahead
+        self.register_buffer("scale", scale)
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        return obs * self.scale
+
+
+class Actor(nn.Module):
+    def __init__(self, lookahead: float = 2.0) -> None:
+        super().__init__()
+        self.scale = ObsScale(lookahead)
+        self.features = _mlp([OBS_DIM, *FEATURES], out_activation=True)
+        self.head = _mlp([FEATURES[-1], *HEAD, ACT_DIM], out_activation=True)
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        return self.head(self.features(self.scale(obs)))
+
+
+class Critic(nn.Module):
+    def __init__(self, lookahead: float = 2.0) -> None:
+        super().__init__()
+        self.scale = ObsScale(lookahead)
+        self.features = _mlp([OBS_DIM + ACT_DIM, *FEATURES], out_activation=True)
+        self.head = _mlp([FEATURES[-1], *HEAD, 1], out_activation=False)
+
+    def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        return self.head(self.features(torch.cat([self.scale(obs), action], dim=-1)))
+
+
+def save_policy(actor: Actor, path: Path, *, kind: str, lookahead: float, notes: dict | None = None) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    torch.save(
+        {
+            "format": POLICY_FORMAT,
+            "kind": kind,
+            "lookahead": float(lookahead),
+            "notes": dict(notes or {}),
+            "state_dict": actor.state_dict(),
+        },
+        path,
+    )
+    return path
+
+
+def load_policy(path: Path) -> tuple[Actor, dict]:
+    """Load an actor saved by `save_policy` (weights only, no pickled code)."""
+    from dynabarn.errors import DynabarnError
+
+    path = Path(path)
+    if not path.is_file():
+        raise DynabarnError(f"policy file not found: {path}")
+    try:
+        blob = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:
+        raise DynabarnError(f"{path}: not a loadable policy ({type(exc).__name__}: {exc})") from None
+    if not isinstance(blob, dict) or blob.get("format") != POLICY_FORMAT:
+        raise DynabarnError(f"{path}: not a {POLICY_FORMAT} file")
+    actor = Actor(blob.get("lookahead", 2.0))
+    actor.load_state_dict(blob["state_dict"])
+    actor.eval()
+    return actor, {k: v for k, v in blob.items() if k != "state_dict"}

@@ -1,0 +1,65 @@
+"""`bc` and `td3`: the learned baselines as planners (needs the `learn` extra).
+
+Each runs the Fig. 4 actor on the paper's observation: the 720 ranges and the local goal
+(g_x, g_y) from the Dijkstra global plan `lookahead` metres ahead (the lookahead the
+policy was trained with). `policy=FILE` (`--policy FILE`) chooses the weights; without it
+the policy shipped in `dynabarn/policies/` is used. Files load with
+`torch.load(weights_only=True)`.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from dynabarn.errors import DynabarnError
+from dynabarn.planners.base import EpisodeInfo, Observation, Planner
+from dynabarn.planners.global_planner import GlobalPlanner, to_robot_frame
+
+SHIPPED = Path(__file__).resolve().parent.parent / "policies"
+
+
+class LearnedPlanner(Planner):
+    kind = "bc"
+
+    def __init__(self, policy: str | None = None) -> None:
+        try:
+            import torch
+
+            from dynabarn.learn.models import load_policy
+        except ImportError:
+            raise DynabarnError(f"planner {self.kind!r} needs the learn extra: pip install -e '.[learn]'") from None
+        self._torch = torch
+        torch.set_num_threads(1)
+        path = Path(policy) if policy else SHIPPED / f"{self.kind}.pt"
+        self.actor, self.header = load_policy(path)
+        self.lookahead = float(self.header.get("lookahead", 2.0))
+        self.policy_path = str(path)
+
+    def config(self) -> dict:
+        return {"policy": self.policy_path, "kind": self.header.get("kind"), "lookahead": self.lookahead}
+
+    def reset(self, info: EpisodeInfo) -> None:
+        self.global_planner = GlobalPlanner(info.walls, info.goal, inflation=0.5 * math.hypot(*info.footprint) + 0.05)
+
+    def act(self, obs: Observation) -> tuple[float, float]:
+        from dynabarn.learn.env import action_to_command
+
+        lg, _ = self.global_planner.local_goal(float(obs.pose[0]), float(obs.pose[1]), self.lookahead)
+        g = to_robot_frame(lg[None], obs.pose)[0]
+        x = np.concatenate([obs.scan, g]).astype(np.float32)[None]
+        with self._torch.no_grad():
+            a = self.actor(self._torch.from_numpy(x)).numpy()[0]
+        return action_to_command(a)
+
+
+class BCPlanner(LearnedPlanner):
+    name = "bc"
+    kind = "bc"
+
+
+class TD3Planner(LearnedPlanner):
+    name = "td3"
+    kind = "td3"
