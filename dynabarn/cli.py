@@ -670,6 +670,9 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--planner-config", default=None, help="parameters for every planner: a .json file or key=value[,...]"
     )
+    parser.add_argument(
+        "--policy", type=Path, default=None, help="weights for bc/td3 (default: the policy shipped in the package)"
+    )
     parser.add_argument("--set", default="paper60", help="world set: paper60, dynabarn300, or a folder with index.json")
     parser.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
     parser.add_argument("--trials", type=int, default=10, help="trials (seeds 0..N-1) per world")

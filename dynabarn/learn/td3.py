@@ -118,7 +118,7 @@ def train_td3(cfg: TD3Config, out_dir: Path, *, progress=None) -> TD3Report:
             with torch.no_grad():
                 act = actor(torch.as_tensor(obs)).numpy()
             act = np.clip(act + rng.normal(0, cfg.exploration_noise, act.shape), -1, 1).astype(np.float32)
-        obs2, rew, term, trunc, infos = envs.step(act)
+        obs2, rew, term, trunc, _ = envs.step(act)
         # With autoreset, the row after a done holds the new episode's first observation;
         # the true last observation of a finished episode is not needed for terminal
         # transitions (no bootstrap) and is approximated for truncated ones.
