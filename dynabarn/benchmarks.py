@@ -5,7 +5,8 @@ Measures, on one core:
 2. the runner with `straight` and `stop` on a hard world, without and with MCAP recording;
 3. world generation (300 worlds) and MCAP recovery;
 4. DWA's and TEB's compute time per call over six worlds of all difficulties;
-5. converting a 60 s recording to a rerun .rrd (and its ratio to the recording's length).
+5. converting a 60 s recording to a rerun .rrd (and its ratio to the recording's length);
+6. the Gymnasium environment's control steps per second (with the learn extra).
 Each figure is the best of `--repeat` runs (the least disturbed by other processes).
 """
 
@@ -118,6 +119,25 @@ def replay_conversion() -> tuple[float, float]:
         return time.perf_counter() - t0, result.sim_time
 
 
+def env_steps_per_second(n_steps: int = 3000) -> float | None:
+    """Control steps per second of DynaBARN-v0 on one core (None without the learn extra)."""
+    try:
+        import gymnasium
+
+        import dynabarn.learn  # noqa: F401
+    except ImportError:
+        return None
+    env = gymnasium.make("DynaBARN-v0", world_set="paper60")
+    env.reset(seed=0)
+    action = np.array([0.2, 0.0], dtype=np.float32)
+    t0 = time.perf_counter()
+    for _ in range(n_steps):
+        _, _, term, trunc, _ = env.step(action)
+        if term or trunc:
+            env.reset()
+    return n_steps / (time.perf_counter() - t0)
+
+
 def world_generation() -> float:
     from dynabarn.profiles import get_profile_set
     from dynabarn.worldset import generate_worlds
@@ -153,6 +173,9 @@ def main(argv: list[str] | None = None) -> int:
         mean, p95, calls = planner_compute(planner)
         print(f"{planner:<44}{mean:>11.2f}{p95:>11.2f}{calls:>8}")
     print(f"{'read back a recording [MB/s]':<66}{recovery_speed():>12.1f}")
+    sps = env_steps_per_second()
+    if sps is not None:
+        print(f"{'DynaBARN-v0 control steps per second (720-ray scan)':<66}{sps:>12.0f}")
     conv, length = min(replay_conversion() for _ in range(args.repeat))
     print(f"{f'convert a {length:.0f} s recording to .rrd [s]':<66}{conv:>12.2f}{conv / length:>9.3f}")
     return 0

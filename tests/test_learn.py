@@ -1,0 +1,161 @@
+"""Gymnasium environment, behaviour cloning, TD3 and the learned planners (learn extra)."""
+
+import numpy as np
+import pytest
+
+gymnasium = pytest.importorskip("gymnasium")
+torch = pytest.importorskip("torch")
+
+import dynabarn.learn  # noqa: E402  (registers DynaBARN-v0)
+from dynabarn.cli import demos_main, train_main  # noqa: E402
+from dynabarn.errors import DynabarnError  # noqa: E402
+from dynabarn.learn.env import action_to_command, command_to_action  # noqa: E402
+from dynabarn.learn.models import Actor, load_policy  # noqa: E402
+from dynabarn.metrics import Outcome  # noqa: E402
+from dynabarn.mjcf import resolve_world  # noqa: E402
+from dynabarn.planners import get_planner  # noqa: E402
+from dynabarn.protocol import get_protocol  # noqa: E402
+from dynabarn.recording import McapRecorder  # noqa: E402
+from dynabarn.sim import run_episode  # noqa: E402
+
+
+def test_env_passes_gymnasium_checker():
+    from gymnasium.utils.env_checker import check_env
+
+    env = gymnasium.make(dynabarn.learn.ENV_ID, worlds=[0, 100, 200], world_set="dynabarn300")
+    check_env(env.unwrapped)
+    obs, info = env.reset(seed=3)
+    assert obs.shape == (722,) and obs.dtype == np.float32 and env.observation_space.contains(obs)
+    assert info["world"] in {"world_000", "world_100", "world_200"}
+
+
+def test_env_is_deterministic_and_reports_reward_terms():
+    env = gymnasium.make(dynabarn.learn.ENV_ID, world_set="dynabarn300", worlds=[0])
+    runs = []
+    for _ in range(2):
+        obs, _ = env.reset(seed=7)
+        trace = [obs]
+        for _ in range(30):
+            obs, r, term, trunc, info = env.step(np.array([0.5, 0.0], np.float32))
+            trace.append(obs)
+        runs.append(np.array(trace))
+    np.testing.assert_array_equal(runs[0], runs[1])
+    assert {"reward_progress", "reward_time", "reward_collision", "reward_success"} <= info.keys()
+    assert info["reward_progress"] > 0.05  # driving at the goal makes progress
+
+
+def test_env_episode_ends_with_success_reward():
+    env = gymnasium.make(dynabarn.learn.ENV_ID, world_set="dynabarn300", worlds=[0])
+    env.reset(seed=1, options={"trial_seed": 0})
+    total, done = 0.0, False
+    steps = 0
+    while not done:
+        _, r, term, trunc, info = env.step(command_to_action(2.0, 0.0))
+        total += r
+        done = term or trunc
+        steps += 1
+    assert info["outcome"] == "success" and term and info["reward_success"] == 20.0
+    assert total > 20.0 + 18.0 - 0.01 * steps - 1e-6  # progress of ~19 m along the plan
+
+
+def test_vector_envs_step_together():
+    envs = gymnasium.vector.SyncVectorEnv(
+        [lambda: gymnasium.make(dynabarn.learn.ENV_ID, world_set="dynabarn300", worlds=[0, 1])] * 2
+    )
+    obs, _ = envs.reset(seed=0)
+    obs, r, term, trunc, _ = envs.step(np.zeros((2, 2), np.float32))
+    assert obs.shape == (2, 722) and r.shape == (2,)
+    envs.close()
+
+
+def test_action_mapping_round_trip():
+    v, w = action_to_command(np.array([-1.0, 1.0]))
+    assert (v, w) == pytest.approx((-0.5, 3.14))
+    a = command_to_action(np.array([0.75, 2.0]), np.array([0.0, -1.57]))
+    np.testing.assert_allclose(a, [[0.0, 0.0], [1.0, -0.5]], atol=1e-6)
+
+
+def test_networks_have_the_papers_shape():
+    actor = Actor()
+    sizes = [m.out_features for m in actor.modules() if isinstance(m, torch.nn.Linear)]
+    assert sizes == [512, 256, 128, 64, 32, 2]
+    out = actor(torch.zeros(4, 722))
+    assert out.shape == (4, 2) and torch.all(out.abs() <= 1)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    d = tmp_path_factory.mktemp("bc")
+    for w in (0, 1):
+        run_episode(
+            resolve_world(w),
+            get_planner("oracle"),
+            get_protocol("barn"),
+            seed=0,
+            observers=[McapRecorder(d / f"{w}.mcap")],
+        )
+    out = d / "ds.npz"
+    assert demos_main(["export", str(d), "--out", str(out)]) == 0
+    return out
+
+
+def test_bc_fits_a_small_dataset(dataset, tmp_path, capsys):
+    out = tmp_path / "bc.pt"
+    assert train_main(["bc", "--data", str(dataset), "--out", str(out), "--epochs", "60"]) == 0
+    line = capsys.readouterr().out
+    first, last = (float(x) for x in line.split("loss ")[1].split(" -> "))
+    assert last < 0.5 * first
+    actor, header = load_policy(out)
+    assert header["kind"] == "bc"
+    from dynabarn.demos import load_dataset
+
+    ds = load_dataset(dataset)
+    obs = torch.from_numpy(np.concatenate([ds["scans"], ds["local_goal"]], axis=1))
+    pred = actor(obs).detach().numpy()
+    target = command_to_action(ds["actions"][:, 0], ds["actions"][:, 1])
+    assert np.mean((pred - target) ** 2) < 0.05
+    # The trained policy drives as a planner.
+    r = run_episode(resolve_world(0), get_planner("bc", policy=str(out)), get_protocol("barn"), seed=0)
+    assert r.outcome is not Outcome.ERROR
+
+
+def test_short_td3_run_trains_and_saves(tmp_path, capsys):
+    out = tmp_path / "td3"
+    argv = [
+        "td3",
+        "--set",
+        "dynabarn300",
+        "--difficulty",
+        "easy",
+        "--steps",
+        "400",
+        "--start-steps",
+        "200",
+        "--eval-every",
+        "400",
+        "--eval-episodes",
+        "1",
+        "--out",
+        str(out),
+    ]
+    assert train_main(argv) == 0
+    for name in ("policy.pt", "learning_curve.png", "training.json", "checkpoint_00000400.pt"):
+        assert (out / name).is_file(), name
+    actor, header = load_policy(out / "policy.pt")
+    assert header["kind"] == "td3" and header["notes"]["steps"] == 400
+
+
+@pytest.mark.parametrize("planner", ["bc", "td3"])
+def test_shipped_policies_complete_an_episode(planner):
+    r = run_episode(resolve_world(0), get_planner(planner), get_protocol("barn"), seed=0)
+    assert r.outcome in (Outcome.SUCCESS, Outcome.COLLISION, Outcome.TIMEOUT)
+    assert r.n_ticks > 5
+
+
+def test_bad_policy_files(tmp_path):
+    with pytest.raises(DynabarnError, match="not found"):
+        get_planner("bc", policy=str(tmp_path / "nope.pt"))
+    bad = tmp_path / "bad.pt"
+    torch.save({"something": 1}, bad)
+    with pytest.raises(DynabarnError, match="not a dynabarn-policy-v1"):
+        get_planner("td3", policy=str(bad))
