@@ -36,7 +36,7 @@ def test_env_is_deterministic_and_reports_reward_terms():
         obs, _ = env.reset(seed=7)
         trace = [obs]
         for _ in range(30):
-            obs, r, term, trunc, info = env.step(np.array([0.5, 0.0], np.float32))
+            obs, _, _, _, info = env.step(np.array([0.5, 0.0], np.float32))
             trace.append(obs)
         runs.append(np.array(trace))
     np.testing.assert_array_equal(runs[0], runs[1])
