@@ -63,7 +63,7 @@ def test_vector_envs_step_together():
         [lambda: gymnasium.make(dynabarn.learn.ENV_ID, world_set="dynabarn300", worlds=[0, 1])] * 2
     )
     obs, _ = envs.reset(seed=0)
-    obs, r, term, trunc, _ = envs.step(np.zeros((2, 2), np.float32))
+    obs, r, _, _, _ = envs.step(np.zeros((2, 2), np.float32))
     assert obs.shape == (2, 722) and r.shape == (2,)
     envs.close()
 
@@ -141,7 +141,7 @@ def test_short_td3_run_trains_and_saves(tmp_path, capsys):
     assert train_main(argv) == 0
     for name in ("policy.pt", "learning_curve.png", "training.json", "checkpoint_00000400.pt"):
         assert (out / name).is_file(), name
-    actor, header = load_policy(out / "policy.pt")
+    _, header = load_policy(out / "policy.pt")
     assert header["kind"] == "td3" and header["notes"]["steps"] == 400
 
 
