@@ -6,7 +6,8 @@ Measures, on one core:
 3. world generation (300 worlds) and MCAP recovery;
 4. DWA's and TEB's compute time per call over six worlds of all difficulties;
 5. converting a 60 s recording to a rerun .rrd (and its ratio to the recording's length);
-6. the Gymnasium environment's control steps per second (with the learn extra).
+6. the Gymnasium environment's control steps per second (with the learn extra);
+7. the speed-up of a 2-worker benchmark sweep over 1 worker.
 Each figure is the best of `--repeat` runs (the least disturbed by other processes).
 """
 
@@ -138,6 +139,21 @@ def env_steps_per_second(n_steps: int = 3000) -> float | None:
     return n_steps / (time.perf_counter() - t0)
 
 
+def sweep_speedup(workers: int = 2) -> tuple[float, float]:
+    """(wall seconds with 1 worker, with `workers`) for the same 40 DWA episodes of paper60."""
+    from dynabarn import bench
+
+    worlds = bench.world_set("paper60", [0, 1, 2, 3, 100, 101, 150, 151, 200, 201])
+    jobs = bench.make_jobs([("dwa", {})], worlds, get_protocol("barn"), 4)
+    times = []
+    for n in (1, workers):
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            bench.run_sweep(jobs, Path(tmp), n_workers=n)
+            times.append(time.perf_counter() - t0)
+    return times[0], times[1]
+
+
 def world_generation() -> float:
     from dynabarn.profiles import get_profile_set
     from dynabarn.worldset import generate_worlds
@@ -176,6 +192,8 @@ def main(argv: list[str] | None = None) -> int:
     sps = env_steps_per_second()
     if sps is not None:
         print(f"{'DynaBARN-v0 control steps per second (720-ray scan)':<66}{sps:>12.0f}")
+    one, two = sweep_speedup()
+    print(f"{'bench sweep, 40 DWA episodes: 1 worker / 2 workers [s]':<66}{one:>6.1f} /{two:>5.1f}{one / two:>9.2f}x")
     conv, length = min(replay_conversion() for _ in range(args.repeat))
     print(f"{f'convert a {length:.0f} s recording to .rrd [s]':<66}{conv:>12.2f}{conv / length:>9.3f}")
     return 0
