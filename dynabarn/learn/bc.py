@@ -55,7 +55,7 @@ def train_bc(
             optim.zero_grad()
             loss.backward()
             optim.step()
-            total += float(loss) * len(idx)
+            total += float(loss.detach()) * len(idx)
         losses.append(total / len(obs))
     seconds = time.perf_counter() - t0
     save_policy(
