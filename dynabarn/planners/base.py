@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import ClassVar
 
 import numpy as np
@@ -92,6 +92,15 @@ class EpisodeInfo:
     goal_tolerance: float
     seed: int = 0
     extra: dict = field(default_factory=dict)
+
+
+def config_from_kwargs(cls, kwargs: dict, what: str):
+    """Build the planner configuration dataclass `cls`, naming unknown keys and the known ones."""
+    known = {f.name for f in fields(cls)}
+    unknown = set(kwargs) - known
+    if unknown:
+        raise TypeError(f"unknown {what} parameter(s) {sorted(unknown)}; known: {sorted(known)}")
+    return cls(**kwargs)
 
 
 class EndEpisode(Exception):

@@ -24,11 +24,11 @@ them (`dwa.max_vel_x=1.5` style keys, or a JSON file).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from dynabarn.planners.base import EpisodeInfo, Observation, Planner
+from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap
 from dynabarn.planners.global_planner import GlobalPlanner
 
@@ -73,11 +73,7 @@ class DWAConfig:
         cm = dict(kwargs.pop("costmap", {}) or {})
         for key in [k for k in kwargs if k.startswith("costmap.")]:
             cm[key.split(".", 1)[1]] = kwargs.pop(key)
-        known = {f.name for f in fields(cls)}
-        unknown = set(kwargs) - known
-        if unknown:
-            raise TypeError(f"unknown DWA parameter(s) {sorted(unknown)}; known: {sorted(known)}")
-        cfg = cls(**kwargs, costmap=CostmapConfig(**cm))
+        cfg = config_from_kwargs(cls, {**kwargs, "costmap": CostmapConfig(**cm)}, "DWA")
         if cfg.vx_samples < 1 or cfg.vth_samples < 1 or cfg.sim_time <= 0 or cfg.sim_dt <= 0:
             raise TypeError("vx_samples, vth_samples, sim_time and sim_dt must be positive")
         return cfg

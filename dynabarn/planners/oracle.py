@@ -17,11 +17,11 @@ the one that stays clear longest.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from dynabarn.planners.base import EpisodeInfo, Observation, Planner
+from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.planners.global_planner import BOUNDS, GlobalPlanner
 
 
@@ -45,11 +45,7 @@ class OracleConfig:
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> OracleConfig:
-        known = {f.name for f in fields(cls)}
-        unknown = set(kwargs) - known
-        if unknown:
-            raise TypeError(f"unknown oracle parameter(s) {sorted(unknown)}; known: {sorted(known)}")
-        return cls(**kwargs)
+        return config_from_kwargs(cls, kwargs, "oracle")
 
 
 class OraclePlanner(Planner):

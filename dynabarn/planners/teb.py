@@ -34,12 +34,12 @@ nearest obstacle (recovery), as move_base would.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from dynabarn.planners.base import EpisodeInfo, Observation, Planner
+from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap
 from dynabarn.planners.global_planner import GlobalPlanner
 
@@ -74,11 +74,7 @@ class TEBConfig:
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> TEBConfig:
-        known = {f.name for f in fields(cls)}
-        unknown = set(kwargs) - known
-        if unknown:
-            raise TypeError(f"unknown TEB parameter(s) {sorted(unknown)}; known: {sorted(known)}")
-        cfg = cls(**kwargs)
+        cfg = config_from_kwargs(cls, kwargs, "TEB")
         if cfg.n_poses < 3:
             raise TypeError("n_poses must be at least 3")
         return cfg
