@@ -94,7 +94,12 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
         "import", help="import worlds from another format", formatter_class=argparse.ArgumentDefaultsHelpFormatter
     )
     im.add_argument("file", type=Path, help="file to import (e.g. ../shared/reference/dynabarn60.json)")
-    im.add_argument("--format", choices=["dynabarn-release"], default="dynabarn-release", help="input format")
+    im.add_argument(
+        "--format",
+        choices=["dynabarn-release", "barn-static"],
+        default="dynabarn-release",
+        help="input format: the DynaBARN release's 60 worlds, or the 300 static BARN worlds",
+    )
     im.add_argument("--out", type=Path, default=Path("imported_worlds"), help="output directory")
     im.add_argument(
         "--declared-obstacles",
@@ -131,11 +136,16 @@ def _worlds_generate(args: argparse.Namespace) -> int:
 
 
 def _worlds_import(args: argparse.Namespace) -> int:
-    from dynabarn.release import import_release, load_release_json
     from dynabarn.worldset import write_worlds
 
-    data = load_release_json(args.file)
-    worlds = import_release(data, use_effective=not args.declared_obstacles)
+    if args.format == "barn-static":
+        from dynabarn.barn import import_barn_static, load_barn_json
+
+        worlds = import_barn_static(load_barn_json(args.file))
+    else:
+        from dynabarn.release import import_release, load_release_json
+
+        worlds = import_release(load_release_json(args.file), use_effective=not args.declared_obstacles)
     sets = {
         "all": [w.world_id for w in worlds],
         "easy": [w.world_id for w in worlds if w.difficulty == "easy"],

@@ -99,6 +99,17 @@ def build_world_spec(world: WorldSpec) -> mujoco.MjSpec:
             conaffinity=1,
             group=GeomGroup.STATIC,
         )
+    for k, (cx, cy, r) in enumerate(world.layout.cylinders):
+        wb.add_geom(
+            name=f"static_{k:03d}",
+            type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+            size=[r, 0.5, 0],
+            pos=[cx, cy, 0.5],
+            material="wall",
+            contype=1,
+            conaffinity=1,
+            group=GeomGroup.STATIC,
+        )
     wb.add_geom(
         name="goal",
         type=mujoco.mjtGeom.mjGEOM_CYLINDER,

@@ -62,6 +62,9 @@ class EvalProtocol:
     reference_path_length: float = 20.0
     max_speed: float = 2.0
     score_clip: tuple[float, float] = (2.0, 8.0)
+    reference_from_world: bool = False
+    """Use the world's own reference path length (`provenance['reference_path_length']`,
+    e.g. a static BARN world's planned path) instead of `reference_path_length`."""
 
     def __post_init__(self) -> None:
         if self.goal_tolerance <= 0 or self.time_limit <= 0 or self.max_speed <= 0:
@@ -86,11 +89,11 @@ class EvalProtocol:
             return dx * dx + dy * dy < self.goal_tolerance * self.goal_tolerance
         return abs(dx) < self.goal_tolerance and abs(dy) < self.goal_tolerance
 
-    def score(self, success: bool, actual_time: float) -> float:
-        """BARN score: success * OT / clip(AT, low * OT, high * OT)."""
+    def score(self, success: bool, actual_time: float, reference_length: float | None = None) -> float:
+        """BARN score: success * OT / clip(AT, low * OT, high * OT), OT = reference length / max speed."""
         if not success:
             return 0.0
-        ot = self.optimal_time
+        ot = self.optimal_time if reference_length is None else reference_length / self.max_speed
         lo, hi = self.score_clip
         return ot / min(max(actual_time, lo * ot), hi * ot)
 
@@ -121,6 +124,18 @@ class EvalProtocol:
 
 
 PROTOCOLS: dict[str, EvalProtocol] = {
+    # The BARN Challenge on the static BARN worlds: start (-1, 1) facing +y below the
+    # obstacle grid, goal region 1 m, 100 s from the first 0.1 m of motion, score with the
+    # world's own reference path (BARN's path file) as the optimal length.
+    "barn-static": EvalProtocol(
+        "barn-static",
+        spawn=(-1.0, 1.0, math.pi / 2),
+        goal_region=GoalRegion.DISC,
+        goal_tolerance=1.0,
+        time_limit=100.0,
+        timer_start_distance=0.1,
+        reference_from_world=True,
+    ),
     "barn": EvalProtocol("barn"),
     "paper2022": EvalProtocol(
         "paper2022",

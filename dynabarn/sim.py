@@ -240,6 +240,7 @@ class Simulation:
             goal=self.goal.copy(),
             goal_tolerance=protocol.goal_tolerance,
             seed=seed,
+            static_obstacles=np.array(self.world.layout.cylinders, dtype=np.float64).reshape(-1, 3),
         )
 
 
@@ -520,6 +521,14 @@ def portable_path(path: Path) -> str:
         return str(path)
 
 
+def _optimal_length(protocol: EvalProtocol, world: WorldSpec, goal: tuple[float, float]) -> float:
+    """SPL's shortest path: the world's reference path when the protocol says so, else a straight line."""
+    ref = world.provenance.get("reference_path_length") if protocol.reference_from_world else None
+    if ref is not None:
+        return max(float(ref) - protocol.goal_tolerance, 0.0)
+    return protocol.optimal_path_length(goal)
+
+
 def _contact_partner(model: mujoco.MjModel, data: mujoco.MjData, robot_geoms: set[int]) -> str:
     con = data.contact[0]
     g1, g2 = int(con.geom[0]), int(con.geom[1])
@@ -541,7 +550,16 @@ def _finish(episode: Episode, start: EpisodeStart) -> EpisodeResult:
     length = path_length(traj[:, :2])
     # Clearance at every physics step, from one batched schedule evaluation.
     obstacle_xy, _ = episode.player.positions_at(np.arange(step + 1) * cfg.dt)
-    clearance = footprint_clearance(traj, obstacle_xy, sim.radii, (JACKAL.length / 2, JACKAL.width / 2))
+    half = (JACKAL.length / 2, JACKAL.width / 2)
+    clearance = footprint_clearance(traj, obstacle_xy, sim.radii, half)
+    static = np.array(sim.world.layout.cylinders, dtype=np.float64).reshape(-1, 3)
+    if len(static):  # static cylinders (BARN worlds): in time chunks, to bound the memory
+        for i in range(0, len(traj), 1000):
+            part = traj[i : i + 1000]
+            xy = np.broadcast_to(static[:, :2], (len(part), len(static), 2))
+            clearance[i : i + 1000] = np.minimum(
+                clearance[i : i + 1000], footprint_clearance(part, xy, static[:, 2], half)
+            )
     mean_ms, p95_ms = compute_percentiles(episode.planner_ms[:n_ticks])
     wall = time.perf_counter() - episode.wall_t0
     goal = (float(sim.goal[0]), float(sim.goal[1]))
@@ -556,8 +574,12 @@ def _finish(episode: Episode, start: EpisodeStart) -> EpisodeResult:
         time=ep_time,
         sim_time=sim_time,
         path_length=length,
-        score=protocol.score(success, ep_time),
-        spl=spl(success, protocol.optimal_path_length(goal), length),
+        score=protocol.score(
+            success,
+            ep_time,
+            sim.world.provenance.get("reference_path_length") if protocol.reference_from_world else None,
+        ),
+        spl=spl(success, _optimal_length(protocol, sim.world, goal), length),
         min_clearance=float(clearance.min()) if clearance.size else math.inf,
         mean_abs_jerk=mean_abs_jerk(tick_v[:n_ticks], cfg.control_period),
         sum_abs_dw=sum_abs_change(tick_w_cmd[:n_ticks]),

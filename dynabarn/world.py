@@ -75,13 +75,18 @@ class Layout:
     )
     goal: tuple[float, float] = (-9.0, 0.0)
     arena_half_size: float = ARENA_HALF_SIZE
+    cylinders: tuple[tuple[float, float, float], ...] = ()
+    """Static cylinders (x, y, radius) [m], e.g. the obstacles of a static BARN world."""
 
     def to_dict(self) -> dict:
-        return {
+        d = {
             "walls": [{"name": w.name, "centre": list(w.centre), "size": list(w.size)} for w in self.walls],
             "goal": list(self.goal),
             "arena_half_size": self.arena_half_size,
         }
+        if self.cylinders:  # only when present, so dynamic worlds' files stay as they were
+            d["cylinders"] = [list(c) for c in self.cylinders]
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> Layout:
@@ -92,6 +97,7 @@ class Layout:
             ),
             goal=(float(d["goal"][0]), float(d["goal"][1])),
             arena_half_size=float(d["arena_half_size"]),
+            cylinders=tuple((float(x), float(y), float(r)) for x, y, r in d.get("cylinders", [])),
         )
 
 

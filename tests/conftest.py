@@ -1,5 +1,12 @@
 from __future__ import annotations
 
+import os
+
+# MuJoCo picks its OpenGL platform when first imported: offscreen EGL unless a display is set
+# (dynabarn/__init__.py does the same, but a test module may import mujoco before dynabarn).
+if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+    os.environ["MUJOCO_GL"] = "egl"
+
 import json
 from pathlib import Path
 
@@ -20,3 +27,11 @@ def release_json() -> dict:
 @pytest.fixture(scope="session")
 def release_path(release_json) -> Path:
     return REFERENCE / "dynabarn60.json"
+
+
+@pytest.fixture(scope="session")
+def barn_json() -> dict:
+    path = REFERENCE / "barn300_static.json"
+    if not path.is_file():
+        pytest.skip("reference data ../shared/reference/barn300_static.json not present")
+    return json.loads(path.read_text())

@@ -138,7 +138,9 @@ class DynaBARNEnv(gymnasium.Env):
             self._sims[file] = Simulation(file)
             sim = self._sims[file]
             inflation = 0.5 * math.hypot(JACKAL.length, JACKAL.width) + 0.05
-            self._planners[file] = GlobalPlanner(sim.walls, sim.goal, inflation=inflation)
+            self._planners[file] = GlobalPlanner(
+                sim.walls, sim.goal, inflation=inflation, circles=np.array(sim.world.layout.cylinders).reshape(-1, 3)
+            )
         sim = self._sims[file]
         self._planner = self._planners[file]
         self.episode = Episode(sim, self.protocol, seed=trial)

@@ -77,6 +77,7 @@ class EpisodeInfo:
         walls: (n_walls, 4) static walls as (cx, cy, sx, sy) boxes [m]: the known map.
         goal: (2,) goal in the world frame [m]; goal_tolerance [m].
         seed: the episode's seed, for planners that randomise.
+        static_obstacles: (n, 3) static cylinders (x, y, radius) [m]: also the known map.
     """
 
     laser_angles: np.ndarray
@@ -91,6 +92,7 @@ class EpisodeInfo:
     goal: np.ndarray
     goal_tolerance: float
     seed: int = 0
+    static_obstacles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     extra: dict = field(default_factory=dict)
 
 

@@ -25,8 +25,11 @@ import numpy as np
 
 RESOLUTION = 0.1
 """Grid cell size [m]."""
-BOUNDS = (-11.0, 14.0, -11.0, 11.0)
-"""Grid extent (x_min, x_max, y_min, y_max) [m]: the arena plus both spawn points."""
+BOUNDS = (-11.0, 14.0, -11.0, 14.0)
+"""Grid extent (x_min, x_max, y_min, y_max) [m]: the arena plus both spawn points, and the
+static BARN worlds (x in [-4.5, 0], y in [0, 13])."""
+CIRCLE_INFLATION = 0.215 + 0.05
+"""Growth of static cylinders in the global map [m]: the Jackal's half width plus 5 cm."""
 
 
 @dataclass(frozen=True)
@@ -38,7 +41,9 @@ class _Field:
 
 
 @functools.lru_cache(maxsize=64)
-def _dijkstra_field(walls: tuple, goal: tuple[float, float], inflation: float, resolution: float) -> _Field:
+def _dijkstra_field(
+    walls: tuple, goal: tuple[float, float], inflation: float, resolution: float, circles: tuple = ()
+) -> _Field:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
 
@@ -53,6 +58,10 @@ def _dijkstra_field(walls: tuple, goal: tuple[float, float], inflation: float, r
         dx = np.maximum(np.abs(gx - cx) - sx / 2, 0.0)
         dy = np.maximum(np.abs(gy - cy) - sy / 2, 0.0)
         occupied |= np.hypot(dx, dy) < inflation
+    # Around small static cylinders (BARN's grid) the robot can pass its narrow side first:
+    # grow them by its half width (plus 5 cm), not by the circumscribed radius.
+    for cx, cy, r in circles:
+        occupied |= np.hypot(gx - cx, gy - cy) < r + CIRCLE_INFLATION
     free = ~occupied.ravel()
     idx = np.arange(nx * ny).reshape(ny, nx)
     rows, cols, weights = [], [], []
@@ -87,15 +96,26 @@ class GlobalPlanner:
     Args:
         walls: (n, 4) boxes (cx, cy, sx, sy) [m].
         goal: (2,) goal in the world [m].
+        circles: (m, 3) static cylinders (x, y, radius) [m], part of the known map too.
         inflation: walls are grown by this much [m] (robot circumscribed radius + margin).
         resolution: grid cell [m].
     """
 
-    def __init__(self, walls: np.ndarray, goal: np.ndarray, *, inflation: float = 0.4, resolution: float = RESOLUTION):
+    def __init__(
+        self,
+        walls: np.ndarray,
+        goal: np.ndarray,
+        *,
+        inflation: float = 0.4,
+        resolution: float = RESOLUTION,
+        circles: np.ndarray | None = None,
+    ):
         self.goal = np.asarray(goal, dtype=np.float64)
         self.resolution = resolution
         key = tuple(tuple(round(float(v), 6) for v in w) for w in np.asarray(walls).reshape(-1, 4))
-        self.field = _dijkstra_field(key, (float(goal[0]), float(goal[1])), float(inflation), float(resolution))
+        circles = np.zeros((0, 3)) if circles is None else np.asarray(circles).reshape(-1, 3)
+        ckey = tuple(tuple(round(float(v), 6) for v in c) for c in circles)
+        self.field = _dijkstra_field(key, (float(goal[0]), float(goal[1])), float(inflation), float(resolution), ckey)
         x0, _, y0, _ = BOUNDS
         f = self.field
         self._cx = x0 + (np.arange(f.nx) + 0.5) * resolution

@@ -42,7 +42,9 @@ class LearnedPlanner(Planner):
         return {"policy": self.policy_path, "kind": self.header.get("kind"), "lookahead": self.lookahead}
 
     def reset(self, info: EpisodeInfo) -> None:
-        self.global_planner = GlobalPlanner(info.walls, info.goal, inflation=0.5 * math.hypot(*info.footprint) + 0.05)
+        self.global_planner = GlobalPlanner(
+            info.walls, info.goal, inflation=0.5 * math.hypot(*info.footprint) + 0.05, circles=info.static_obstacles
+        )
 
     def act(self, obs: Observation) -> tuple[float, float]:
         from dynabarn.learn.env import action_to_command

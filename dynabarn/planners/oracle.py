@@ -72,7 +72,9 @@ class OraclePlanner(Planner):
 
     def reset(self, info: EpisodeInfo) -> None:
         self.info = info
-        self.global_planner = GlobalPlanner(info.walls, info.goal, inflation=0.5 * math.hypot(*info.footprint))
+        self.global_planner = GlobalPlanner(
+            info.walls, info.goal, inflation=0.5 * math.hypot(*info.footprint), circles=info.static_obstacles
+        )
         self.radius = 0.5 * math.hypot(*info.footprint)
         self._last = None
 
