@@ -447,7 +447,19 @@ def teleop_main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall-clock second")
     args = parser.parse_args(argv)
-    return _run(_teleop, args)
+    code = _run(_teleop, args)
+    from dynabarn import teleop
+
+    if teleop.viewer_was_opened():
+        # Everything is written and closed by now. Some Mesa GLX drivers crash (or hang) in
+        # the interpreter's teardown after MuJoCo's viewer thread has used them, which would
+        # turn a clean session into exit code 139: leave without that teardown.
+        import os
+
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
 
 
 def _teleop(args: argparse.Namespace) -> int:

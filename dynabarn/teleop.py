@@ -194,6 +194,14 @@ class ViewerSync:
             self.viewer.sync()
 
 
+_viewer_opened = False
+
+
+def viewer_was_opened() -> bool:
+    """Whether this process has opened MuJoCo's viewer (see `dynabarn-teleop`'s exit)."""
+    return _viewer_opened
+
+
 def run_teleop(
     world_path: Path,
     protocol,
@@ -218,6 +226,8 @@ def run_teleop(
     planner = TeleopPlanner(state, recorder, gamepad)
     sim.reset(protocol.spawn)
     mujoco.mj_forward(sim.model, sim.data)
+    global _viewer_opened
+    _viewer_opened = True
     with mujoco.viewer.launch_passive(
         sim.model, sim.data, key_callback=state.press, show_left_ui=False, show_right_ui=False
     ) as viewer:
