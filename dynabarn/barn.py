@@ -15,7 +15,6 @@ Difficulty: BARN's worlds are not labelled; we call ids 0-99 easy, 100-199 mediu
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import numpy as np
 
 from dynabarn.errors import ImportFormatError
 from dynabarn.profiles import Difficulty
+from dynabarn.release import read_import_json
 from dynabarn.world import EndBehavior, Interpolation, Layout, WorldSpec
 
 CYLINDER_RADIUS = 0.075
@@ -43,13 +43,7 @@ def path_xy(path_rc: np.ndarray) -> np.ndarray:
 
 
 def load_barn_json(path: Path | str) -> dict:
-    path = Path(path)
-    if not path.is_file():
-        raise ImportFormatError(f"import file not found: {path}")
-    try:
-        data = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ImportFormatError(f"{path}: not valid JSON ({exc})") from None
+    data = read_import_json(path)
     if (
         not isinstance(data, dict)
         or not isinstance(data.get("worlds"), list)

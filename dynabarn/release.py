@@ -37,14 +37,19 @@ def _branch(index: int) -> tuple[CountClass, MotionClass]:
     return CountClass.HIGH, MotionClass.HARD
 
 
-def load_release_json(path: Path | str) -> dict:
+def read_import_json(path: Path | str) -> object:
+    """The JSON content of a file to import, or one clear ImportFormatError."""
     path = Path(path)
     if not path.is_file():
         raise ImportFormatError(f"import file not found: {path}")
     try:
-        data = json.loads(path.read_text())
+        return json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ImportFormatError(f"{path}: not valid JSON ({exc})") from None
+
+
+def load_release_json(path: Path | str) -> dict:
+    data = read_import_json(path)
     if (
         not isinstance(data, dict)
         or not isinstance(data.get("plugins"), dict)
