@@ -23,6 +23,7 @@ def test_modules_import_only_earlier_stages():
         "mjcf",
         "worldset",
         "release",
+        "barn",
         "plot",
         "protocol",
         "metrics",
@@ -30,6 +31,11 @@ def test_modules_import_only_earlier_stages():
         "sim",
         "wire",
         "recording",
+        "replay",
+        "render",
+        "demos",
+        "teleop",
+        "bench",
     ]
     root = Path(dynabarn.__file__).parent
     for i, name in enumerate(order):
