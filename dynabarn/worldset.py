@@ -12,6 +12,7 @@ import json
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
+from dynabarn.difficulty import difficulty_scores
 from dynabarn.errors import WorldError
 from dynabarn.mjcf import GENERATED_WORLDS, write_world
 from dynabarn.profiles import ProfileSet
@@ -43,6 +44,7 @@ def _entry(world: WorldSpec, file: str, sha256: str) -> dict:
         "interpolation": world.interpolation.value,
         "end_behavior": world.end_behavior.value,
         "sha256": sha256,
+        "measured": difficulty_scores(world),
     }
 
 

@@ -20,6 +20,7 @@ def test_modules_import_only_earlier_stages():
         "world",
         "schedule",
         "robot",
+        "difficulty",
         "mjcf",
         "worldset",
         "release",

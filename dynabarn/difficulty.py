@@ -1,0 +1,42 @@
+"""A measured difficulty for a world, from its schedules alone (no simulation).
+
+The paper sets difficulty by generation parameters (Fig. 2). This measures what a robot
+would face on the straight corridor from spawn to goal: the band |y| <= half the Jackal's
+width + the obstacle's radius, from the goal (x = -9) to the spawn (x = 11), sampled every
+0.1 s over 60 s of every obstacle's looping schedule.
+
+- `corridor_blocked`: fraction of the time at least one obstacle is in the corridor;
+- `corridor_occupancy`: mean number of obstacles in the corridor;
+- `crossings_per_minute`: how often an obstacle enters the corridor.
+
+Deterministic (pure numpy on the keyframes) and independent of any trial's clock offset:
+60 s covers several loops of every schedule.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dynabarn.robot import JACKAL
+from dynabarn.schedule import SchedulePlayer
+from dynabarn.world import WorldSpec
+
+WINDOW = 60.0
+STEP = 0.1
+CORRIDOR_X = (-9.0, 11.0)
+
+
+def difficulty_scores(world: WorldSpec) -> dict[str, float]:
+    if not world.obstacles:
+        return {"corridor_blocked": 0.0, "corridor_occupancy": 0.0, "crossings_per_minute": 0.0}
+    times = np.arange(0.0, WINDOW, STEP)
+    xy, _ = SchedulePlayer(world).positions_at(times)  # (T, n, 2)
+    radii = np.array([o.radius for o in world.obstacles])
+    half = JACKAL.width / 2 + radii
+    inside = (np.abs(xy[..., 1]) <= half) & (xy[..., 0] >= CORRIDOR_X[0]) & (xy[..., 0] <= CORRIDOR_X[1])
+    entries = np.count_nonzero(inside[1:] & ~inside[:-1]) + np.count_nonzero(inside[0])
+    return {
+        "corridor_blocked": round(float(inside.any(axis=1).mean()), 6),
+        "corridor_occupancy": round(float(inside.sum(axis=1).mean()), 6),
+        "crossings_per_minute": round(float(entries * 60.0 / WINDOW), 6),
+    }
