@@ -73,6 +73,13 @@ class SchedulePlayer:
         """Positions and velocities (T, n_obstacles, 2) at each of `times` (T,) [s], at once."""
         return self._evaluate(self.local_time(np.asarray(times, dtype=np.float64)))
 
+    def positions_at_local(self, local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Positions and velocities (T, n, 2) at per-obstacle schedule times local (T, n) [s]
+        (before the clock offset and the end behaviour), for obstacles with their own clocks."""
+        tl = np.asarray(local, dtype=np.float64) + self.clock_offset
+        tl = np.mod(tl, self.durations) if self.end_behavior is EndBehavior.LOOP else np.minimum(tl, self.durations)
+        return self._evaluate(tl)
+
     def positions_into(self, t: float, pos: np.ndarray, vel: np.ndarray | None = None) -> None:
         """Write positions (and velocities) at time t into preallocated (n, 2) arrays."""
         p, v = self.state(t)

@@ -297,6 +297,15 @@ class Episode:
         self.prev_cmd = np.zeros(2)
         self.wall_t0 = time.perf_counter()
         self._batch_xy = self._batch_vel = None
+        # Reactive obstacles run on their own clocks (a yielding one pauses its schedule);
+        # scripted-only worlds keep the exact global clock.
+        obstacles = sim.world.obstacles
+        self.reactive = any(o.behavior != "scripted" for o in obstacles)
+        if self.reactive:
+            self._yields = np.array([o.behavior == "yield" for o in obstacles])
+            self._yield_distance = np.array([o.yield_distance for o in obstacles])
+            self.obstacle_clock = np.zeros(len(obstacles))
+            self.obstacle_log = np.zeros((max_steps + 1, len(obstacles), 2))
 
     @property
     def time(self) -> float:
@@ -308,7 +317,10 @@ class Episode:
         model, data = sim.model, sim.data
         t = self.time
         # All obstacle positions of this control period in one vectorised call.
-        self._batch_xy, self._batch_vel = self.player.positions_at(t + self._step_offsets)
+        if self.reactive:
+            self._batch_xy, self._batch_vel = self._reactive_batch()
+        else:
+            self._batch_xy, self._batch_vel = self.player.positions_at(t + self._step_offsets)
         sim.set_obstacles(self._batch_xy[0])
         mujoco.mj_kinematics(model, data)
         qpos, qvel = data.qpos, data.qvel
@@ -334,6 +346,20 @@ class Episode:
             obstacles=privileged,
         )
         return self._obs
+
+    def _reactive_batch(self) -> tuple[np.ndarray, np.ndarray]:
+        """This period's positions of obstacles on their own clocks: a `yield` obstacle whose
+        way ahead holds the robot within its yield distance holds still for the period."""
+        pos, vel = self.player.positions_at_local(self.obstacle_clock[None])
+        pos, vel = pos[0], vel[0]
+        rel = self.sim.data.qpos[:2] - pos  # (n, 2) robot relative to each obstacle
+        ahead = (rel * vel).sum(axis=1) > 0.0
+        close = np.hypot(rel[:, 0], rel[:, 1]) < self._yield_distance
+        rate = np.where(self._yields & ahead & close, 0.0, 1.0)
+        local = self.obstacle_clock[None, :] + self._step_offsets[:, None] * rate[None, :]
+        self.obstacle_clock = self.obstacle_clock + rate * self.period
+        xy, v = self.player.positions_at_local(local)
+        return xy, v * rate[None, :, None]
 
     def end(self, outcome: Outcome, reason: str) -> None:
         self.outcome, self.reason = outcome, reason
@@ -370,6 +396,9 @@ class Episode:
         limit = protocol.time_limit
         step, t_start = self.step, self.t_start
         outcome = None
+        if self.reactive:  # what the obstacles really did, for the clearance metric
+            n_log = min(self.k, len(self.obstacle_log) - step)
+            self.obstacle_log[step : step + n_log] = batch_xy[:n_log]
         for j in range(self.k):
             mocap_xy[...] = batch_xy[j]
             mujoco.mj_step(model, data)
@@ -549,7 +578,11 @@ def _finish(episode: Episode, start: EpisodeStart) -> EpisodeResult:
     success = outcome is Outcome.SUCCESS
     length = path_length(traj[:, :2])
     # Clearance at every physics step, from one batched schedule evaluation.
-    obstacle_xy, _ = episode.player.positions_at(np.arange(step + 1) * cfg.dt)
+    if episode.reactive:
+        obstacle_xy = episode.obstacle_log[: step + 1]
+        obstacle_xy[step] = episode.obstacle_log[max(step - 1, 0)] if step else obstacle_xy[0]
+    else:
+        obstacle_xy, _ = episode.player.positions_at(np.arange(step + 1) * cfg.dt)
     half = (JACKAL.length / 2, JACKAL.width / 2)
     clearance = footprint_clearance(traj, obstacle_xy, sim.radii, half)
     static = np.array(sim.world.layout.cylinders, dtype=np.float64).reshape(-1, 3)

@@ -101,6 +101,9 @@ class Layout:
         )
 
 
+BEHAVIORS = ("scripted", "yield")
+
+
 @dataclass(frozen=True, slots=True)
 class Obstacle:
     """One moving cylinder: its name, schedule and size."""
@@ -111,6 +114,17 @@ class Obstacle:
     height: float = OBSTACLE_HEIGHT
     source: str = ""
     """Provenance, e.g. the release plugin it was imported from."""
+    behavior: str = "scripted"
+    """`scripted` (the paper's: follows its schedule whatever the robot does) or `yield`
+    (pauses its schedule while the robot is within `yield_distance` ahead of it)."""
+    yield_distance: float = 1.5
+    """[m] centre to centre, for `yield`."""
+
+    def __post_init__(self) -> None:
+        if self.behavior not in BEHAVIORS:
+            raise WorldError(
+                f"obstacle {self.name!r}: unknown behavior {self.behavior!r}; available: " + ", ".join(BEHAVIORS)
+            )
 
 
 @dataclass(frozen=True, slots=True)
@@ -197,6 +211,10 @@ class WorldSpec:
                     "radius": o.radius,
                     "height": o.height,
                     "source": o.source,
+                    # Only reactive obstacles carry a behaviour, so scripted worlds' files are unchanged.
+                    **(
+                        {"behavior": o.behavior, "yield_distance": o.yield_distance} if o.behavior != "scripted" else {}
+                    ),
                 }
                 for o in self.obstacles
             ],
@@ -242,6 +260,8 @@ class WorldSpec:
                         radius=float(od["radius"]),
                         height=float(od["height"]),
                         source=str(od.get("source", "")),
+                        behavior=str(od.get("behavior", "scripted")),
+                        yield_distance=float(od.get("yield_distance", 1.5)),
                     )
                 )
             return cls(

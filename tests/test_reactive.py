@@ -1,0 +1,55 @@
+"""Reactive obstacles: a yielding obstacle stops short of a robot in its way; a scripted one does not."""
+
+import numpy as np
+import pytest
+
+from dynabarn.errors import WorldError
+from dynabarn.metrics import Outcome
+from dynabarn.mjcf import read_world, write_world
+from dynabarn.planners import get_planner
+from dynabarn.protocol import get_protocol
+from dynabarn.recording import McapRecorder, read_recording
+from dynabarn.sim import run_episode
+from dynabarn.world import EndBehavior, Interpolation, Obstacle, WorldSpec
+from tests.helpers import obstacle
+
+
+def _world(path, behavior):
+    # A cylinder walking at 1 m/s along x = 11 through the robot parked at the barn spawn (11, 0).
+    o = obstacle("obstacle_000", [[0, 11, -9], [18, 11, 9]])
+    o = Obstacle(o.name, o.trajectory, behavior=behavior, yield_distance=1.5)
+    world = WorldSpec(name=f"walker_{behavior}", world_id=None, difficulty="easy", obstacles=(o,),
+                      interpolation=Interpolation.LINEAR, end_behavior=EndBehavior.HOLD)
+    write_world(world, path)
+    return path
+
+
+def test_yielding_obstacle_stops_while_scripted_one_collides(tmp_path):
+    protocol = get_protocol("barn")
+    scripted = run_episode(_world(tmp_path / "s.xml", "scripted"), get_planner("stop"), protocol, seed=0)
+    assert scripted.outcome is Outcome.COLLISION and scripted.reason == "hit obstacle_000"
+    path = _world(tmp_path / "y.xml", "yield")
+    rec = tmp_path / "y.mcap"
+    yielded = run_episode(path, get_planner("stop"), protocol, seed=0, observers=[McapRecorder(rec)])
+    assert yielded.outcome is Outcome.TIMEOUT
+    # It waited about its yield distance away (centre to centre), minus the robot's size.
+    assert 1.5 - 0.5 - 0.3 < yielded.min_clearance < 1.5
+    ys = [m.entities[0].cylinders[0].pose.position.y for _, m in read_recording(rec).topic("/world/obstacles")]
+    assert max(ys) < -1.2 and ys[-1] == pytest.approx(max(ys), abs=0.05), "it stopped and stayed"
+
+
+def test_reactive_episodes_are_deterministic(tmp_path):
+    path = _world(tmp_path / "y.xml", "yield")
+    a = run_episode(path, get_planner("straight"), get_protocol("barn"), seed=3).to_dict()
+    b = run_episode(path, get_planner("straight"), get_protocol("barn"), seed=3).to_dict()
+    wall = {"rtf", "wall_time", "planner_ms_mean", "planner_ms_p95"}
+    assert {k: v for k, v in a.items() if k not in wall} == {k: v for k, v in b.items() if k not in wall}
+
+
+def test_behavior_round_trips_and_is_validated(tmp_path):
+    path = _world(tmp_path / "y.xml", "yield")
+    assert read_world(path).obstacles[0].behavior == "yield"
+    o = obstacle("obstacle_000", [[0, 0, 0], [1, 1, 1]])
+    with pytest.raises(WorldError, match="unknown behavior"):
+        Obstacle(o.name, o.trajectory, behavior="dance")
+    assert np.all(read_world(tmp_path / "y.xml").obstacles[0].trajectory.xy[:, 0] == 11)
