@@ -75,11 +75,11 @@ def episode_rows(rec: Recording, *, lookahead: float = DEFAULT_LOOKAHEAD) -> Epi
     layout = meta["world"]["layout"]
     walls = np.array([[w["centre"][0], w["centre"][1], w["size"][0], w["size"][1]] for w in layout["walls"]], float)
     goal = np.array(layout["goal"], dtype=float)
-    planner = GlobalPlanner(
+    planner = GlobalPlanner.for_robot(
         walls.reshape(-1, 4),
         goal,
-        inflation=0.5 * math.hypot(*meta["robot"]["footprint"]) + 0.05,
-        circles=np.array(layout.get("cylinders", []), dtype=float).reshape(-1, 3),
+        tuple(meta["robot"]["footprint"]),
+        np.array(layout.get("cylinders", []), dtype=float).reshape(-1, 3),
     )
     offset = np.array(meta["robot"]["laser_offset"], dtype=float)
     cmds = {round(t, 6): m for t, m in rec.topic(TOPIC_CMD)}

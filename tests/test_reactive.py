@@ -18,8 +18,14 @@ def _world(path, behavior):
     # A cylinder walking at 1 m/s along x = 11 through the robot parked at the barn spawn (11, 0).
     o = obstacle("obstacle_000", [[0, 11, -9], [18, 11, 9]])
     o = Obstacle(o.name, o.trajectory, behavior=behavior, yield_distance=1.5)
-    world = WorldSpec(name=f"walker_{behavior}", world_id=None, difficulty="easy", obstacles=(o,),
-                      interpolation=Interpolation.LINEAR, end_behavior=EndBehavior.HOLD)
+    world = WorldSpec(
+        name=f"walker_{behavior}",
+        world_id=None,
+        difficulty="easy",
+        obstacles=(o,),
+        interpolation=Interpolation.LINEAR,
+        end_behavior=EndBehavior.HOLD,
+    )
     write_world(world, path)
     return path
 

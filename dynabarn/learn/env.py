@@ -137,9 +137,8 @@ class DynaBARNEnv(gymnasium.Env):
         if file not in self._sims:
             self._sims[file] = Simulation(file)
             sim = self._sims[file]
-            inflation = 0.5 * math.hypot(JACKAL.length, JACKAL.width) + 0.05
-            self._planners[file] = GlobalPlanner(
-                sim.walls, sim.goal, inflation=inflation, circles=np.array(sim.world.layout.cylinders).reshape(-1, 3)
+            self._planners[file] = GlobalPlanner.for_robot(
+                sim.walls, sim.goal, (JACKAL.length, JACKAL.width), np.array(sim.world.layout.cylinders).reshape(-1, 3)
             )
         sim = self._sims[file]
         self._planner = self._planners[file]

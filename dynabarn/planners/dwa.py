@@ -126,8 +126,7 @@ class DWAPlanner(Planner):
     def reset(self, info: EpisodeInfo) -> None:
         self.info = info
         self.costmap = LocalCostmap(self.cfg.costmap)
-        inflation = 0.5 * math.hypot(*info.footprint) + 0.05
-        self.global_planner = GlobalPlanner(info.walls, info.goal, inflation=inflation, circles=info.static_obstacles)
+        self.global_planner = GlobalPlanner.for_robot(info.walls, info.goal, info.footprint, info.static_obstacles)
         self.period = info.control_period
         self._last_plan = np.zeros((0, 2))
         self._prev = np.zeros(2)

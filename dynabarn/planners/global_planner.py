@@ -23,12 +23,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dynabarn.robot import JACKAL
+
 RESOLUTION = 0.1
 """Grid cell size [m]."""
 BOUNDS = (-11.0, 14.0, -11.0, 14.0)
 """Grid extent (x_min, x_max, y_min, y_max) [m]: the arena plus both spawn points, and the
 static BARN worlds (x in [-4.5, 0], y in [0, 13])."""
-CIRCLE_INFLATION = 0.215 + 0.05
+MARGIN = 0.05
+"""[m] added to the robot's size when growing the known map."""
+CIRCLE_INFLATION = JACKAL.width / 2 + MARGIN
 """Growth of static cylinders in the global map [m]: the Jackal's half width plus 5 cm."""
 
 
@@ -121,6 +125,13 @@ class GlobalPlanner:
         self._cx = x0 + (np.arange(f.nx) + 0.5) * resolution
         self._cy = y0 + (np.arange(f.ny) + 0.5) * resolution
         self._replanner: LocalReplanner | None = None
+
+    @classmethod
+    def for_robot(
+        cls, walls: np.ndarray, goal: np.ndarray, footprint: tuple[float, float], circles: np.ndarray | None = None
+    ) -> GlobalPlanner:
+        """The planners' global planner: walls grown by the footprint's circumscribed radius + 5 cm."""
+        return cls(walls, goal, inflation=0.5 * math.hypot(*footprint) + MARGIN, circles=circles)
 
     def cost_to_go(self, x: float, y: float) -> float:
         f = self.field

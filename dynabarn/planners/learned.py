@@ -9,7 +9,6 @@ the policy shipped in `dynabarn/policies/` is used. Files load with
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -42,9 +41,7 @@ class LearnedPlanner(Planner):
         return {"policy": self.policy_path, "kind": self.header.get("kind"), "lookahead": self.lookahead}
 
     def reset(self, info: EpisodeInfo) -> None:
-        self.global_planner = GlobalPlanner(
-            info.walls, info.goal, inflation=0.5 * math.hypot(*info.footprint) + 0.05, circles=info.static_obstacles
-        )
+        self.global_planner = GlobalPlanner.for_robot(info.walls, info.goal, info.footprint, info.static_obstacles)
 
     def act(self, obs: Observation) -> tuple[float, float]:
         from dynabarn.learn.env import action_to_command

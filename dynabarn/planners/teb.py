@@ -115,8 +115,7 @@ class TEBPlanner(Planner):
 
     def reset(self, info: EpisodeInfo) -> None:
         self.info = info
-        inflation = 0.5 * math.hypot(*info.footprint) + 0.05
-        self.global_planner = GlobalPlanner(info.walls, info.goal, inflation=inflation, circles=info.static_obstacles)
+        self.global_planner = GlobalPlanner.for_robot(info.walls, info.goal, info.footprint, info.static_obstacles)
         self._band = None
         self._dts = None
         self._rerouted = self._was_rerouted = False
