@@ -134,6 +134,79 @@ def footprint_clearance_at(
     return float((np.hypot(ox, oy) - radii).min())
 
 
+def shape_clearance(
+    robot_pose: np.ndarray,
+    obstacle_xy: np.ndarray,
+    yaws: np.ndarray,
+    core_half_extents: np.ndarray,
+    radii: np.ndarray,
+    half_extents: tuple[float, float],
+) -> np.ndarray:
+    """Distance from a box footprint to rounded rectangles (cylinders, boxes, capsules), per pose.
+
+    Each obstacle is a core rectangle (half sizes `core_half_extents` along and across its
+    yaw; zero for a cylinder, zero width for a capsule) grown by `radii`. Two convex
+    polygons apart are nearest at a vertex of one of them, so the core distance is the
+    smallest distance from either shape's corners to the other rectangle; overlapping
+    cores (separating-axis test) count as distance 0. Equals `footprint_clearance` for
+    cylinders (negative when overlapping).
+
+    Args:
+        robot_pose: (T, 3) x, y, yaw.
+        obstacle_xy: (T, n, 2) obstacle centres.
+        yaws: (n,) fixed obstacle yaws.
+        core_half_extents: (n, 2) half sizes of the cores.
+        radii: (n,) rounding radii.
+        half_extents: (half length, half width) of the robot's footprint.
+    Returns: (T,) minimum over obstacles.
+    """
+    if obstacle_xy.shape[1] == 0:
+        return np.full(len(robot_pose), np.inf)
+    signs = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
+    rh = np.asarray(half_extents, dtype=np.float64)
+    c, s = np.cos(robot_pose[:, 2]), np.sin(robot_pose[:, 2])  # (T,)
+    co, so = np.cos(yaws), np.sin(yaws)  # (n,)
+    # Obstacle core corners in the world: (T, n, 4, 2).
+    loc = signs[None] * core_half_extents[:, None, :]  # (n, 4, 2)
+    corner_o = obstacle_xy[:, :, None, :] + np.stack(
+        [co[:, None] * loc[..., 0] - so[:, None] * loc[..., 1], so[:, None] * loc[..., 0] + co[:, None] * loc[..., 1]],
+        axis=-1,
+    )
+    # Robot corners in the world: (T, 4, 2).
+    rl = signs * rh
+    corner_r = robot_pose[:, None, :2] + np.stack(
+        [c[:, None] * rl[:, 0] - s[:, None] * rl[:, 1], s[:, None] * rl[:, 0] + c[:, None] * rl[:, 1]], axis=-1
+    )
+    # Obstacle corners against the robot's rectangle, in the robot's frame.
+    d = corner_o - robot_pose[:, None, None, :2]
+    cx, sx = c[:, None, None], s[:, None, None]
+    out = np.maximum(np.abs(np.stack([cx * d[..., 0] + sx * d[..., 1], cx * d[..., 1] - sx * d[..., 0]], -1)) - rh, 0)
+    dist = np.hypot(out[..., 0], out[..., 1]).min(axis=2)  # (T, n)
+    # Robot corners against each obstacle's core, in the obstacle's frame.
+    d = corner_r[:, None, :, :] - obstacle_xy[:, :, None, :]  # (T, n, 4, 2)
+    cy, sy = co[None, :, None], so[None, :, None]
+    local = np.stack([cy * d[..., 0] + sy * d[..., 1], cy * d[..., 1] - sy * d[..., 0]], -1)
+    out = np.maximum(np.abs(local) - core_half_extents[None, :, None, :], 0)
+    dist = np.minimum(dist, np.hypot(out[..., 0], out[..., 1]).min(axis=2))
+    # Separating axes: the robot's two and the obstacle's two.
+    delta = obstacle_xy - robot_pose[:, None, :2]  # (T, n, 2)
+    separated = np.zeros(dist.shape, dtype=bool)
+    axes = (
+        (c[:, None], s[:, None]),
+        (-s[:, None], c[:, None]),
+        (co[None, :], so[None, :]),
+        (-so[None, :], co[None, :]),
+    )
+    for ux, uy in axes:
+        r_robot = rh[0] * np.abs(ux * c[:, None] + uy * s[:, None]) + rh[1] * np.abs(-ux * s[:, None] + uy * c[:, None])
+        r_obst = core_half_extents[None, :, 0] * np.abs(ux * co[None] + uy * so[None]) + core_half_extents[
+            None, :, 1
+        ] * np.abs(-ux * so[None] + uy * co[None])
+        separated |= np.abs(ux * delta[..., 0] + uy * delta[..., 1]) > r_robot + r_obst
+    dist = np.where(separated, dist, 0.0)
+    return (dist - radii).min(axis=1)
+
+
 def mean_abs_jerk(v: np.ndarray, dt: float) -> float:
     """Mean |third derivative of position| from forward speed samples v (k,) at period dt."""
     if len(v) < 3:

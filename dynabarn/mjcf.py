@@ -17,6 +17,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import math
 import os
 import re
 import xml.etree.ElementTree as ET
@@ -122,21 +123,35 @@ def build_world_spec(world: WorldSpec) -> mujoco.MjSpec:
     )
     for k, obstacle in enumerate(world.obstacles):
         x0, y0 = obstacle.trajectory.xy[0]
-        body = wb.add_body(name=obstacle.name, mocap=True, pos=[x0, y0, obstacle.height / 2])
+        # The body sits at the shape's centre; its fixed yaw is the mocap body's orientation.
+        z = obstacle.radius if obstacle.shape == "capsule" else obstacle.height / 2
+        body = wb.add_body(name=obstacle.name, mocap=True, pos=[x0, y0, z], quat=_yaw_quat(obstacle.yaw))
         body.info = f"{world.name}, obstacle {k}"
-        body.add_geom(
+        geom = body.add_geom(
             name=obstacle.name,
-            type=mujoco.mjtGeom.mjGEOM_CYLINDER,
-            size=[obstacle.radius, obstacle.height / 2, 0],
             material="obstacle",
             contype=1,
             conaffinity=1,
             group=GeomGroup.OBSTACLE,
         )
+        if obstacle.shape == "box":
+            geom.type = mujoco.mjtGeom.mjGEOM_BOX
+            geom.size = [obstacle.half_length, obstacle.half_width, obstacle.height / 2]
+        elif obstacle.shape == "capsule":  # axis along the body's x: turn the capsule's z onto x
+            geom.type = mujoco.mjtGeom.mjGEOM_CAPSULE
+            geom.size = [obstacle.radius, obstacle.half_length, 0]
+            geom.quat = [math.cos(math.pi / 4), 0, math.sin(math.pi / 4), 0]
+        else:
+            geom.type = mujoco.mjtGeom.mjGEOM_CYLINDER
+            geom.size = [obstacle.radius, obstacle.height / 2, 0]
         kf = np.column_stack([obstacle.trajectory.times, obstacle.trajectory.xy]).ravel()
         spec.add_numeric(name=keyframes_numeric_name(obstacle.name), data=kf.tolist())
     spec.add_text(name=METADATA_TEXT, data=json.dumps(world.metadata(), sort_keys=True, separators=(",", ":")))
     return spec
+
+
+def _yaw_quat(yaw: float) -> list[float]:
+    return [1.0, 0.0, 0.0, 0.0] if yaw == 0 else [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
 
 
 def robot_reference(world_dir: Path, robot_xml: Path = JACKAL_XML) -> str:

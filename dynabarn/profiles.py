@@ -223,6 +223,119 @@ class ProfileSet:
             raise ProfileError(f"malformed profile set: {exc}") from None
 
 
+SHAPES = ("cylinder", "box", "capsule")
+
+
+@dataclass(frozen=True, slots=True)
+class ShapeMix:
+    """Which obstacle shapes a world draws and how big (beyond the paper: all cylinders).
+
+    Every obstacle draws its shape with probabilities `weights` (cylinder, box, capsule),
+    then its size uniformly from the ranges and a fixed yaw uniformly in [0, pi). Boxes
+    stand on the floor (height 1 m); capsules lie on it, their axis horizontal along the
+    yaw at the height of their radius, so the laser (0.30 m up) sees them.
+
+    Attributes:
+        name: label stored in the worlds' provenance.
+        weights: relative probabilities of cylinder, box and capsule.
+        box_half_size: range of each of a box's half length and half width [m].
+        capsule_radius: range of a capsule's radius [m].
+        capsule_half_length: range of half the length of a capsule's axis segment [m].
+    """
+
+    name: str
+    weights: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    box_half_size: tuple[float, float] = (0.2, 0.6)
+    capsule_radius: tuple[float, float] = (0.25, 0.45)
+    capsule_half_length: tuple[float, float] = (0.3, 0.8)
+
+    def __post_init__(self) -> None:
+        if len(self.weights) != 3 or min(self.weights) < 0 or sum(self.weights) <= 0:
+            raise ProfileError(f"shape mix {self.name!r}: weights must be 3 non-negative numbers, not all zero")
+        _check_range(self.name, "box_half_size", *self.box_half_size, minimum=0.05)
+        _check_range(self.name, "capsule_radius", *self.capsule_radius, minimum=0.16)
+        _check_range(self.name, "capsule_half_length", *self.capsule_half_length, minimum=0.05)
+
+    @property
+    def cylinders_only(self) -> bool:
+        return self.weights[1] == 0 and self.weights[2] == 0
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "weights": list(self.weights),
+            "box_half_size": list(self.box_half_size),
+            "capsule_radius": list(self.capsule_radius),
+            "capsule_half_length": list(self.capsule_half_length),
+        }
+
+
+SHAPE_MIXES: dict[str, ShapeMix] = {
+    "cylinder": ShapeMix("cylinder"),
+    "mixed": ShapeMix("mixed", weights=(1.0, 1.0, 1.0)),
+}
+
+
+@dataclass(frozen=True, slots=True)
+class StaticField:
+    """A BARN-style field of static cylinders for mixed worlds (beyond the paper).
+
+    As BARN (Perille et al. 2020) builds its worlds: cells of a grid are filled at random
+    with probability `fill`, then `smooth_iterations` rounds of a cellular automaton (a
+    cell becomes filled with >= 5 filled neighbours of 8, empty with <= 3) grow clumps and
+    passages; every filled cell holds a cylinder of radius `radius`, except cells whose
+    8 neighbours are all filled (BARN leaves those out: nothing can reach them). A field is kept only
+    when the Jackal can cross it from its spawn side to its goal side; otherwise it is
+    drawn again from the same generator.
+
+    Attributes:
+        name: label stored in the worlds' provenance.
+        x_range, y_range: the rectangle the field covers [m].
+        cell: grid spacing [m] (BARN's 0.15).
+        radius: cylinder radius [m] (BARN's 0.075).
+        fill: range of the initial fill probability, drawn per world.
+        smooth_iterations: cellular-automaton rounds.
+    """
+
+    name: str
+    x_range: tuple[float, float] = (-2.25, 2.25)
+    """30 cells deep, as BARN's worlds, across the middle of the arena."""
+    y_range: tuple[float, float] = (-9.75, 9.75)
+    """Wall to wall: the robot cannot go around the field."""
+    cell: float = 0.15
+    radius: float = 0.075
+    fill: tuple[float, float] = (0.38, 0.46)
+    """Gives 10-30% of the cells filled after smoothing, as BARN's grids."""
+    smooth_iterations: int = 3
+
+    def __post_init__(self) -> None:
+        _check_range(self.name, "x_range", *self.x_range, minimum=-ARENA_HALF_SIZE)
+        _check_range(self.name, "y_range", *self.y_range, minimum=-ARENA_HALF_SIZE)
+        if max(self.x_range[1], self.y_range[1]) > ARENA_HALF_SIZE:
+            raise ProfileError(f"static field {self.name!r}: must lie inside the arena [-10, 10]^2")
+        if not 0 < 2 * self.radius <= self.cell:
+            raise ProfileError(f"static field {self.name!r}: need 0 < 2 radius <= cell")
+        _check_range(self.name, "fill", *self.fill, minimum=0.0)
+        if self.fill[1] >= 1:
+            raise ProfileError(f"static field {self.name!r}: fill must be below 1")
+        if self.smooth_iterations < 0:
+            raise ProfileError(f"static field {self.name!r}: smooth_iterations must be >= 0")
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "x_range": list(self.x_range),
+            "y_range": list(self.y_range),
+            "cell": self.cell,
+            "radius": self.radius,
+            "fill": list(self.fill),
+            "smooth_iterations": self.smooth_iterations,
+        }
+
+
+STATIC_FIELDS: dict[str, StaticField] = {"barn-grid": StaticField("barn-grid")}
+
+
 # Paper Table I, verbatim.
 TABLE1_EASY = MotionProfile("easy", order=(1, 2), speed=(0.5, 1.0), std=(0.01, 0.1))
 TABLE1_HARD = MotionProfile("hard", order=(3, 4), speed=(1.0, 2.0), std=(0.1, 0.2))
@@ -265,3 +378,17 @@ def get_profile_set(name: str) -> ProfileSet:
         return PROFILE_SETS[name]
     except KeyError:
         raise ProfileError(unknown_choice("profile set", name, list(PROFILE_SETS))) from None
+
+
+def get_shape_mix(name: str) -> ShapeMix:
+    try:
+        return SHAPE_MIXES[name]
+    except KeyError:
+        raise ProfileError(unknown_choice("shape mix", name, list(SHAPE_MIXES))) from None
+
+
+def get_static_field(name: str) -> StaticField:
+    try:
+        return STATIC_FIELDS[name]
+    except KeyError:
+        raise ProfileError(unknown_choice("static field", name, list(STATIC_FIELDS))) from None

@@ -37,6 +37,7 @@ from dynabarn.metrics import (
     footprint_clearance_at,
     mean_abs_jerk,
     path_length,
+    shape_clearance,
     spl,
     stalled_time,
     sum_abs_change,
@@ -50,6 +51,24 @@ from dynabarn.world import WorldSpec
 
 MAX_CLOCK_OFFSET = 5.0
 """Trials start the obstacles' clocks at a seeded offset in [0, 5) s."""
+
+# The `avoid` behaviour's social force (per unit mass), after Helbing & Molnar (1995).
+AVOID_STRENGTH = 4.0
+"""[m/s^2] sideways push at contact distance."""
+AVOID_RANGE = 0.4
+"""[m] decay length of the push."""
+AVOID_ANISOTROPY = 0.35
+"""Weight of a robot straight behind relative to one straight ahead (1)."""
+AVOID_STIFFNESS = 0.5
+"""[1/s^2] pull back onto the path ..."""
+AVOID_DAMPING = 2 * math.sqrt(AVOID_STIFFNESS)
+"""[1/s] ... critically damped."""
+AVOID_MAX_SPEED = 1.5
+"""[m/s] fastest sideways step."""
+AVOID_MAX_OFFSET = 3.0
+"""[m] furthest from the path."""
+AVOID_BRAKE_BAND = 1.0
+"""[m] beyond contact distance, over which an obstacle with the robot in its way slows to a stop."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -212,7 +231,14 @@ class Simulation:
         if mocap_ids != list(range(len(mocap_ids))):
             raise DynabarnError(f"{self.world_path}: obstacle bodies are not the first mocap bodies in order")
         self.laser = Laser(self.model)
-        self.radii = np.array([o.radius for o in self.world.obstacles])
+        obstacles = self.world.obstacles
+        self.radii = np.array([o.radius for o in obstacles])
+        """Rounding radius of every obstacle's footprint (its radius, for a cylinder)."""
+        self.bounding_radii = np.array([o.bounding_radius for o in obstacles])
+        self.yaws = np.array([o.yaw for o in obstacles])
+        self.core_half_extents = np.array([o.half_extents for o in obstacles], dtype=np.float64).reshape(-1, 2)
+        self.shaped = bool(np.any(self.core_half_extents))
+        """Some obstacle is a box or a capsule: clearance uses the general shape distance."""
         self.goal = np.array(self.world.layout.goal, dtype=np.float64)
         self.walls = np.array(
             [[w.centre[0], w.centre[1], w.size[0], w.size[1]] for w in self.world.layout.walls], dtype=np.float64
@@ -225,6 +251,13 @@ class Simulation:
 
     def set_obstacles(self, xy: np.ndarray) -> None:
         self.data.mocap_pos[: len(xy), :2] = xy
+
+    def clearance(self, poses: np.ndarray, obstacle_xy: np.ndarray) -> np.ndarray:
+        """Footprint clearance (T,) to the moving obstacles at poses (T, 3), centres (T, n, 2)."""
+        half = (JACKAL.length / 2, JACKAL.width / 2)
+        if self.shaped:
+            return shape_clearance(poses, obstacle_xy, self.yaws, self.core_half_extents, self.radii, half)
+        return footprint_clearance(poses, obstacle_xy, self.radii, half)
 
     def episode_info(self, protocol: EvalProtocol, seed: int, params: JackalParams = JACKAL) -> EpisodeInfo:
         return EpisodeInfo(
@@ -302,10 +335,17 @@ class Episode:
         obstacles = sim.world.obstacles
         self.reactive = any(o.behavior != "scripted" for o in obstacles)
         if self.reactive:
+            n = len(obstacles)
             self._yields = np.array([o.behavior == "yield" for o in obstacles])
             self._yield_distance = np.array([o.yield_distance for o in obstacles])
-            self.obstacle_clock = np.zeros(len(obstacles))
-            self.obstacle_log = np.zeros((max_steps + 1, len(obstacles), 2))
+            self._avoids = np.array([o.behavior == "avoid" for o in obstacles])
+            self._avoid_distance = np.array([o.avoid_distance for o in obstacles])
+            self._reach = sim.bounding_radii + JACKAL.footprint_radius  # centre distance at contact
+            self.obstacle_clock = np.zeros(n)
+            self.lateral = np.zeros(n)  # `avoid`: sideways offset from the path [m] ...
+            self.lateral_speed = np.zeros(n)  # ... and its rate [m/s]
+            self._normal = np.zeros((n, 2))  # last left normal of each path (kept when it stops)
+            self.obstacle_log = np.zeros((max_steps + 1, n, 2))
 
     @property
     def time(self) -> float:
@@ -333,7 +373,7 @@ class Episode:
             privileged = ObstacleState(
                 positions=self._batch_xy[0].copy(),
                 velocities=self._batch_vel[0].copy(),
-                radii=sim.radii.copy(),
+                radii=sim.bounding_radii.copy(),
                 predict=_predictor(self.player),
             )
         self._obs = Observation(
@@ -348,18 +388,77 @@ class Episode:
         return self._obs
 
     def _reactive_batch(self) -> tuple[np.ndarray, np.ndarray]:
-        """This period's positions of obstacles on their own clocks: a `yield` obstacle whose
-        way ahead holds the robot within its yield distance holds still for the period."""
+        """This period's positions of obstacles on their own clocks, all obstacles at once.
+
+        `yield`: an obstacle whose way ahead holds the robot within its yield distance
+        holds still for the period. `avoid` (social force, Helbing & Molnar 1995): within
+        `avoid_distance` the robot pushes the obstacle sideways off its path with
+        AVOID_STRENGTH * exp((reach - d) / AVOID_RANGE), weighted towards what lies ahead
+        (anisotropy AVOID_ANISOTROPY), while a damped spring pulls it back onto the path;
+        if the robot is in its way within AVOID_BRAKE_BAND it also slows its schedule.
+        The offset's rate is updated once per control period and held within it.
+        """
         pos, vel = self.player.positions_at_local(self.obstacle_clock[None])
         pos, vel = pos[0], vel[0]
-        rel = self.sim.data.qpos[:2] - pos  # (n, 2) robot relative to each obstacle
+        normal = self._update_normals(vel)
+        actual = pos + self.lateral[:, None] * normal
+        rel = self.sim.data.qpos[:2] - actual  # (n, 2) robot relative to each obstacle
+        dist = np.hypot(rel[:, 0], rel[:, 1])
         ahead = (rel * vel).sum(axis=1) > 0.0
-        close = np.hypot(rel[:, 0], rel[:, 1]) < self._yield_distance
-        rate = np.where(self._yields & ahead & close, 0.0, 1.0)
-        local = self.obstacle_clock[None, :] + self._step_offsets[:, None] * rate[None, :]
+        rate = np.where(self._yields & ahead & (dist < self._yield_distance), 0.0, 1.0)
+        if self._avoids.any():
+            rate = np.minimum(rate, self._avoid_step(rel, dist, vel, normal, ahead))
+        offsets = self._step_offsets[:, None]
+        local = self.obstacle_clock[None, :] + offsets * rate[None, :]
         self.obstacle_clock = self.obstacle_clock + rate * self.period
         xy, v = self.player.positions_at_local(local)
-        return xy, v * rate[None, :, None]
+        v = v * rate[None, :, None]
+        if self._avoids.any():
+            normals = self._step_normals(v)
+            lateral = self.lateral[None, :] + offsets * self.lateral_speed[None, :]
+            xy = xy + lateral[..., None] * normals
+            v = v + self.lateral_speed[None, :, None] * normals
+            self.lateral = self.lateral + self.lateral_speed * self.period
+        return xy, v
+
+    def _update_normals(self, vel: np.ndarray) -> np.ndarray:
+        speed = np.hypot(vel[:, 0], vel[:, 1])
+        moving = speed > 1e-9
+        safe = np.where(moving, speed, 1.0)[:, None]
+        self._normal[moving] = np.column_stack([-vel[:, 1], vel[:, 0]])[moving] / safe[moving]
+        return self._normal
+
+    def _step_normals(self, v: np.ndarray) -> np.ndarray:
+        """Left normals (k, n, 2) of the paths at the period's steps (last known when stopped)."""
+        speed = np.hypot(v[..., 0], v[..., 1])[..., None]
+        nrm = np.stack([-v[..., 1], v[..., 0]], axis=-1) / np.where(speed > 1e-9, speed, 1.0)
+        return np.where(speed > 1e-9, nrm, self._normal[None])
+
+    def _avoid_step(
+        self, rel: np.ndarray, dist: np.ndarray, vel: np.ndarray, normal: np.ndarray, ahead: np.ndarray
+    ) -> np.ndarray:
+        """Update the `avoid` obstacles' sideways motion; their schedule rates (n,)."""
+        speed = np.hypot(vel[:, 0], vel[:, 1])
+        along = (rel * vel).sum(axis=1) / np.where(speed > 1e-9, speed, 1.0)
+        side = (rel * normal).sum(axis=1)  # > 0: the robot is on the path's left
+        reach = self._reach
+        near = self._avoids & (dist < self._avoid_distance)
+        cos_phi = np.where(dist > 1e-9, along / np.maximum(dist, 1e-9), 1.0)
+        weight = AVOID_ANISOTROPY + (1 - AVOID_ANISOTROPY) * (1 + cos_phi) / 2
+        push = AVOID_STRENGTH * np.exp((reach - dist) / AVOID_RANGE) * weight
+        away = np.where(side > 0, -1.0, 1.0)  # step away from the side the robot is on; dead ahead, step left
+        force = np.where(near, away * push, 0.0)
+        force -= AVOID_STIFFNESS * self.lateral + AVOID_DAMPING * self.lateral_speed  # back onto the path
+        speed_lat = np.clip(self.lateral_speed + force * self.period, -AVOID_MAX_SPEED, AVOID_MAX_SPEED)
+        speed_lat = np.where(self._avoids, speed_lat, 0.0)
+        # Never further than AVOID_MAX_OFFSET from the path.
+        limit = (AVOID_MAX_OFFSET - np.abs(self.lateral)) / self.period
+        self.lateral_speed = np.where(
+            np.sign(speed_lat) == np.sign(self.lateral), np.clip(speed_lat, -limit, limit), speed_lat
+        )
+        in_way = near & ahead & (np.abs(side) < reach)
+        brake = np.clip((dist - reach) / AVOID_BRAKE_BAND, 0.0, 1.0)
+        return np.where(in_way, brake, 1.0)
 
     def end(self, outcome: Outcome, reason: str) -> None:
         self.outcome, self.reason = outcome, reason
@@ -436,7 +535,9 @@ class Episode:
             command=self.prev_cmd.copy(),
             raw_command=np.array(raw, dtype=np.float64),
             obstacles=self._batch_xy[0].copy(),
-            clearance=footprint_clearance_at(
+            clearance=float(sim.clearance(pose[None], self._batch_xy[:1])[0])
+            if sim.shaped
+            else footprint_clearance_at(
                 pose[0], pose[1], pose[2], self._batch_xy[0], sim.radii, (JACKAL.length / 2, JACKAL.width / 2)
             ),
             distance_to_goal=math.hypot(sim.goal[0] - pose[0], sim.goal[1] - pose[1]),
@@ -584,7 +685,7 @@ def _finish(episode: Episode, start: EpisodeStart) -> EpisodeResult:
     else:
         obstacle_xy, _ = episode.player.positions_at(np.arange(step + 1) * cfg.dt)
     half = (JACKAL.length / 2, JACKAL.width / 2)
-    clearance = footprint_clearance(traj, obstacle_xy, sim.radii, half)
+    clearance = sim.clearance(traj, obstacle_xy)
     static = np.array(sim.world.layout.cylinders, dtype=np.float64).reshape(-1, 3)
     if len(static):  # static cylinders (BARN worlds): in time chunks, to bound the memory
         for i in range(0, len(traj), 1000):

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import enum
 import json
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,8 +28,11 @@ from dynabarn.profiles import (
     Difficulty,
     MotionClass,
     ProfileSet,
+    ShapeMix,
+    StaticField,
     difficulty_of,
 )
+from dynabarn.static_field import generate_static_field
 from dynabarn.trajectory import Trajectory, generate_trajectory
 
 WORLD_FORMAT_VERSION = 1
@@ -101,12 +105,23 @@ class Layout:
         )
 
 
-BEHAVIORS = ("scripted", "yield")
+BEHAVIORS = ("scripted", "yield", "avoid")
+SHAPE_NAMES = ("cylinder", "box", "capsule")
 
 
 @dataclass(frozen=True, slots=True)
 class Obstacle:
-    """One moving cylinder: its name, schedule and size."""
+    """One moving obstacle: its name, schedule, shape and behaviour.
+
+    Shapes (the paper's obstacles are all cylinders; the others are beyond it). In the
+    plane every shape is a rounded rectangle: a core rectangle of half sizes
+    (`half_length` along `yaw`, `half_width` across) grown by `radius`:
+    - `cylinder`: radius r, half_length = half_width = 0, standing, `height` tall;
+    - `box`: half_length x half_width, radius 0, standing, `height` tall;
+    - `capsule`: radius r around a horizontal axis segment of half length `half_length`
+      along `yaw`, lying on the floor (axis at height r).
+    The yaw is fixed: obstacles translate along their schedules without turning.
+    """
 
     name: str
     trajectory: Trajectory
@@ -115,16 +130,70 @@ class Obstacle:
     source: str = ""
     """Provenance, e.g. the release plugin it was imported from."""
     behavior: str = "scripted"
-    """`scripted` (the paper's: follows its schedule whatever the robot does) or `yield`
-    (pauses its schedule while the robot is within `yield_distance` ahead of it)."""
+    """`scripted` (the paper's: follows its schedule whatever the robot does), `yield`
+    (pauses its schedule while the robot is within `yield_distance` ahead of it) or
+    `avoid` (social-force steering sideways around the robot within `avoid_distance`,
+    then back onto its path)."""
     yield_distance: float = 1.5
     """[m] centre to centre, for `yield`."""
+    avoid_distance: float = 3.0
+    """[m] centre to centre, for `avoid`: the robot is ignored beyond it."""
+    shape: str = "cylinder"
+    half_length: float = 0.0
+    half_width: float = 0.0
+    yaw: float = 0.0
 
     def __post_init__(self) -> None:
         if self.behavior not in BEHAVIORS:
             raise WorldError(
                 f"obstacle {self.name!r}: unknown behavior {self.behavior!r}; available: " + ", ".join(BEHAVIORS)
             )
+        if self.shape not in SHAPE_NAMES:
+            raise WorldError(
+                f"obstacle {self.name!r}: unknown shape {self.shape!r}; available: " + ", ".join(SHAPE_NAMES)
+            )
+        ok = {
+            "cylinder": self.radius > 0 and self.half_length == 0 and self.half_width == 0,
+            "box": self.radius == 0 and self.half_length > 0 and self.half_width > 0,
+            "capsule": self.radius > 0 and self.half_length > 0 and self.half_width == 0,
+        }[self.shape]
+        if not ok or self.height <= 0:
+            raise WorldError(
+                f"obstacle {self.name!r}: a {self.shape} needs "
+                + {
+                    "cylinder": "radius > 0 and no half_length/half_width",
+                    "box": "radius 0 and half_length, half_width > 0",
+                    "capsule": "radius > 0, half_length > 0 and half_width 0",
+                }[self.shape]
+                + " (and height > 0)"
+            )
+
+    @property
+    def half_extents(self) -> tuple[float, float]:
+        """Half sizes of the core rectangle, (along yaw, across) [m]."""
+        return (self.half_length, self.half_width)
+
+    @property
+    def bounding_radius(self) -> float:
+        """Radius of the smallest circle around the footprint [m] (the radius, for cylinders)."""
+        return math.hypot(self.half_length, self.half_width) + self.radius
+
+    @property
+    def top(self) -> float:
+        """Height of the obstacle's top [m]."""
+        return 2 * self.radius if self.shape == "capsule" else self.height
+
+    def extra_fields(self) -> dict:
+        """What a non-default behaviour or shape adds to the world file (nothing for the
+        paper's scripted cylinders, so their files stay as they were)."""
+        d: dict = {}
+        if self.behavior == "yield":
+            d.update(behavior="yield", yield_distance=self.yield_distance)
+        elif self.behavior == "avoid":
+            d.update(behavior="avoid", avoid_distance=self.avoid_distance)
+        if self.shape != "cylinder":
+            d.update(shape=self.shape, half_length=self.half_length, half_width=self.half_width, yaw=self.yaw)
+        return d
 
 
 @dataclass(frozen=True, slots=True)
@@ -138,7 +207,7 @@ class WorldSpec:
         count_class, motion_class: the world's branch of Fig. 2 (None when imported).
         profile_set: name of the profile set it was drawn from (or `dynabarn-release`).
         seed: the base seed; the world's generator is SeedSequence([seed, world_id]).
-        obstacles: the moving cylinders, in spawn order.
+        obstacles: the moving obstacles, in spawn order.
         interpolation: how positions are played back between waypoints.
         end_behavior: what happens after an obstacle's last waypoint.
         layout: walls and goal.
@@ -211,10 +280,7 @@ class WorldSpec:
                     "radius": o.radius,
                     "height": o.height,
                     "source": o.source,
-                    # Only reactive obstacles carry a behaviour, so scripted worlds' files are unchanged.
-                    **(
-                        {"behavior": o.behavior, "yield_distance": o.yield_distance} if o.behavior != "scripted" else {}
-                    ),
+                    **o.extra_fields(),
                 }
                 for o in self.obstacles
             ],
@@ -262,6 +328,11 @@ class WorldSpec:
                         source=str(od.get("source", "")),
                         behavior=str(od.get("behavior", "scripted")),
                         yield_distance=float(od.get("yield_distance", 1.5)),
+                        avoid_distance=float(od.get("avoid_distance", 3.0)),
+                        shape=str(od.get("shape", "cylinder")),
+                        half_length=float(od.get("half_length", 0.0)),
+                        half_width=float(od.get("half_width", 0.0)),
+                        yaw=float(od.get("yaw", 0.0)),
                     )
                 )
             return cls(
@@ -329,28 +400,66 @@ def generate_world(
     base_seed: int = DEFAULT_BASE_SEED,
     interpolation: Interpolation = Interpolation.LINEAR,
     end_behavior: EndBehavior = EndBehavior.LOOP,
+    shapes: ShapeMix | None = None,
+    static_field: StaticField | None = None,
 ) -> WorldSpec:
-    """Alg. 2 for world `world_id` of the 300: count, then one Alg. 1 trajectory each."""
+    """Alg. 2 for world `world_id` of the 300: count, then one Alg. 1 trajectory each.
+
+    Beyond the paper, `shapes` draws every obstacle's shape and `static_field` adds a
+    BARN-style field of static cylinders. Each draws from its own stream
+    (SeedSequence([seed, id, 1]) and [seed, id, 2]), so the motions are the same as in the
+    plain world of the same id and seed.
+    """
     count_class, motion_class = branch_of(world_id)
     rng = world_rng(base_seed, world_id)
     lo, hi = profile_set.count_range(count_class)
     n_obstacles = int(rng.integers(lo, hi + 1))
     profiles = profile_set.motion_profiles(motion_class)
-    obstacles = []
-    for k in range(n_obstacles):
+    trajectories = []
+    for _ in range(n_obstacles):
         profile = profiles[int(rng.integers(len(profiles)))] if len(profiles) > 1 else profiles[0]
-        traj = generate_trajectory(rng, profile, scheme=profile_set.waypoints)
-        obstacles.append(Obstacle(name=f"obstacle_{k:03d}", trajectory=traj))
+        trajectories.append(generate_trajectory(rng, profile, scheme=profile_set.waypoints))
+    provenance: dict = {"generator": "dynabarn", "profiles": profile_set.to_dict()}
+    shape_kwargs: list[dict] = [{} for _ in trajectories]
+    if shapes is not None and not shapes.cylinders_only:
+        shape_rng = np.random.default_rng(np.random.SeedSequence([base_seed, world_id, 1]))
+        shape_kwargs = [draw_shape(shape_rng, shapes) for _ in trajectories]
+        provenance["shapes"] = shapes.to_dict()
+    layout = Layout()
+    if static_field is not None:
+        static_rng = np.random.default_rng(np.random.SeedSequence([base_seed, world_id, 2]))
+        layout = Layout(cylinders=generate_static_field(static_rng, static_field))
+        provenance["static_field"] = static_field.to_dict()
+    obstacles = tuple(
+        Obstacle(name=f"obstacle_{k:03d}", trajectory=traj, **kw)
+        for k, (traj, kw) in enumerate(zip(trajectories, shape_kwargs, strict=True))
+    )
     return WorldSpec(
         name=f"world_{world_id:03d}",
         world_id=world_id,
         difficulty=difficulty_of(count_class, motion_class),
-        obstacles=tuple(obstacles),
+        obstacles=obstacles,
         count_class=count_class,
         motion_class=motion_class,
         profile_set=profile_set.name,
         seed=base_seed,
         interpolation=interpolation,
         end_behavior=end_behavior,
-        provenance={"generator": "dynabarn", "profiles": profile_set.to_dict()},
+        layout=layout,
+        provenance=provenance,
     )
+
+
+def draw_shape(rng: np.random.Generator, mix: ShapeMix) -> dict:
+    """One obstacle's shape keyword arguments for `Obstacle`, drawn from `mix`."""
+    w = np.asarray(mix.weights, dtype=np.float64)
+    shape = SHAPE_NAMES[int(rng.choice(3, p=w / w.sum()))]
+    yaw = round(float(rng.uniform(0.0, math.pi)), 6)
+    if shape == "box":
+        hl, hw = (round(float(v), 6) for v in rng.uniform(*mix.box_half_size, size=2))
+        return {"shape": "box", "radius": 0.0, "half_length": hl, "half_width": hw, "yaw": yaw}
+    if shape == "capsule":
+        r = round(float(rng.uniform(*mix.capsule_radius)), 6)
+        hl = round(float(rng.uniform(*mix.capsule_half_length)), 6)
+        return {"shape": "capsule", "radius": r, "half_length": hl, "yaw": yaw}
+    return {}
