@@ -61,7 +61,7 @@ def _progress(desc: str, total: int | None = None):
 
 def worlds_main(argv: Sequence[str] | None = None) -> int:
     from dynabarn.mjcf import GENERATED_WORLDS
-    from dynabarn.profiles import PROFILE_SETS
+    from dynabarn.profiles import PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS
     from dynabarn.world import DEFAULT_BASE_SEED
 
     parser = _parser("dynabarn-worlds", "Generate, import and inspect DynaBARN worlds.")
@@ -72,7 +72,13 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
         help="generate the 300 benchmark worlds (what `make worlds` runs)",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    g.add_argument("--out", type=Path, default=GENERATED_WORLDS, help="output directory")
+    g.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help=f"output directory (default: {GENERATED_WORLDS.name} for the paper's worlds, "
+        "mixed_worlds when --shapes or --static is given)",
+    )
     g.add_argument(
         "--seed", type=int, default=DEFAULT_BASE_SEED, help="base seed; world i uses SeedSequence([seed, i])"
     )
@@ -89,6 +95,20 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
         help="playback between waypoints: linear (the paper) or spline (Gazebo's PoseAnimation)",
     )
     g.add_argument("--end", choices=["loop", "hold"], default="loop", help="after the last waypoint")
+    g.add_argument(
+        "--shapes",
+        choices=sorted(SHAPE_MIXES),
+        default="cylinder",
+        help="obstacle shapes (beyond the paper): cylinder = the paper's; mixed = cylinders, boxes and "
+        "capsules in equal shares, sizes drawn per obstacle",
+    )
+    g.add_argument(
+        "--static",
+        choices=["none", *sorted(STATIC_FIELDS)],
+        default="none",
+        help="static obstacles beside the moving ones (beyond the paper): barn-grid = a BARN-style "
+        "cellular-automaton field of r 0.075 m cylinders across the arena's middle, always crossable",
+    )
 
     im = sub.add_parser(
         "import", help="import worlds from another format", formatter_class=argparse.ArgumentDefaultsHelpFormatter
@@ -118,17 +138,22 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
 
 
 def _worlds_generate(args: argparse.Namespace) -> int:
-    from dynabarn.profiles import get_profile_set
+    from dynabarn.mjcf import GENERATED_WORLDS
+    from dynabarn.profiles import get_profile_set, get_shape_mix, get_static_field
     from dynabarn.world import N_WORLDS
     from dynabarn.worldset import generate_worlds
 
+    variant = args.shapes != "cylinder" or args.static != "none"
+    out = args.out or (Path("mixed_worlds") if variant else GENERATED_WORLDS)
     t0 = time.perf_counter()
     index = generate_worlds(
         get_profile_set(args.profiles),
-        args.out,
+        out,
         base_seed=args.seed,
         interpolation=args.interpolation,
         end_behavior=args.end,
+        shapes=get_shape_mix(args.shapes),
+        static_field=None if args.static == "none" else get_static_field(args.static),
         progress=_progress("generating", N_WORLDS),
     )
     print(f"wrote {N_WORLDS} worlds and {index} in {time.perf_counter() - t0:.1f} s")
@@ -175,13 +200,23 @@ def _worlds_show(args: argparse.Namespace) -> int:
         f"  playback {world.interpolation.value}/{world.end_behavior.value}  goal {world.layout.goal}  "
         f"MuJoCo: {model.nbody} bodies, {model.nmocap} mocap, {model.nsensor} sensors"
     )
-    print(f"  {'obstacle':<14}{'profile':<9}{'order':>6}{'wpts':>6}{'duration':>10}{'speed min-max':>16}")
+    if world.layout.cylinders:
+        print(f"  static cylinders: {len(world.layout.cylinders)}")
+    print(
+        f"  {'obstacle':<14}{'profile':<9}{'order':>6}{'wpts':>6}{'duration':>10}{'speed min-max':>16}"
+        f"  {'shape':<26}{'behavior'}"
+    )
     for o in world.obstacles:
         tr = o.trajectory
         s = tr.segment_speeds()
+        size = {
+            "cylinder": f"cylinder r {o.radius:.2f}",
+            "box": f"box {2 * o.half_length:.2f} x {2 * o.half_width:.2f}",
+            "capsule": f"capsule r {o.radius:.2f} l {2 * o.half_length:.2f}",
+        }[o.shape]
         print(
             f"  {o.name:<14}{tr.profile:<9}{tr.order:>6}{len(tr.times):>6}{tr.duration:>9.1f}s"
-            f"{np.min(s):>9.2f}-{np.max(s):.2f}"
+            f"{np.min(s):>9.2f}-{np.max(s):.2f}  {size:<26}{o.behavior}"
         )
     if args.plot:
         from dynabarn.plot import plot_world

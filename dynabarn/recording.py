@@ -12,9 +12,9 @@ Topics (also in the README):
 | topic | schema | rate |
 |---|---|---|
 | /world/metadata | JSON `dynabarn.EpisodeStart` | once |
-| /world/static | foxglove.SceneUpdate (walls, goal) | once |
+| /world/static | foxglove.SceneUpdate (walls, goal, static cylinders) | once |
 | /goal | foxglove.PoseInFrame | once |
-| /world/obstacles | foxglove.SceneUpdate (cylinders) | control rate |
+| /world/obstacles | foxglove.SceneUpdate (cylinders and capsules as cylinders, boxes as cubes) | control rate |
 | /scan | foxglove.LaserScan (frame `world`, pose = laser pose) | control rate |
 | /robot/pose | foxglove.PoseInFrame (frame `world`) | pose rate (50 Hz) |
 | /cmd_vel | JSON `dynabarn.Command` | control rate |
@@ -41,6 +41,7 @@ from dynabarn import wire
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import EpisodeResult
 from dynabarn.sim import EpisodeStart, Tick, portable_path
+from dynabarn.world import Obstacle, WorldSpec
 
 CHUNK_SIZE = 64 * 1024
 WALL_CLOCK_FIELDS = ("rtf", "wall_time", "planner_ms_mean", "planner_ms_p95")
@@ -184,9 +185,13 @@ class McapRecorder:
         self._end_angle = float(info.laser_angles[-1])
         self._laser_z = JACKAL.laser_z
         obstacles = start.world.obstacles
-        # Parts of the obstacle update that never change, encoded once.
-        self._obstacle_sizes = [wire.vector3(2 * o.radius, 2 * o.radius, o.height) for o in obstacles]
-        self._obstacle_z = [o.height / 2 for o in obstacles]
+        # Parts of the obstacle update that never change, encoded once. Cylinders and
+        # capsules (drawn as horizontal cylinders: SceneUpdate has no capsule) go in the
+        # entity's `cylinders`, boxes in its `cubes`, each in world order.
+        self._cylinder_parts = [_primitive_parts(o) for o in obstacles if o.shape != "box"]
+        self._cylinder_index = [i for i, o in enumerate(obstacles) if o.shape != "box"]
+        self._cube_parts = [_primitive_parts(o) for o in obstacles if o.shape == "box"]
+        self._cube_index = [i for i, o in enumerate(obstacles) if o.shape == "box"]
         self.log_json(TOPIC_METADATA, 0.0, self._metadata(start))
         self._log_static(start)
 
@@ -198,12 +203,18 @@ class McapRecorder:
         self._scan.log(
             wire.laser_scan(ns, _WORLD_FRAME, laser_pose, self._start_angle, self._end_angle, tick.scan), log_time=ns
         )
+        xy = tick.obstacles.tolist()
         cylinders = [
-            wire.cylinder(wire.pose(x, y, z, 0.0, 0.0, 0.0, 1.0), size, _OBSTACLE_COLOR)
-            for (x, y), z, size in zip(tick.obstacles.tolist(), self._obstacle_z, self._obstacle_sizes, strict=True)
+            wire.cylinder(wire.pose(*xy[i], z, *q), size, _OBSTACLE_COLOR)
+            for i, (z, q, size) in zip(self._cylinder_index, self._cylinder_parts, strict=True)
+        ]
+        cubes = [
+            wire.cube(wire.pose(*xy[i], z, *q), size, _OBSTACLE_COLOR)
+            for i, (z, q, size) in zip(self._cube_index, self._cube_parts, strict=True)
         ]
         self._obstacles.log(
-            wire.scene_update([wire.scene_entity(ns, _WORLD_FRAME, "obstacles", cylinders=cylinders)]), log_time=ns
+            wire.scene_update([wire.scene_entity(ns, _WORLD_FRAME, "obstacles", cylinders=cylinders, cubes=cubes)]),
+            log_time=ns,
         )
         v, w = tick.command.tolist()
         raw_v, raw_w = tick.raw_command.tolist()
@@ -292,16 +303,34 @@ class McapRecorder:
         gx, gy = layout.goal
         d = 2 * start.protocol.goal_tolerance
         goal = wire.cylinder(wire.pose(gx, gy, 0.005, *identity), wire.vector3(d, d, 0.01), _GOAL_COLOR)
-        self._static.log(
-            wire.scene_update(
-                [
-                    wire.scene_entity(0, _WORLD_FRAME, "walls", cubes=cubes),
-                    wire.scene_entity(0, _WORLD_FRAME, "goal", cylinders=[goal]),
-                ]
-            ),
-            log_time=0,
-        )
+        entities = [
+            wire.scene_entity(0, _WORLD_FRAME, "walls", cubes=cubes),
+            wire.scene_entity(0, _WORLD_FRAME, "goal", cylinders=[goal]),
+        ]
+        if layout.cylinders:  # static BARN or mixed worlds
+            static = [
+                wire.cylinder(wire.pose(x, y, 0.5, *identity), wire.vector3(2 * r, 2 * r, 1.0), _WALL_COLOR)
+                for x, y, r in layout.cylinders
+            ]
+            entities.append(wire.scene_entity(0, _WORLD_FRAME, "static_obstacles", cylinders=static))
+        self._static.log(wire.scene_update(entities), log_time=0)
         self._goal.log(wire.pose_in_frame(0, _WORLD_FRAME, wire.pose(gx, gy, 0.0, *identity)), log_time=0)
+
+
+def _primitive_parts(o: Obstacle) -> tuple[float, tuple[float, float, float, float], bytes]:
+    """(centre height, orientation quaternion (x, y, z, w), encoded size) of an obstacle's primitive."""
+    half = o.yaw / 2
+    if o.shape == "box":
+        return (
+            o.height / 2,
+            (0.0, 0.0, math.sin(half), math.cos(half)),
+            wire.vector3(2 * o.half_length, 2 * o.half_width, o.height),
+        )
+    if o.shape == "capsule":  # a cylinder along the yaw: turn z onto x (about y), then yaw (about z)
+        c, s = math.sqrt(0.5), math.sqrt(0.5)
+        q = (-s * math.sin(half), s * math.cos(half), c * math.sin(half), c * math.cos(half))
+        return o.radius, q, wire.vector3(2 * o.radius, 2 * o.radius, 2 * (o.half_length + o.radius))
+    return o.height / 2, (0.0, 0.0, 0.0, 1.0), wire.vector3(2 * o.radius, 2 * o.radius, o.height)
 
 
 # -- reading --------------------------------------------------------------------------
@@ -343,6 +372,41 @@ class Recording:
 
 class RecordingError(DynabarnError):
     """A file that is not a readable MCAP recording at all."""
+
+
+def recorded_world(rec: Recording) -> WorldSpec:
+    """The world the episode ran in, from the recording's metadata."""
+    meta = rec.metadata
+    if not meta or "world" not in meta or "keyframes" not in meta:
+        raise DynabarnError(f"{rec.path}: no world metadata in this recording")
+    world = meta["world"]
+    try:
+        keyframes = [np.asarray(meta["keyframes"][o["name"]]) for o in world["obstacles"]]
+    except (KeyError, TypeError) as exc:
+        raise DynabarnError(f"{rec.path}: malformed world metadata ({exc})") from None
+    return WorldSpec.from_dict(world, keyframes)
+
+
+def obstacle_track(rec: Recording, world: WorldSpec) -> tuple[np.ndarray, np.ndarray]:
+    """What the obstacles did, as recorded: times (T,) [s] and centres (T, n, 2) [m].
+
+    The recorder puts boxes in the update's cubes and the other obstacles in its
+    cylinders, each in world order; this undoes that."""
+    updates = rec.topic(TOPIC_OBSTACLES)
+    n = len(world.obstacles)
+    is_box = np.array([o.shape == "box" for o in world.obstacles], dtype=bool)
+    times = np.array([t for t, _ in updates], dtype=np.float64)
+    xy = np.zeros((len(updates), n, 2))
+    for k, (_, m) in enumerate(updates):
+        entity = m.entities[0] if m.entities else None
+        cyl = [(c.pose.position.x, c.pose.position.y) for c in entity.cylinders] if entity else []
+        cub = [(c.pose.position.x, c.pose.position.y) for c in entity.cubes] if entity else []
+        if len(cyl) != n - is_box.sum() or len(cub) != is_box.sum():
+            raise DynabarnError(f"{rec.path}: obstacle update at {times[k]:.2f} s does not match the world's obstacles")
+        if n:
+            xy[k, ~is_box] = np.asarray(cyl).reshape(-1, 2)
+            xy[k, is_box] = np.asarray(cub).reshape(-1, 2)
+    return times, xy
 
 
 def _json_decoder_factory():

@@ -22,9 +22,8 @@ import numpy as np
 
 from dynabarn.errors import DynabarnError
 from dynabarn.mjcf import load_model, write_world
-from dynabarn.recording import TOPIC_POSE, Recording
+from dynabarn.recording import TOPIC_POSE, Recording, obstacle_track, recorded_world
 from dynabarn.schedule import SchedulePlayer
-from dynabarn.world import WorldSpec
 
 TRAIL_SECONDS = 2.0
 
@@ -39,13 +38,15 @@ class VideoInfo:
     height: int
 
 
-def world_from_recording(rec: Recording) -> WorldSpec:
-    meta = rec.metadata
-    if not meta or "world" not in meta or "keyframes" not in meta:
-        raise DynabarnError(f"{rec.path}: no world metadata in this recording")
-    world = meta["world"]
-    keyframes = [np.asarray(meta["keyframes"][o["name"]]) for o in world["obstacles"]]
-    return WorldSpec.from_dict(world, keyframes)
+def _interpolate(t: np.ndarray, xy: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Recorded centres (T, n, 2) at times t, linearly interpolated to `at` (K,): (K, n, 2)."""
+    if len(t) == 0:
+        raise DynabarnError("the recording holds no obstacle updates")
+    k = np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 1)
+    k1 = np.minimum(k + 1, len(t) - 1)
+    span = np.where(k1 > k, t[k1] - t[k], 1.0)
+    u = np.clip((at - t[k]) / span, 0.0, 1.0)[:, None, None]
+    return xy[k] + (xy[k1] - xy[k]) * u
 
 
 def _pose_track(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
@@ -106,7 +107,7 @@ def render_recording(
         raise DynabarnError(f"video must end in .mp4 or .gif, got {out.name!r}")
     if camera not in ("top", "follow"):
         raise DynabarnError(f"unknown camera {camera!r}; available: follow, top")
-    world = world_from_recording(rec)
+    world = recorded_world(rec)
     meta = rec.metadata
     t_pose, track = _pose_track(rec)
     duration = float(t_pose[-1])
@@ -120,10 +121,16 @@ def render_recording(
     model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
     model.vis.global_.offheight = max(model.vis.global_.offheight, height)
     data = mujoco.MjData(model)
-    player = SchedulePlayer(world, clock_offset=float(meta.get("clock_offset", 0.0)))
-    obstacle_xy, _ = player.positions_at(frame_times)
     trail_steps = np.arange(-TRAIL_SECONDS, 0.0001, 0.25)
-    trail_xy, _ = player.positions_at(np.clip(frame_times[:, None] + trail_steps, 0, None).ravel())
+    trail_times = np.clip(frame_times[:, None] + trail_steps, 0, None).ravel()
+    if any(o.behavior != "scripted" for o in world.obstacles):
+        # Reactive obstacles went where the robot made them go: play what was recorded.
+        t_obs, xy_obs = obstacle_track(rec, world)
+        obstacle_xy, trail_xy = _interpolate(t_obs, xy_obs, frame_times), _interpolate(t_obs, xy_obs, trail_times)
+    else:  # scripted ones exactly, from their schedules
+        player = SchedulePlayer(world, clock_offset=float(meta.get("clock_offset", 0.0)))
+        obstacle_xy, _ = player.positions_at(frame_times)
+        trail_xy, _ = player.positions_at(trail_times)
     trail_xy = trail_xy.reshape(n_frames, len(trail_steps), -1, 2)
     robot = np.column_stack([np.interp(frame_times, t_pose, track[:, k]) for k in range(3)])
     n_obs = len(world.obstacles)

@@ -6,7 +6,9 @@ Entity tree (one per recording; several recordings of one world go under
 | entity | archetype | when |
 |---|---|---|
 | world/walls, world/goal | Boxes3D, Cylinders3D | static |
-| <run>/obstacles | Cylinders3D (one per obstacle) | every obstacle update |
+| world/static_obstacles | Cylinders3D (static BARN or mixed worlds) | static |
+| <run>/obstacles | Cylinders3D (one per cylinder obstacle) | every obstacle update |
+| <run>/obstacle_boxes, <run>/obstacle_capsules | Boxes3D, Capsules3D (other shapes) | every obstacle update |
 | <run>/robot | Transform3D (pose) + Boxes3D (footprint, static) | every pose |
 | <run>/robot_path | LineStrips3D: the path so far (at most 400 vertices) | every control tick |
 | <run>/scan | Points3D: laser returns in the world frame | every scan |
@@ -34,11 +36,13 @@ from dynabarn.recording import (
     TOPIC_CMD,
     TOPIC_DEBUG,
     TOPIC_METRICS,
-    TOPIC_OBSTACLES,
     TOPIC_POSE,
     TOPIC_SCAN,
     Recording,
+    obstacle_track,
+    recorded_world,
 )
+from dynabarn.world import WorldSpec
 
 APP_ID = "dynabarn_replay"
 TIMELINE = "sim_time"
@@ -92,7 +96,64 @@ def log_static_world(meta: dict, stream: rr.RecordingStream) -> None:
         rr.Cylinders3D(lengths=[0.02], radii=[tol], centers=[[gx, gy, 0.01]], colors=[(30, 200, 60, 120)]),
         static=True,
     )
+    static = np.asarray(layout.get("cylinders", []), dtype=np.float64).reshape(-1, 3)
+    if len(static):  # static BARN or mixed worlds
+        stream.log(
+            "world/static_obstacles",
+            rr.Cylinders3D(
+                centers=np.column_stack([static[:, :2], np.full(len(static), 0.5)]),
+                radii=static[:, 2],
+                lengths=np.ones(len(static)),
+                colors=[(140, 140, 155)],
+                fill_mode="solid",
+            ),
+            static=True,
+        )
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+
+
+def _log_obstacles(stream: rr.RecordingStream, run: str, world: WorldSpec, t: np.ndarray, xy: np.ndarray) -> None:
+    index = [_time_column(t)]
+    red = [(215, 40, 30)]
+    shapes = np.array([o.shape for o in world.obstacles])
+    for shape, entity in (("cylinder", "obstacles"), ("box", "obstacle_boxes"), ("capsule", "obstacle_capsules")):
+        sel = np.flatnonzero(shapes == shape)
+        if not len(sel):
+            continue
+        obs = [world.obstacles[i] for i in sel]
+        k = len(sel)
+        centres = xy[:, sel].reshape(-1, 2)
+        counts = [k] * len(t)
+        yaw = np.tile(np.array([o.yaw for o in obs]), len(t))
+        if shape == "cylinder":
+            columns = rr.Cylinders3D.columns(
+                centers=np.column_stack([centres, np.tile([o.height / 2 for o in obs], len(t))]),
+                radii=np.tile([o.radius for o in obs], len(t)),
+                lengths=np.tile([o.height for o in obs], len(t)),
+            )
+            archetype = rr.Cylinders3D
+        elif shape == "box":
+            columns = rr.Boxes3D.columns(
+                centers=np.column_stack([centres, np.tile([o.height / 2 for o in obs], len(t))]),
+                half_sizes=np.tile([[o.half_length, o.half_width, o.height / 2] for o in obs], (len(t), 1)),
+                quaternions=_quat_z(yaw),
+            )
+            archetype = rr.Boxes3D
+        else:  # a capsule's segment starts at its translation and runs along its local +z
+            hl = np.tile([o.half_length for o in obs], len(t))
+            r = np.tile([o.radius for o in obs], len(t))
+            start = centres - hl[:, None] * np.column_stack([np.cos(yaw), np.sin(yaw)])
+            h = yaw / 2
+            c = math.sqrt(0.5)
+            columns = rr.Capsules3D.columns(
+                translations=np.column_stack([start, r]),
+                lengths=2 * hl,
+                radii=r,
+                quaternions=np.column_stack([-c * np.sin(h), c * np.cos(h), c * np.sin(h), c * np.cos(h)]),
+            )
+            archetype = rr.Capsules3D
+        stream.send_columns(f"{run}/{entity}", indexes=index, columns=columns.partition(counts))
+        stream.log(f"{run}/{entity}", archetype.from_fields(colors=red, fill_mode="solid"), static=True)
 
 
 def log_recording(
@@ -166,28 +227,11 @@ def log_recording(
         stream.log(f"{run}/scan", rr.Points3D.from_fields(colors=[color], radii=[0.04]), static=True)
         stream.log(f"{run}/scan_beams", rr.LineStrips3D.from_fields(colors=[(*color, 60)], radii=[0.005]), static=True)
 
-    # Obstacles: cylinders per update.
-    obstacles = rec.topic(TOPIC_OBSTACLES)
-    ot = _times(obstacles)
-    centers, radii, lengths, counts = [], [], [], []
-    for _, m in obstacles:
-        cyl = m.entities[0].cylinders if m.entities else []
-        counts.append(len(cyl))
-        for c in cyl:
-            centers.append([c.pose.position.x, c.pose.position.y, c.pose.position.z])
-            radii.append(c.size.x / 2)
-            lengths.append(c.size.z)
+    # Obstacles: one row per update, each shape kind as its archetype, sizes fixed.
+    world = recorded_world(rec)
+    ot, oxy = obstacle_track(rec, world)
     if len(ot):
-        stream.send_columns(
-            f"{run}/obstacles",
-            indexes=[_time_column(ot)],
-            columns=rr.Cylinders3D.columns(
-                centers=np.array(centers).reshape(-1, 3), radii=np.array(radii), lengths=np.array(lengths)
-            ).partition(counts),
-        )
-        stream.log(
-            f"{run}/obstacles", rr.Cylinders3D.from_fields(colors=[(215, 40, 30)], fill_mode="solid"), static=True
-        )
+        _log_obstacles(stream, run, world, ot, oxy)
 
     # The path so far, at the control ticks, decimated to PATH_VERTICES.
     ticks = rec.topic(TOPIC_CMD)

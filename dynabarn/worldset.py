@@ -15,7 +15,7 @@ from pathlib import Path
 from dynabarn.difficulty import difficulty_scores
 from dynabarn.errors import WorldError
 from dynabarn.mjcf import GENERATED_WORLDS, write_world
-from dynabarn.profiles import ProfileSet
+from dynabarn.profiles import ProfileSet, ShapeMix, StaticField
 from dynabarn.world import (
     DEFAULT_BASE_SEED,
     N_WORLDS,
@@ -38,6 +38,12 @@ def _entry(world: WorldSpec, file: str, sha256: str) -> dict:
         "count_class": world.count_class.value if world.count_class else None,
         "motion_class": world.motion_class.value if world.motion_class else None,
         "n_obstacles": len(world.obstacles),
+        **({"n_static": len(world.layout.cylinders)} if world.layout.cylinders else {}),
+        **(
+            {"shapes": sorted({o.shape for o in world.obstacles})}
+            if any(o.shape != "cylinder" for o in world.obstacles)
+            else {}
+        ),
         "profiles": sorted({o.trajectory.profile for o in world.obstacles}),
         "profile_set": world.profile_set,
         "seed": world.seed,
@@ -82,9 +88,14 @@ def generate_worlds(
     world_ids: Iterable[int] = range(N_WORLDS),
     interpolation: str = "linear",
     end_behavior: str = "loop",
+    shapes: ShapeMix | None = None,
+    static_field: StaticField | None = None,
     progress: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> Path:
-    """Generate and write the benchmark's worlds; returns the index path."""
+    """Generate and write the benchmark's worlds; returns the index path.
+
+    `shapes` and `static_field` make the variants beyond the paper (obstacle shapes, mixed
+    static and moving worlds); the motions stay those of the plain worlds."""
     ids = list(world_ids)
     worlds = (
         generate_world(
@@ -93,6 +104,8 @@ def generate_worlds(
             base_seed=base_seed,
             interpolation=Interpolation(interpolation),
             end_behavior=EndBehavior(end_behavior),
+            shapes=shapes,
+            static_field=static_field,
         )
         for i in ids
     )
@@ -104,6 +117,10 @@ def generate_worlds(
         "hard": [i for i in ids if i >= 200],
     }
     meta = {"generator": "dynabarn", "profile_set": profile_set.to_dict(), "base_seed": base_seed}
+    if shapes is not None and not shapes.cylinders_only:
+        meta["shapes"] = shapes.to_dict()
+    if static_field is not None:
+        meta["static_field"] = static_field.to_dict()
     return write_worlds(worlds, out_dir, meta=meta, sets=sets, progress=progress)
 
 
