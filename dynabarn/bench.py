@@ -325,6 +325,9 @@ def _mean(values: list[float]) -> float:
     return sum(vals) / len(vals) if vals else float("nan")
 
 
+PAPER_PROTOCOLS = ("barn", "paper2022")
+
+
 def summarise(rows: list[dict]) -> list[dict]:
     """One summary row per (planner, difficulty), plus 'all' per planner."""
     groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
@@ -353,7 +356,10 @@ def summarise(rows: list[dict]) -> list[dict]:
                 "score": _mean([r.get("score", 0.0) for r in rs]),
                 "spl": _mean([r.get("spl", 0.0) for r in rs]),
                 "min_clearance": _mean([r.get("min_clearance") for r in rs]),
-                "paper": PAPER_FIG5.get(planner, {}).get(difficulty),
+                # The paper's Fig. 5 only compares with runs in DynaBARN worlds under its protocols.
+                "paper": PAPER_FIG5.get(planner, {}).get(difficulty)
+                if all(r.get("protocol") in PAPER_PROTOCOLS for r in rs)
+                else None,
             }
         )
     return out
@@ -425,7 +431,7 @@ def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
         ).T
         pos = x - 0.4 + width * (2 * k + 0.5)
         ax.bar(pos, ours, width, yerr=err, capsize=3, color=colors(k), label=f"{planner} (ours)")
-        paper = [PAPER_FIG5.get(planner, {}).get(d, np.nan) for d in DIFFICULTIES]
+        paper = [rows[d]["paper"] if d in rows and rows[d]["paper"] is not None else np.nan for d in DIFFICULTIES]
         if not all(np.isnan(paper)):
             ax.bar(
                 pos + width, paper, width, color="white", edgecolor=colors(k), hatch="//", label=f"{planner} (paper)"

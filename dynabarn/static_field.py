@@ -16,8 +16,8 @@ import numpy as np
 from dynabarn.errors import WorldError
 from dynabarn.profiles import StaticField
 
-ROBOT_HALF_WIDTH = 0.215
-"""[m] half the Jackal's width: the crossing check's robot is a disc this wide."""
+ROBOT_RADIUS = 0.333
+"""[m] the Jackal's circumscribed radius: a field must let it through, room to turn included."""
 CROSSING_MARGIN = 0.03
 """[m] kept between the robot's disc and a cylinder in the crossing check."""
 MAX_ATTEMPTS = 200
@@ -50,7 +50,7 @@ def _enclosed(filled: np.ndarray) -> np.ndarray:
 
 def blocked_for_robot(filled: np.ndarray, cell: float, radius: float) -> np.ndarray:
     """Cells where the robot's centre would come within CROSSING_MARGIN of a cylinder."""
-    reach = (radius + ROBOT_HALF_WIDTH + CROSSING_MARGIN) / cell
+    reach = (radius + ROBOT_RADIUS + CROSSING_MARGIN) / cell
     k = int(np.ceil(reach))
     blocked = np.zeros_like(filled)
     padded = np.pad(filled, k)

@@ -17,7 +17,7 @@ from tests.helpers import obstacle
 def _world(path, behavior):
     # A cylinder walking at 1 m/s along x = 11 through the robot parked at the barn spawn (11, 0).
     o = obstacle("obstacle_000", [[0, 11, -9], [18, 11, 9]])
-    o = Obstacle(o.name, o.trajectory, behavior=behavior, yield_distance=1.5)
+    o = Obstacle(o.name, o.trajectory, behavior=behavior, yield_distance=1.5, avoid_distance=3.0)
     world = WorldSpec(
         name=f"walker_{behavior}",
         world_id=None,
@@ -44,8 +44,43 @@ def test_yielding_obstacle_stops_while_scripted_one_collides(tmp_path):
     assert max(ys) < -1.2 and ys[-1] == pytest.approx(max(ys), abs=0.05), "it stopped and stayed"
 
 
-def test_reactive_episodes_are_deterministic(tmp_path):
-    path = _world(tmp_path / "y.xml", "yield")
+@pytest.mark.parametrize("speed", [0.5, 1.0, 2.0])
+def test_avoiding_obstacle_steps_around_the_robot_and_back_onto_its_path(tmp_path, speed):
+    o = obstacle("obstacle_000", [[0, 11, -9], [18 / speed, 11, 9]])
+    o = Obstacle(o.name, o.trajectory, behavior="avoid", avoid_distance=3.0)
+    world = WorldSpec(
+        name="walker_avoid",
+        world_id=None,
+        difficulty="easy",
+        obstacles=(o,),
+        interpolation=Interpolation.LINEAR,
+        end_behavior=EndBehavior.HOLD,
+    )
+    path = tmp_path / "a.xml"
+    write_world(world, path)
+    rec = tmp_path / "a.mcap"
+    result = run_episode(path, get_planner("stop"), get_protocol("barn"), seed=0, observers=[McapRecorder(rec)])
+    assert result.outcome is Outcome.TIMEOUT, "it never touched the robot"
+    assert result.min_clearance > 0.1
+    xy = np.array(
+        [
+            (c.pose.position.x, c.pose.position.y)
+            for _, m in read_recording(rec).topic("/world/obstacles")
+            for c in m.entities[0].cylinders
+        ]
+    )
+    side = xy[:, 0] - 11.0
+    # It stepped aside by more than the robot's and its own half sizes (0.33 + 0.5) ...
+    assert np.abs(side).max() > 0.83
+    # ... on one side only (to its left, -x, with the robot dead ahead), passed, and went back onto its path.
+    assert side.max() < 1e-9
+    passed = xy[:, 1] > 2.0
+    assert passed.any() and abs(side[-1]) < 0.02 and xy[-1, 1] == pytest.approx(9.0)
+
+
+@pytest.mark.parametrize("behavior", ["yield", "avoid"])
+def test_reactive_episodes_are_deterministic(tmp_path, behavior):
+    path = _world(tmp_path / "y.xml", behavior)
     a = run_episode(path, get_planner("straight"), get_protocol("barn"), seed=3).to_dict()
     b = run_episode(path, get_planner("straight"), get_protocol("barn"), seed=3).to_dict()
     wall = {"rtf", "wall_time", "planner_ms_mean", "planner_ms_p95"}
@@ -59,3 +94,5 @@ def test_behavior_round_trips_and_is_validated(tmp_path):
     with pytest.raises(WorldError, match="unknown behavior"):
         Obstacle(o.name, o.trajectory, behavior="dance")
     assert np.all(read_world(tmp_path / "y.xml").obstacles[0].trajectory.xy[:, 0] == 11)
+    avoid = read_world(_world(tmp_path / "a.xml", "avoid")).obstacles[0]
+    assert (avoid.behavior, avoid.avoid_distance) == ("avoid", 3.0)
