@@ -32,9 +32,9 @@ from dynabarn.sim import Simulation, run_episode
 HARD_WORLD = 250
 
 
-def bare_loop(world_id: int, sim_seconds: float) -> float:
+def bare_loop(world: int | Path, sim_seconds: float) -> float:
     """Real-time factor of mj_step + schedules + scans and nothing else."""
-    sim = Simulation(resolve_world(world_id))
+    sim = Simulation(resolve_world(world))
     model, data, laser = sim.model, sim.data, sim.laser
     player = SchedulePlayer(sim.world, clock_offset=1.0)
     k = sim.config.steps_per_tick
@@ -154,6 +154,39 @@ def sweep_speedup(workers: int = 2) -> tuple[float, float]:
     return times[0], times[1]
 
 
+def scan_cost(world: Path, n: int = 300) -> float:
+    """Mean milliseconds of one 720-beam scan (mj_multiRay) from the spawn."""
+    sim = Simulation(world)
+    sim.reset((11.0, 0.0, math.pi))
+    mujoco.mj_kinematics(sim.model, sim.data)
+    t0 = time.perf_counter()
+    for _ in range(n):
+        sim.laser.cast(sim.model, sim.data, math.pi)
+    return (time.perf_counter() - t0) / n * 1e3
+
+
+def variant_worlds(tmp: Path) -> list[tuple[str, Path]]:
+    """World 250 as the paper's, with mixed shapes, and with shapes and a static BARN field."""
+    from dynabarn.mjcf import write_world
+    from dynabarn.profiles import SHAPE_MIXES, STATIC_FIELDS, get_profile_set
+    from dynabarn.world import generate_world
+
+    out = []
+    for label, kw in (
+        ("cylinders (the paper's)", {}),
+        ("mixed shapes", {"shapes": SHAPE_MIXES["mixed"]}),
+        (
+            "mixed shapes + static barn-grid field",
+            {"shapes": SHAPE_MIXES["mixed"], "static_field": STATIC_FIELDS["barn-grid"]},
+        ),
+    ):
+        world = generate_world(HARD_WORLD, get_profile_set("table1"), **kw)
+        path = tmp / f"{len(out)}.xml"
+        write_world(world, path)
+        out.append((f"{label}, {len(world.layout.cylinders)} static", path))
+    return out
+
+
 def world_generation() -> float:
     from dynabarn.profiles import get_profile_set
     from dynabarn.worldset import generate_worlds
@@ -184,6 +217,14 @@ def main(argv: list[str] | None = None) -> int:
     for label, rtf, ratio in rows:
         print(f"{label:<66}{rtf:>12.0f}{ratio:>9.2f}")
     print(f"{'generate 300 worlds [s]':<66}{world_generation():>12.2f}")
+    with tempfile.TemporaryDirectory() as tmp:
+        variants = variant_worlds(Path(tmp))
+        print(f"{'world_250 variants':<44}{'scan [ms]':>11}{'bare x RT':>11}{'/ plain':>9}")
+        plain = None
+        for label, path in variants:
+            rtf = best(bare_loop, path, 30.0)
+            plain = plain or rtf
+            print(f"{label:<44}{scan_cost(path):>11.2f}{rtf:>11.0f}{rtf / plain:>9.2f}")
     print(f"{'planner compute per call':<44}{'mean [ms]':>11}{'p95 [ms]':>11}{'calls':>8}")
     for planner in ("dwa", "teb"):
         mean, p95, calls = planner_compute(planner)

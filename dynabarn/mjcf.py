@@ -34,6 +34,7 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 GENERATED_WORLDS = REPO_ROOT / "generated_worlds"
 METADATA_TEXT = "dynabarn_world"
 ROBOT_PREFIX = "jackal/"
+STATIC_FIELD_BODY = "static_obstacles"
 PHYSICS_TIMESTEP = 0.005
 
 
@@ -100,8 +101,11 @@ def build_world_spec(world: WorldSpec) -> mujoco.MjSpec:
             conaffinity=1,
             group=GeomGroup.STATIC,
         )
+    # Static cylinders in a body of their own (no joints: still part of the static world),
+    # so the runner's laser can leave them to its closed-form scan.
+    field = wb.add_body(name=STATIC_FIELD_BODY) if world.layout.cylinders else None
     for k, (cx, cy, r) in enumerate(world.layout.cylinders):
-        wb.add_geom(
+        field.add_geom(
             name=f"static_{k:03d}",
             type=mujoco.mjtGeom.mjGEOM_CYLINDER,
             size=[r, 0.5, 0],

@@ -115,3 +115,43 @@ def test_bad_static_fields_are_refused():
         StaticField("x", fill=(0.5, 1.0))
     with pytest.raises(SystemExit):
         worlds_main(["generate", "--static", "forest"])
+
+
+def test_closed_form_scan_of_static_cylinders_equals_mujoco_ray_casting(tmp_path):
+    import math
+
+    import mujoco
+
+    from dynabarn.profiles import SHAPE_MIXES
+    from dynabarn.robot import LASER_GEOM_GROUPS
+
+    world = generate_world(250, get_profile_set("table1"), static_field=FIELD, shapes=SHAPE_MIXES["mixed"])
+    path = tmp_path / "w.xml"
+    write_world(world, path)
+    sim = Simulation(path)
+    laser = sim.laser
+    assert len(laser.static) == len(world.layout.cylinders)
+    rng = np.random.default_rng(0)
+    poses = [
+        (11.0, 0.0, math.pi),
+        *zip(rng.uniform(-3, 3, 12), rng.uniform(-8, 8, 12), rng.uniform(-3, 3, 12), strict=True),
+    ]
+    geomid, dist = np.zeros(laser.n, dtype=np.int32), np.zeros(laser.n)
+    hits_static = 0
+    for pose in poses:
+        sim.reset(pose)
+        sim.set_obstacles(rng.uniform(-5, 5, (len(world.obstacles), 2)))
+        mujoco.mj_kinematics(sim.model, sim.data)
+        ours = laser.cast(sim.model, sim.data, pose[2])
+        # MuJoCo over every geom the laser sees, static cylinders included.
+        mujoco.mj_multiRay(
+            sim.model, sim.data, sim.data.site_xpos[laser.site], laser._vec, LASER_GEOM_GROUPS, 1,
+            laser.robot_body, geomid, dist, None, laser.n, 30.0,
+        )  # fmt: skip
+        reference = np.where(geomid < 0, 30.0, dist)
+        static = np.asarray(world.layout.cylinders)
+        origin = sim.data.site_xpos[laser.site][:2]
+        if np.all(np.hypot(*(static[:, :2] - origin).T) > static[:, 2] + 1e-3):  # the laser not inside one
+            assert np.allclose(ours, reference, atol=1e-9)
+            hits_static += sum(sim.model.geom(g).name.startswith("static_") for g in geomid if g >= 0)
+    assert hits_static > 1000

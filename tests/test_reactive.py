@@ -9,7 +9,7 @@ from dynabarn.mjcf import read_world, write_world
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, read_recording
-from dynabarn.sim import run_episode
+from dynabarn.sim import Episode, Simulation, run_episode
 from dynabarn.world import EndBehavior, Interpolation, Obstacle, WorldSpec
 from tests.helpers import obstacle
 
@@ -96,3 +96,21 @@ def test_behavior_round_trips_and_is_validated(tmp_path):
     assert np.all(read_world(tmp_path / "y.xml").obstacles[0].trajectory.xy[:, 0] == 11)
     avoid = read_world(_world(tmp_path / "a.xml", "avoid")).obstacles[0]
     assert (avoid.behavior, avoid.avoid_distance) == ("avoid", 3.0)
+
+
+def test_privileged_prediction_extrapolates_reactive_obstacles(tmp_path):
+    # Scripted: the schedule, exactly; reactive: the present velocity, extrapolated.
+    for behavior in ("scripted", "avoid"):
+        sim = Simulation(_world(tmp_path / f"{behavior}.xml", behavior))
+        episode = Episode(sim, get_protocol("barn"), seed=0, privileged=True)
+        for _ in range(5):
+            obs = episode.observe()
+            episode.apply(0.0, 0.0)
+        state = obs.obstacles
+        future = state.predict(obs.time + np.array([0.5, 1.0]))
+        if behavior == "avoid":
+            expected = state.positions + np.array([0.5, 1.0])[:, None, None] * state.velocities
+        else:
+            expected, _ = episode.player.positions_at(obs.time + np.array([0.5, 1.0]))
+        assert np.allclose(future, expected)
+        assert future[1, 0, 1] > future[0, 0, 1], "it keeps walking along +y"

@@ -23,9 +23,12 @@ class ObstacleState:
     Attributes:
         positions: (n_obstacles, 2) centres in the world frame [m].
         velocities: (n_obstacles, 2) [m/s].
-        radii: (n_obstacles,) [m].
-        predict: exact positions at future world time(s) [s]: (n_obstacles, 2) for one time,
-            (T, n_obstacles, 2) for an array of T times.
+        radii: (n_obstacles,) [m]: the radius of the circle around each footprint (a box's
+            or capsule's bounding circle; a cylinder's own radius).
+        predict: positions at future world time(s) [s]: (n_obstacles, 2) for one time,
+            (T, n_obstacles, 2) for an array of T times. Exact for scripted obstacles (their
+            schedules); in worlds with reactive obstacles, whose future depends on the
+            robot, their present velocities extrapolated.
     """
 
     positions: np.ndarray
