@@ -194,8 +194,14 @@ class Laser:
         self._dist = np.zeros(n)
         self.static = np.zeros((0, 3)) if static_cylinders is None else np.asarray(static_cylinders).reshape(-1, 3)
         # The robot's geoms are in groups the laser mask leaves out, so the one excluded
-        # body can be the static field's.
-        self._exclude = model.body(STATIC_FIELD_BODY).id if len(self.static) else self.robot_body
+        # body can be the static field's. (World files written before the field had its own
+        # body keep their cylinders in the world body: mj_multiRay then casts them all.)
+        self._exclude = self.robot_body
+        if len(self.static):
+            try:
+                self._exclude = model.body(STATIC_FIELD_BODY).id
+            except KeyError:
+                self.static = np.zeros((0, 3))
         self._step = (self.angles[-1] - self.angles[0]) / (n - 1)
 
     def cast(self, model: mujoco.MjModel, data: mujoco.MjData, yaw: float) -> np.ndarray:
