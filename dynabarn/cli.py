@@ -234,12 +234,16 @@ EXIT_EPISODE_ERROR = 1
 
 
 def _planner_config(text: str | None) -> dict:
-    """--planner-config: a JSON file, or inline `key=value,key=value` (values as JSON)."""
+    """--planner-config: a preset name, a JSON file, or inline `key=value,key=value` (values as JSON)."""
     import json
+
+    from dynabarn.planners import PRESETS_DIR, planner_presets
 
     if not text:
         return {}
     path = Path(text)
+    if text in planner_presets():
+        path = PRESETS_DIR / f"{text}.json"
     if path.suffix == ".json":
         if not path.is_file():
             raise DynabarnError(f"planner config file not found: {path}")
@@ -249,12 +253,16 @@ def _planner_config(text: str | None) -> dict:
             raise DynabarnError(f"{path}: planner config is not valid JSON ({exc})") from None
         if not isinstance(cfg, dict):
             raise DynabarnError(f"{path}: planner config must be a JSON object")
-        return cfg
+        return {k: v for k, v in cfg.items() if not k.startswith("_")}  # "_source" and other notes
     cfg = {}
     for item in text.split(","):
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
-            raise DynabarnError(f"bad --planner-config item {item!r}: use key=value[,key=value] or a .json file")
+            raise DynabarnError(
+                f"bad --planner-config item {item!r}: use key=value[,key=value], a .json file or a preset ("
+                + ", ".join(planner_presets())
+                + ")"
+            )
         try:
             cfg[key.strip()] = json.loads(value)
         except json.JSONDecodeError:
@@ -274,7 +282,10 @@ def run_main(argv: Sequence[str] | None = None) -> int:
         "--planner", default="straight", help=f"planner name; available: {', '.join(available_planners())}"
     )
     parser.add_argument(
-        "--planner-config", default=None, help="planner parameters: a .json file or key=value[,key=value]"
+        "--planner-config",
+        default=None,
+        help="planner parameters: key=value[,key=value], a .json file, or a shipped preset "
+        "(dwa_barn_challenge = the BARN Challenge's DWA configuration)",
     )
     parser.add_argument(
         "--policy", type=Path, default=None, help="weights for bc/td3 (default: the policy shipped in the package)"
@@ -725,7 +736,10 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--planner", default="dwa", help="planner(s), comma separated, e.g. dwa,teb")
     parser.add_argument(
-        "--planner-config", default=None, help="parameters for every planner: a .json file or key=value[,...]"
+        "--planner-config",
+        default=None,
+        help="parameters for every planner: key=value[,...], a .json file, or a shipped preset "
+        "(dwa_barn_challenge = the BARN Challenge's DWA configuration)",
     )
     parser.add_argument(
         "--policy", type=Path, default=None, help="weights for bc/td3 (default: the policy shipped in the package)"

@@ -126,3 +126,18 @@ def test_help_lists_every_option_with_default(capsys):
     for opt in ("--world", "--planner", "--protocol", "--seed", "--log", "--no-log", "--json", "--dt"):
         assert opt in out
     assert "(default: barn)" in out and "(default: 0)" in out
+
+
+def test_shipped_presets_load_into_their_planners():
+    from dynabarn.cli import _planner_config
+    from dynabarn.planners import get_planner, planner_presets
+
+    assert "dwa_barn_challenge" in planner_presets()
+    for name in planner_presets():
+        cfg = _planner_config(name)
+        assert cfg and not any(k.startswith("_") for k in cfg)
+        planner = get_planner(name.split("_")[0], **cfg)
+        assert planner.config()["costmap"]["inflation_radius"] == cfg["costmap.inflation_radius"]
+    # The BARN Challenge's DWA never samples standing still (TrajectoryPlannerROS min_vel_x 0.1).
+    barn = _planner_config("dwa_barn_challenge")
+    assert (barn["min_vel_x"], barn["max_vel_x"], barn["sim_time"]) == (0.1, 0.5, 2.0)

@@ -17,6 +17,7 @@ def test_modules_import_only_earlier_stages():
         "errors",
         "profiles",
         "trajectory",
+        "static_field",
         "world",
         "schedule",
         "robot",

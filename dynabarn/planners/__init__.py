@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from importlib.metadata import entry_points
+from pathlib import Path
 
 from dynabarn.errors import DynabarnError, unknown_choice
 from dynabarn.planners.base import EpisodeInfo, Observation, ObstacleState, Planner
@@ -85,3 +86,12 @@ __all__ = [
     "get_planner",
     "register_planner",
 ]
+
+
+PRESETS_DIR = Path(__file__).resolve().parent / "presets"
+"""Named planner configurations shipped with the package (`--planner-config NAME`)."""
+
+
+def planner_presets() -> list[str]:
+    """Names of the shipped planner configurations, e.g. `dwa_barn_challenge`."""
+    return sorted(p.stem for p in PRESETS_DIR.glob("*.json"))
