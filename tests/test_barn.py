@@ -75,3 +75,18 @@ def test_cli_import_barn_static(barn_json, tmp_path, capsys):
     assert "not a barn-static file" in capsys.readouterr().err
     with pytest.raises(ImportFormatError):
         import_barn_static({"worlds": [{"cells": "x"}]})
+
+
+def test_barn_challenge_dwa_configuration_threads_the_static_worlds(barn_json, tmp_path):
+    """With the BARN Challenge's own DWA configuration (preset `dwa_barn_challenge`), DWA
+    crosses most static worlds; BARN's published example reports 0.88."""
+    from dynabarn.cli import _planner_config
+
+    config = _planner_config("dwa_barn_challenge")
+    worlds = import_barn_static({"worlds": barn_json["worlds"][::25]})  # 12 worlds, every difficulty
+    outcomes = []
+    for world in worlds:
+        path = tmp_path / f"{world.name}.xml"
+        write_world(world, path)
+        outcomes.append(run_episode(path, get_planner("dwa", **config), get_protocol("barn-static"), seed=0).outcome)
+    assert outcomes.count(Outcome.SUCCESS) >= 9, outcomes
