@@ -2,7 +2,7 @@
 
 The paper sets difficulty by generation parameters (Fig. 2). This measures what a robot
 would face on the straight corridor from spawn to goal: the band |y| <= half the Jackal's
-width + the obstacle's radius, from the goal (x = -9) to the spawn (x = 11), sampled every
+width + the obstacle's (bounding) radius, from the goal (x = -9) to the spawn (x = 11), sampled every
 0.1 s over 60 s of every obstacle's looping schedule.
 
 - `corridor_blocked`: fraction of the time at least one obstacle is in the corridor;
@@ -31,7 +31,7 @@ def difficulty_scores(world: WorldSpec) -> dict[str, float]:
         return {"corridor_blocked": 0.0, "corridor_occupancy": 0.0, "crossings_per_minute": 0.0}
     times = np.arange(0.0, WINDOW, STEP)
     xy, _ = SchedulePlayer(world).positions_at(times)  # (T, n, 2)
-    radii = np.array([o.radius for o in world.obstacles])
+    radii = np.array([o.bounding_radius for o in world.obstacles])  # a box's or capsule's bounding circle
     half = JACKAL.width / 2 + radii
     inside = (np.abs(xy[..., 1]) <= half) & (xy[..., 0] >= CORRIDOR_X[0]) & (xy[..., 0] <= CORRIDOR_X[1])
     entries = np.count_nonzero(inside[1:] & ~inside[:-1]) + np.count_nonzero(inside[0])
