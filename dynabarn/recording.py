@@ -185,13 +185,19 @@ class McapRecorder:
         self._end_angle = float(info.laser_angles[-1])
         self._laser_z = JACKAL.laser_z
         obstacles = start.world.obstacles
-        # Parts of the obstacle update that never change, encoded once. Cylinders and
-        # capsules (drawn as horizontal cylinders: SceneUpdate has no capsule) go in the
-        # entity's `cylinders`, boxes in its `cubes`, each in world order.
-        self._cylinder_parts = [_primitive_parts(o) for o in obstacles if o.shape != "box"]
-        self._cylinder_index = [i for i, o in enumerate(obstacles) if o.shape != "box"]
-        self._cube_parts = [_primitive_parts(o) for o in obstacles if o.shape == "box"]
-        self._cube_index = [i for i, o in enumerate(obstacles) if o.shape == "box"]
+        # The obstacle update is encoded once; each tick rewrites only the positions.
+        # Boxes go in the entity's `cubes` (field 8), cylinders and capsules (drawn as
+        # horizontal cylinders: SceneUpdate has no capsule) in its `cylinders` (field 10),
+        # each in world order.
+        boxes = [i for i, o in enumerate(obstacles) if o.shape == "box"]
+        others = [i for i, o in enumerate(obstacles) if o.shape != "box"]
+        primitives = []
+        for field_number, encode, indices in ((8, wire.cube, boxes), (10, wire.cylinder, others)):
+            for i in indices:
+                z, q, size = _primitive_parts(obstacles[i])
+                primitives.append((field_number, encode(wire.pose(0.0, 0.0, z, *q), size, _OBSTACLE_COLOR)))
+        self._obstacle_block = wire.PrimitiveBlock(primitives)
+        self._obstacle_order = np.array(boxes + others, dtype=np.int64)
         self.log_json(TOPIC_METADATA, 0.0, self._metadata(start))
         self._log_static(start)
 
@@ -203,19 +209,8 @@ class McapRecorder:
         self._scan.log(
             wire.laser_scan(ns, _WORLD_FRAME, laser_pose, self._start_angle, self._end_angle, tick.scan), log_time=ns
         )
-        xy = tick.obstacles.tolist()
-        cylinders = [
-            wire.cylinder(wire.pose(*xy[i], z, *q), size, _OBSTACLE_COLOR)
-            for i, (z, q, size) in zip(self._cylinder_index, self._cylinder_parts, strict=True)
-        ]
-        cubes = [
-            wire.cube(wire.pose(*xy[i], z, *q), size, _OBSTACLE_COLOR)
-            for i, (z, q, size) in zip(self._cube_index, self._cube_parts, strict=True)
-        ]
-        self._obstacles.log(
-            wire.scene_update([wire.scene_entity(ns, _WORLD_FRAME, "obstacles", cylinders=cylinders, cubes=cubes)]),
-            log_time=ns,
-        )
+        block = self._obstacle_block.encode(tick.obstacles[self._obstacle_order])
+        self._obstacles.log(wire.scene_update_of_block(ns, _WORLD_FRAME, "obstacles", block), log_time=ns)
         v, w = tick.command.tolist()
         raw_v, raw_w = tick.raw_command.tolist()
         self.log_json(TOPIC_CMD, t, {"v": v, "w": w, "raw_v": raw_v, "raw_w": raw_w})

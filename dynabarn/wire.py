@@ -14,6 +14,7 @@ double, so each message has a fixed layout.
 
 from __future__ import annotations
 
+import functools
 import struct
 
 import numpy as np
@@ -35,7 +36,9 @@ def _key(field: int, wire_type: int) -> int:
     return (field << 3) | wire_type
 
 
+@functools.lru_cache(maxsize=4096)
 def _varint_slow(n: int) -> bytes:
+    """Cached: timestamps' nanoseconds repeat every second (50 values at the pose rate)."""
     out = bytearray()
     while True:
         b = n & 0x7F
@@ -157,3 +160,40 @@ def cube(pose_body: bytes, size_body: bytes, color_body: bytes) -> bytes:
             color_body,
         )
     )
+
+
+_X_IN_PRIMITIVE = 5
+"""Offset of the pose's x double in a Cube/CylinderPrimitive body: pose key, pose length,
+position key, position length, x's tag; y's double follows 9 bytes later."""
+
+
+class PrimitiveBlock:
+    """The primitives of a SceneEntity (field, body) whose poses change only in x and y.
+
+    Encoded once; each message rewrites only the 16 bytes of x and y per primitive, all
+    primitives in one numpy assignment, so an obstacle update costs the same few Python
+    calls for 5 obstacles or 20. The bytes equal those of encoding each primitive anew.
+    """
+
+    def __init__(self, primitives: list[tuple[int, bytes]]) -> None:
+        parts, x_at, offset = [], [], 0
+        for field, body in primitives:
+            encoded = length_delimited(field, body)
+            x_at.append(offset + len(encoded) - len(body) + _X_IN_PRIMITIVE)
+            parts.append(encoded)
+            offset += len(encoded)
+        self._buffer = bytearray(b"".join(parts))
+        self._bytes = np.frombuffer(self._buffer, dtype=np.uint8)
+        x = np.asarray(x_at, dtype=np.int64)[:, None]
+        self._index = np.concatenate([x + np.arange(8), x + 9 + np.arange(8)], axis=1).ravel()
+
+    def encode(self, xy: np.ndarray) -> bytes:
+        """The block's bytes with positions xy (n, 2) [m], in the primitives' order."""
+        self._bytes[self._index] = np.ascontiguousarray(xy, dtype="<f8").view(np.uint8).ravel()
+        return bytes(self._buffer)
+
+
+def scene_update_of_block(ns: int, frame: bytes, entity_id: str, block: bytes) -> bytes:
+    """foxglove.SceneUpdate with one entity (timestamp, frame, id) holding a pre-encoded block."""
+    header = length_delimited(1, timestamp(ns)) + frame + string(3, entity_id)
+    return length_delimited(2, header + block)

@@ -107,3 +107,22 @@ def test_scene_update_matches_sdk():
         ]
     ).encode()
     assert _decode(SceneUpdate, ours)[0] == _decode(SceneUpdate, sdk)[0]
+
+
+def test_primitive_block_equals_encoding_each_primitive_anew():
+    from dynabarn import wire
+
+    rng = np.random.default_rng(1)
+    color = wire.color(1, 0, 0, 1)
+    parts = [(8, wire.cube, 0.5), (10, wire.cylinder, 0.35), (10, wire.cylinder, 0.5)]
+    block = wire.PrimitiveBlock(
+        [(f, enc(wire.pose(0.0, 0.0, z, 0, 0, 0.3, 0.95), wire.vector3(1, 1, 1), color)) for f, enc, z in parts]
+    )
+    for _ in range(3):
+        xy = rng.uniform(-10, 10, (3, 2))
+        expected = b"".join(
+            wire.length_delimited(f, enc(wire.pose(x, y, z, 0, 0, 0.3, 0.95), wire.vector3(1, 1, 1), color))
+            for (f, enc, z), (x, y) in zip(parts, xy.tolist(), strict=True)
+        )
+        assert block.encode(xy) == expected
+    assert wire.PrimitiveBlock([]).encode(np.zeros((0, 2))) == b""
