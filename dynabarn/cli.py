@@ -133,6 +133,14 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
     sh.add_argument("world", help="generated world id (0-299) or path of a world .xml")
     sh.add_argument("--plot", type=Path, default=None, help="write a top-down PNG of the trajectories here")
 
+    st = sub.add_parser(
+        "stats",
+        help="per-difficulty means of a world set's measured difficulty and obstacle motion",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    st.add_argument("folder", nargs="?", type=Path, default=GENERATED_WORLDS, help="a folder of worlds with index.json")
+    st.add_argument("--worlds", default=None, help="only these world ids, e.g. 0-19,200-219 (default: all)")
+
     args = parser.parse_args(argv)
     return _run(_WORLD_COMMANDS[args.command], args)
 
@@ -177,7 +185,7 @@ def _worlds_import(args: argparse.Namespace) -> int:
         "medium": [w.world_id for w in worlds if w.difficulty == "medium"],
         "hard": [w.world_id for w in worlds if w.difficulty == "hard"],
     }
-    meta = {"generator": "dynabarn import", "format": args.format, "source_file": args.file.name}
+    meta = {"generator": "dynabarn import", "source_format": args.format, "source_file": args.file.name}
     index = write_worlds(worlds, args.out, meta=meta, sets=sets, progress=_progress("importing", len(worlds)))
     print(f"imported {len(worlds)} worlds into {args.out} (index {index})")
     return 0
@@ -225,7 +233,57 @@ def _worlds_show(args: argparse.Namespace) -> int:
     return 0
 
 
-_WORLD_COMMANDS = {"generate": _worlds_generate, "import": _worlds_import, "show": _worlds_show}
+def _worlds_stats(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from dynabarn.bench import parse_ids
+    from dynabarn.difficulty import difficulty_scores, motion_statistics
+    from dynabarn.mjcf import read_world
+    from dynabarn.worldset import read_index
+
+    index = read_index(args.folder)
+    entries = index["worlds"]
+    if args.worlds:
+        wanted = set(parse_ids(args.worlds))
+        entries = [e for e in entries if e["id"] in wanted]
+    if not entries:
+        raise DynabarnError(f"{args.folder}: no worlds selected")
+    rows: dict[str, list[dict]] = {}
+    for e in _progress("measuring", len(entries))(entries):
+        world = read_world(Path(args.folder) / e["file"])
+        row = {"obstacles": len(world.obstacles), "static": len(world.layout.cylinders)}
+        row |= difficulty_scores(world) | motion_statistics(world)
+        rows.setdefault(e["difficulty"], []).append(row)
+    columns = [
+        ("obstacles", "obst", 5, 1),
+        ("static", "static", 7, 0),
+        ("corridor_blocked", "blocked", 8, 2),
+        ("corridor_occupancy", "occup.", 7, 2),
+        ("crossings_per_minute", "cross/min", 10, 1),
+        ("time_in_corridor", "in corr.", 9, 3),
+        ("speed", "speed", 6, 2),
+        ("loop_duration", "loop s", 7, 1),
+        ("y_span", "y span", 7, 1),
+        ("y_zero_crossings", "y=0 x", 6, 1),
+    ]
+    print(f"{args.folder}: means per difficulty (difficulty from the schedules over 60 s; motion per obstacle)")
+    print(f"{'difficulty':<11}{'worlds':>7}" + "".join(f"{title:>{width}}" for _, title, width, _ in columns))
+    for difficulty in ("easy", "medium", "hard"):
+        rs = rows.get(difficulty, [])
+        if rs:
+            cells = "".join(
+                f"{np.mean([r.get(key, np.nan) for r in rs]):>{width}.{digits}f}" for key, _, width, digits in columns
+            )
+            print(f"{difficulty:<11}{len(rs):>7}" + cells)
+    return 0
+
+
+_WORLD_COMMANDS = {
+    "generate": _worlds_generate,
+    "import": _worlds_import,
+    "show": _worlds_show,
+    "stats": _worlds_stats,
+}
 
 
 # -- dynabarn-run ------------------------------------------------------------------------

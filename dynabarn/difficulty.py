@@ -26,14 +26,38 @@ STEP = 0.1
 CORRIDOR_X = (-9.0, 11.0)
 
 
+def _corridor_half_widths(world: WorldSpec) -> np.ndarray:
+    return JACKAL.width / 2 + np.array([o.bounding_radius for o in world.obstacles])  # a box's or capsule's circle
+
+
+def _inside_corridor(xy: np.ndarray, half: np.ndarray) -> np.ndarray:
+    return (np.abs(xy[..., 1]) <= half) & (xy[..., 0] >= CORRIDOR_X[0]) & (xy[..., 0] <= CORRIDOR_X[1])
+
+
+def motion_statistics(world: WorldSpec) -> dict[str, float]:
+    """Per-obstacle means that explain the scores: the fraction of time in the corridor,
+    speed [m/s], loop duration [s], the span of the path in y [m] and how often the
+    path crosses y = 0 per loop (over the same 60 s window as `difficulty_scores`)."""
+    if not world.obstacles:
+        return {}
+    xy, vel = SchedulePlayer(world).positions_at(np.arange(0.0, WINDOW, STEP))
+    inside = _inside_corridor(xy, _corridor_half_widths(world))
+    paths = [o.trajectory.xy for o in world.obstacles]
+    return {
+        "time_in_corridor": float(inside.mean()),
+        "speed": float(np.hypot(vel[..., 0], vel[..., 1]).mean()),
+        "loop_duration": float(np.mean([o.trajectory.duration for o in world.obstacles])),
+        "y_span": float(np.mean([np.ptp(p[:, 1]) for p in paths])),
+        "y_zero_crossings": float(np.mean([np.count_nonzero(np.diff(np.sign(p[:, 1]))) for p in paths])),
+    }
+
+
 def difficulty_scores(world: WorldSpec) -> dict[str, float]:
     if not world.obstacles:
         return {"corridor_blocked": 0.0, "corridor_occupancy": 0.0, "crossings_per_minute": 0.0}
     times = np.arange(0.0, WINDOW, STEP)
     xy, _ = SchedulePlayer(world).positions_at(times)  # (T, n, 2)
-    radii = np.array([o.bounding_radius for o in world.obstacles])  # a box's or capsule's bounding circle
-    half = JACKAL.width / 2 + radii
-    inside = (np.abs(xy[..., 1]) <= half) & (xy[..., 0] >= CORRIDOR_X[0]) & (xy[..., 0] <= CORRIDOR_X[1])
+    inside = _inside_corridor(xy, _corridor_half_widths(world))
     entries = np.count_nonzero(inside[1:] & ~inside[:-1]) + np.count_nonzero(inside[0])
     return {
         "corridor_blocked": round(float(inside.any(axis=1).mean()), 6),

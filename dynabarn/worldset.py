@@ -55,7 +55,8 @@ def _entry(world: WorldSpec, file: str, sha256: str) -> dict:
 
 
 def write_index(out_dir: Path, entries: list[dict], *, meta: dict, sets: dict[str, list[int]]) -> Path:
-    index = {"format": "dynabarn-index", "format_version": 1, **meta, "sets": sets, "worlds": entries}
+    # The format tag goes last: `meta` must not override it.
+    index = {**meta, "format": "dynabarn-index", "format_version": 1, "sets": sets, "worlds": entries}
     path = Path(out_dir) / INDEX_NAME
     path.write_text(json.dumps(index, indent=1, sort_keys=True) + "\n")
     return path

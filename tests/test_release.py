@@ -8,6 +8,7 @@ from dynabarn.errors import ImportFormatError
 from dynabarn.mjcf import load_model, read_world
 from dynabarn.release import import_release, load_release_json
 from dynabarn.schedule import SchedulePlayer
+from dynabarn.worldset import read_index
 
 
 def test_import_plays_keyframes_like_gazebo(release_json):
@@ -40,6 +41,28 @@ def test_cli_import_writes_loadable_worlds(release_path, tmp_path):
     m = load_model(files[23])
     assert m.nmocap == 6
     assert read_world(files[23]).provenance["effective_plugins"][0] == "mediumlibobs_88"
+    index = read_index(tmp_path)  # a world set like any other
+    assert index["source_format"] == "dynabarn-release" and len(index["sets"]["hard"]) == 20
+
+
+def test_original_hard_worlds_measure_harder_than_generated_ones(release_path, tmp_path, capsys):
+    """`dynabarn-worlds stats`: the release's hard worlds keep the corridor blocked longer
+    than our generated hard worlds with as many obstacles (README, comparison with the paper)."""
+    assert worlds_main(["import", str(release_path), "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
+
+    def hard_row(argv):
+        assert worlds_main(["stats", *argv]) == 0
+        row = next(line.split() for line in capsys.readouterr().out.splitlines() if line.startswith("hard"))
+        names = ["worlds", "obst", "static", "blocked", "occup", "cross", "in_corr"]
+        return dict(zip(names, map(float, row[1:8]), strict=True))
+
+    original = hard_row([str(tmp_path)])
+    generated = hard_row(["--worlds", "200-219"])
+    assert original["worlds"] == generated["worlds"] == 20
+    assert abs(original["obst"] - generated["obst"]) < 1.5
+    assert original["blocked"] > generated["blocked"] + 0.1
+    assert original["in_corr"] > generated["in_corr"] * 1.2
 
 
 @pytest.mark.parametrize(
