@@ -37,6 +37,7 @@ from dynabarn.metrics import Outcome
 from dynabarn.mjcf import GENERATED_WORLDS
 from dynabarn.protocol import EvalProtocol
 from dynabarn.world import PAPER60
+from dynabarn.worldset import read_index
 
 RESULTS = "results.jsonl"
 METADATA = "metadata.json"
@@ -102,7 +103,7 @@ def world_set(name: str, ids: list[int] | None = None) -> list[tuple[int, str, s
         if not (index_dir / "index.json").is_file():
             raise DynabarnError(f"unknown world set {name!r}: use paper60, dynabarn300, or a folder with index.json")
         chosen = None
-    index = json.loads((index_dir / "index.json").read_text())
+    index = read_index(index_dir)  # checks the format tag; one clear line when malformed
     entries = {e["id"]: e for e in index["worlds"]}
     chosen = chosen if chosen is not None else sorted(entries)
     if ids is not None:
