@@ -16,6 +16,30 @@ def test_show_prints_summary_and_plot(tmp_path, capsys):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
 
 
+def test_show_lists_shapes_and_static_cylinders_of_a_mixed_world(tmp_path, capsys):
+    import numpy as np
+    from PIL import Image
+
+    from dynabarn.mjcf import write_world
+    from dynabarn.profiles import SHAPE_MIXES, STATIC_FIELDS, get_profile_set
+    from dynabarn.world import generate_world
+
+    world = generate_world(
+        250, get_profile_set("table1"), shapes=SHAPE_MIXES["mixed"], static_field=STATIC_FIELDS["barn-grid"]
+    )
+    path = tmp_path / "world_250.xml"
+    write_world(world, path)
+    png = tmp_path / "w.png"
+    assert worlds_main(["show", str(path), "--plot", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert f"static cylinders: {len(world.layout.cylinders)}" in out
+    assert "box " in out and "capsule r " in out
+    # The static field is drawn: thousands of its dark grey pixels (the plain world 250 has ~440).
+    pixels = np.asarray(Image.open(png).convert("RGB")).astype(int)
+    dark = (np.abs(pixels - 77).max(axis=2) < 12).sum()
+    assert dark > 2000
+
+
 def test_generate_subset_is_byte_identical(tmp_path):
     from dynabarn.mjcf import GENERATED_WORLDS
     from dynabarn.profiles import get_profile_set
