@@ -155,3 +155,14 @@ def test_closed_form_scan_of_static_cylinders_equals_mujoco_ray_casting(tmp_path
             assert np.allclose(ours, reference, atol=1e-9)
             hits_static += sum(sim.model.geom(g).name.startswith("static_") for g in geomid if g >= 0)
     assert hits_static > 1000
+
+
+@pytest.mark.parametrize("world_id", [0, 250])
+def test_oracle_threads_the_static_field(tmp_path, world_id):
+    # The oracle checks its rollouts against the static cylinders (a distance transform of the known map).
+    mixed = generate_world(world_id, get_profile_set("table1"), static_field=FIELD)
+    path = tmp_path / "field.xml"
+    write_world(replace(mixed, obstacles=()), path)
+    result = run_episode(path, get_planner("oracle"), get_protocol("barn"), seed=0)
+    assert result.outcome is Outcome.SUCCESS, result.reason
+    assert result.min_clearance > 0.0

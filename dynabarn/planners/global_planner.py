@@ -46,7 +46,12 @@ class _Field:
 
 @functools.lru_cache(maxsize=64)
 def _dijkstra_field(
-    walls: tuple, goal: tuple[float, float], inflation: float, resolution: float, circles: tuple = ()
+    walls: tuple,
+    goal: tuple[float, float],
+    inflation: float,
+    resolution: float,
+    circles: tuple = (),
+    circle_inflation: float = CIRCLE_INFLATION,
 ) -> _Field:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
@@ -65,7 +70,7 @@ def _dijkstra_field(
     # Around small static cylinders (BARN's grid) the robot can pass its narrow side first:
     # grow them by its half width (plus 5 cm), not by the circumscribed radius.
     for cx, cy, r in circles:
-        occupied |= np.hypot(gx - cx, gy - cy) < r + CIRCLE_INFLATION
+        occupied |= np.hypot(gx - cx, gy - cy) < r + circle_inflation
     free = ~occupied.ravel()
     idx = np.arange(nx * ny).reshape(ny, nx)
     rows, cols, weights = [], [], []
@@ -103,6 +108,8 @@ class GlobalPlanner:
         circles: (m, 3) static cylinders (x, y, radius) [m], part of the known map too.
         inflation: walls are grown by this much [m] (robot circumscribed radius + margin).
         resolution: grid cell [m].
+        circle_inflation: static cylinders are grown by this much [m] (default: the
+            Jackal's half width + 5 cm, so BARN's passages stay open).
     """
 
     def __init__(
@@ -113,13 +120,16 @@ class GlobalPlanner:
         inflation: float = 0.4,
         resolution: float = RESOLUTION,
         circles: np.ndarray | None = None,
+        circle_inflation: float = CIRCLE_INFLATION,
     ):
         self.goal = np.asarray(goal, dtype=np.float64)
         self.resolution = resolution
         key = tuple(tuple(round(float(v), 6) for v in w) for w in np.asarray(walls).reshape(-1, 4))
         circles = np.zeros((0, 3)) if circles is None else np.asarray(circles).reshape(-1, 3)
         ckey = tuple(tuple(round(float(v), 6) for v in c) for c in circles)
-        self.field = _dijkstra_field(key, (float(goal[0]), float(goal[1])), float(inflation), float(resolution), ckey)
+        self.field = _dijkstra_field(
+            key, (float(goal[0]), float(goal[1])), float(inflation), float(resolution), ckey, float(circle_inflation)
+        )
         x0, _, y0, _ = BOUNDS
         f = self.field
         self._cx = x0 + (np.arange(f.nx) + 0.5) * resolution
