@@ -62,7 +62,7 @@ def _progress(desc: str, total: int | None = None):
 def worlds_main(argv: Sequence[str] | None = None) -> int:
     from dynabarn.mjcf import GENERATED_WORLDS
     from dynabarn.profiles import PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS
-    from dynabarn.world import DEFAULT_BASE_SEED
+    from dynabarn.world import BEHAVIORS, DEFAULT_BASE_SEED
 
     parser = _parser("dynabarn-worlds", "Generate, import and inspect DynaBARN worlds.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -77,7 +77,7 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
         type=Path,
         default=None,
         help=f"output directory (default: {GENERATED_WORLDS.name} for the paper's worlds, "
-        "mixed_worlds when --shapes or --static is given)",
+        "mixed_worlds when --shapes, --static or --behavior is given)",
     )
     g.add_argument(
         "--seed", type=int, default=DEFAULT_BASE_SEED, help="base seed; world i uses SeedSequence([seed, i])"
@@ -108,6 +108,13 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
         default="none",
         help="static obstacles beside the moving ones (beyond the paper): barn-grid = a BARN-style "
         "cellular-automaton field of r 0.075 m cylinders across the arena's middle, always crossable",
+    )
+    g.add_argument(
+        "--behavior",
+        choices=list(BEHAVIORS),
+        default="scripted",
+        help="every obstacle's behaviour (beyond the paper): scripted = the paper's; yield = pauses while "
+        "the robot is within 1.5 m ahead; avoid = steers around the robot (social force) and back",
     )
 
     im = sub.add_parser(
@@ -151,7 +158,7 @@ def _worlds_generate(args: argparse.Namespace) -> int:
     from dynabarn.world import N_WORLDS
     from dynabarn.worldset import generate_worlds
 
-    variant = args.shapes != "cylinder" or args.static != "none"
+    variant = args.shapes != "cylinder" or args.static != "none" or args.behavior != "scripted"
     out = args.out or (Path("mixed_worlds") if variant else GENERATED_WORLDS)
     t0 = time.perf_counter()
     index = generate_worlds(
@@ -162,6 +169,7 @@ def _worlds_generate(args: argparse.Namespace) -> int:
         end_behavior=args.end,
         shapes=get_shape_mix(args.shapes),
         static_field=None if args.static == "none" else get_static_field(args.static),
+        behavior=args.behavior,
         progress=_progress("generating", N_WORLDS),
     )
     print(f"wrote {N_WORLDS} worlds and {index} in {time.perf_counter() - t0:.1f} s")

@@ -402,11 +402,13 @@ def generate_world(
     end_behavior: EndBehavior = EndBehavior.LOOP,
     shapes: ShapeMix | None = None,
     static_field: StaticField | None = None,
+    behavior: str = "scripted",
 ) -> WorldSpec:
     """Alg. 2 for world `world_id` of the 300: count, then one Alg. 1 trajectory each.
 
-    Beyond the paper, `shapes` draws every obstacle's shape and `static_field` adds a
-    BARN-style field of static cylinders. Each draws from its own stream
+    Beyond the paper, `shapes` draws every obstacle's shape, `static_field` adds a
+    BARN-style field of static cylinders and `behavior` makes every obstacle reactive
+    (`yield` or `avoid`, with their default distances). Each draws from its own stream
     (SeedSequence([seed, id, 1]) and [seed, id, 2]), so the motions are the same as in the
     plain world of the same id and seed.
     """
@@ -430,8 +432,10 @@ def generate_world(
         static_rng = np.random.default_rng(np.random.SeedSequence([base_seed, world_id, 2]))
         layout = Layout(cylinders=generate_static_field(static_rng, static_field))
         provenance["static_field"] = static_field.to_dict()
+    if behavior != "scripted":
+        provenance["behavior"] = behavior
     obstacles = tuple(
-        Obstacle(name=f"obstacle_{k:03d}", trajectory=traj, **kw)
+        Obstacle(name=f"obstacle_{k:03d}", trajectory=traj, behavior=behavior, **kw)
         for k, (traj, kw) in enumerate(zip(trajectories, shape_kwargs, strict=True))
     )
     return WorldSpec(

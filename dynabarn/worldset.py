@@ -91,12 +91,14 @@ def generate_worlds(
     end_behavior: str = "loop",
     shapes: ShapeMix | None = None,
     static_field: StaticField | None = None,
+    behavior: str = "scripted",
     progress: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> Path:
     """Generate and write the benchmark's worlds; returns the index path.
 
-    `shapes` and `static_field` make the variants beyond the paper (obstacle shapes, mixed
-    static and moving worlds); the motions stay those of the plain worlds."""
+    `shapes`, `static_field` and `behavior` make the variants beyond the paper (obstacle
+    shapes, mixed static and moving worlds, reactive obstacles); the motions stay those of
+    the plain worlds."""
     ids = list(world_ids)
     worlds = (
         generate_world(
@@ -107,6 +109,7 @@ def generate_worlds(
             end_behavior=EndBehavior(end_behavior),
             shapes=shapes,
             static_field=static_field,
+            behavior=behavior,
         )
         for i in ids
     )
@@ -122,6 +125,8 @@ def generate_worlds(
         meta["shapes"] = shapes.to_dict()
     if static_field is not None:
         meta["static_field"] = static_field.to_dict()
+    if behavior != "scripted":
+        meta["behavior"] = behavior
     return write_worlds(worlds, out_dir, meta=meta, sets=sets, progress=progress)
 
 

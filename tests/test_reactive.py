@@ -114,3 +114,19 @@ def test_privileged_prediction_extrapolates_reactive_obstacles(tmp_path):
             expected, _ = episode.player.positions_at(obs.time + np.array([0.5, 1.0]))
         assert np.allclose(future, expected)
         assert future[1, 0, 1] > future[0, 0, 1], "it keeps walking along +y"
+
+
+def test_generated_worlds_can_make_every_obstacle_reactive(tmp_path):
+    from dynabarn.cli import worlds_main
+    from dynabarn.profiles import get_profile_set
+    from dynabarn.world import generate_world
+    from dynabarn.worldset import read_index
+
+    plain = generate_world(137, get_profile_set("table1"))
+    avoid = generate_world(137, get_profile_set("table1"), behavior="avoid")
+    assert {o.behavior for o in avoid.obstacles} == {"avoid"} and avoid.provenance["behavior"] == "avoid"
+    assert [o.trajectory for o in avoid.obstacles] == [o.trajectory for o in plain.obstacles]
+    out = tmp_path / "yield"
+    assert worlds_main(["generate", "--behavior", "yield", "--out", str(out)]) == 0
+    assert read_index(out)["behavior"] == "yield"
+    assert {o.behavior for o in read_world(out / "world_250.xml").obstacles} == {"yield"}
