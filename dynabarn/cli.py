@@ -146,7 +146,7 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     st.add_argument("folder", nargs="?", type=Path, default=GENERATED_WORLDS, help="a folder of worlds with index.json")
-    st.add_argument("--worlds", default=None, help="only these world ids, e.g. 0-19,200-219 (default: all)")
+    st.add_argument("--worlds", default=None, help="only these world ids, e.g. 0-19,200-219 (None: all)")
 
     args = parser.parse_args(argv)
     return _run(_WORLD_COMMANDS[args.command], args)
