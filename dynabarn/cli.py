@@ -351,7 +351,7 @@ def run_main(argv: Sequence[str] | None = None) -> int:
         "--planner-config",
         default=None,
         help="planner parameters: key=value[,key=value], a .json file, or a shipped preset "
-        "(dwa_barn_challenge = the BARN Challenge's DWA configuration)",
+        "(dwa_barn_challenge = the BARN Challenge's DWA configuration; teb_narrow = TEB for BARN's passages)",
     )
     parser.add_argument(
         "--policy", type=Path, default=None, help="weights for bc/td3 (default: the policy shipped in the package)"
@@ -805,7 +805,7 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
         "--planner-config",
         default=None,
         help="parameters for every planner: key=value[,...], a .json file, or a shipped preset "
-        "(dwa_barn_challenge = the BARN Challenge's DWA configuration)",
+        "(dwa_barn_challenge = the BARN Challenge's DWA configuration; teb_narrow = TEB for BARN's passages)",
     )
     parser.add_argument(
         "--policy", type=Path, default=None, help="weights for bc/td3 (default: the policy shipped in the package)"

@@ -137,7 +137,10 @@ def test_shipped_presets_load_into_their_planners():
         cfg = _planner_config(name)
         assert cfg and not any(k.startswith("_") for k in cfg)
         planner = get_planner(name.split("_")[0], **cfg)
-        assert planner.config()["costmap"]["inflation_radius"] == cfg["costmap.inflation_radius"]
+        config = planner.config()
+        for key, value in cfg.items():  # every preset value reaches the planner's configuration
+            section, _, name = key.rpartition(".")
+            assert (config[section][name] if section else config[key]) == value
     # The BARN Challenge's DWA never samples standing still (TrajectoryPlannerROS min_vel_x 0.1).
     barn = _planner_config("dwa_barn_challenge")
     assert (barn["min_vel_x"], barn["max_vel_x"], barn["sim_time"]) == (0.1, 0.5, 2.0)
