@@ -142,8 +142,11 @@ class OraclePlanner(Planner):
         clear = np.minimum(clear, self._wall_distance(xy) - self.radius)
         min_clear = clear.min(axis=1)
         blocked = clear <= c.safety  # (N, K)
+        static_ok = np.ones(len(xy), dtype=bool)
         if self._static is not None:  # static cylinders: known exactly, so a smaller margin
-            blocked |= self._static.lookup(xy) - self.radius <= c.static_safety
+            static_blocked = self._static.lookup(xy) - self.radius <= c.static_safety
+            static_ok = ~static_blocked.any(axis=1)
+            blocked |= static_blocked
         ok = ~blocked.any(axis=1)
         goal_d = np.hypot(*(xy[..., 0] - obs.goal_in_world[0], xy[..., 1] - obs.goal_in_world[1]))
         reached = (goal_d < 0.2).any(axis=1)
@@ -158,9 +161,10 @@ class OraclePlanner(Planner):
             cost = np.where(ok, cost, np.inf)
             best = int(np.argmin(cost))
         else:
-            # Nothing is safe for the whole horizon: stay clear for as long as possible.
+            # Nothing is safe for the whole horizon: stay clear for as long as possible, and
+            # never run into a static cylinder to get away from a mover if avoidable.
             first_hit = np.where(blocked, np.arange(clear.shape[1])[None, :], clear.shape[1]).min(axis=1)
-            best = int(np.argmax(first_hit * 1000.0 + min_clear))
+            best = int(np.argmax(static_ok * 1e6 + first_hit * 1000.0 + min_clear))
         self._last = xy[best]
         return float(self._v1[best]), float(self._w1[best])
 
