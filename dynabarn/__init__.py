@@ -23,25 +23,38 @@ from dynabarn.planners import (
     get_planner,
     register_planner,
 )
-from dynabarn.profiles import PROFILE_SETS, MotionProfile, ProfileSet, get_profile_set
+from dynabarn.profiles import (
+    PROFILE_SETS,
+    SHAPE_MIXES,
+    STATIC_FIELDS,
+    MotionProfile,
+    ProfileSet,
+    ShapeMix,
+    StaticField,
+    get_profile_set,
+)
 from dynabarn.protocol import PROTOCOLS, EvalProtocol, get_protocol, register_protocol
 from dynabarn.recording import McapRecorder, Recording, read_recording
 from dynabarn.schedule import SchedulePlayer
 from dynabarn.sim import SimConfig, Simulation, run_episode
 from dynabarn.trajectory import Trajectory, generate_trajectory
-from dynabarn.world import PAPER60, WorldSpec, generate_world
+from dynabarn.world import PAPER60, Layout, Obstacle, WorldSpec, generate_world
 
 __all__ = [
     "PAPER60",
     "PROFILE_SETS",
     "PROTOCOLS",
+    "SHAPE_MIXES",
+    "STATIC_FIELDS",
     "DynabarnError",
     "EpisodeInfo",
     "EpisodeResult",
     "EvalProtocol",
+    "Layout",
     "McapRecorder",
     "MotionProfile",
     "Observation",
+    "Obstacle",
     "ObstacleState",
     "Outcome",
     "Planner",
@@ -49,8 +62,10 @@ __all__ = [
     "ProfileSet",
     "Recording",
     "SchedulePlayer",
+    "ShapeMix",
     "SimConfig",
     "Simulation",
+    "StaticField",
     "Trajectory",
     "WorldError",
     "WorldSpec",

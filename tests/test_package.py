@@ -50,3 +50,18 @@ def test_modules_import_only_earlier_stages():
         }
         later = imported & set(order[i + 1 :])
         assert not later, f"{name} imports later stage(s) {later}"
+
+
+def test_readme_python_examples_run(tmp_path, monkeypatch, capsys):
+    """Every ```python block of the README runs as written."""
+    import re
+    from pathlib import Path
+
+    readme = (Path(dynabarn.__file__).parent.parent / "README.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", readme, flags=re.S)
+    assert len(blocks) >= 2
+    monkeypatch.chdir(tmp_path)
+    for code in blocks:
+        exec(compile(code, "README.md", "exec"), {"__name__": "__readme__"})
+    out = capsys.readouterr().out
+    assert "my_world | dwa | barn | seed 0:" in out and (tmp_path / "my_world.xml").is_file()
