@@ -51,6 +51,8 @@ from dynabarn.world import WorldSpec
 
 MAX_CLOCK_OFFSET = 5.0
 """Trials start the obstacles' clocks at a seeded offset in [0, 5) s."""
+CLEARANCE_CHUNK = 1000
+"""Poses per batch of the clearance metric."""
 
 # The `avoid` behaviour's social force (per unit mass), after Helbing & Molnar (1995).
 AVOID_STRENGTH = 4.0
@@ -283,7 +285,8 @@ class Simulation:
         mocap_ids = [self.model.body(o.name).mocapid[0] for o in self.world.obstacles]
         if mocap_ids != list(range(len(mocap_ids))):
             raise DynabarnError(f"{self.world_path}: obstacle bodies are not the first mocap bodies in order")
-        self.laser = Laser(self.model, static_cylinders=np.array(self.world.layout.cylinders).reshape(-1, 3))
+        self.static_cylinders = np.array(self.world.layout.cylinders, dtype=np.float64).reshape(-1, 3)
+        self.laser = Laser(self.model, static_cylinders=self.static_cylinders)
         obstacles = self.world.obstacles
         self.radii = np.array([o.radius for o in obstacles])
         """Rounding radius of every obstacle's footprint (its radius, for a cylinder)."""
@@ -305,12 +308,24 @@ class Simulation:
     def set_obstacles(self, xy: np.ndarray) -> None:
         self.data.mocap_pos[: len(xy), :2] = xy
 
-    def clearance(self, poses: np.ndarray, obstacle_xy: np.ndarray) -> np.ndarray:
-        """Footprint clearance (T,) to the moving obstacles at poses (T, 3), centres (T, n, 2)."""
+    def clearance(self, poses: np.ndarray, obstacle_xy: np.ndarray, *, static: bool = False) -> np.ndarray:
+        """Footprint clearance (T,) at poses (T, 3) to the moving obstacles at centres
+        (T, n, 2), and to the static cylinders too with `static`; in chunks of
+        CLEARANCE_CHUNK poses, so a long episode's temporaries stay a few MB."""
         half = (JACKAL.length / 2, JACKAL.width / 2)
-        if self.shaped:
-            return shape_clearance(poses, obstacle_xy, self.yaws, self.core_half_extents, self.radii, half)
-        return footprint_clearance(poses, obstacle_xy, self.radii, half)
+        cylinders = self.static_cylinders if static else np.zeros((0, 3))
+        out = np.empty(len(poses))
+        for i in range(0, len(poses), CLEARANCE_CHUNK):
+            part, xy = poses[i : i + CLEARANCE_CHUNK], obstacle_xy[i : i + CLEARANCE_CHUNK]
+            if self.shaped:
+                c = shape_clearance(part, xy, self.yaws, self.core_half_extents, self.radii, half)
+            else:
+                c = footprint_clearance(part, xy, self.radii, half)
+            if len(cylinders):
+                at = np.broadcast_to(cylinders[:, :2], (len(part), len(cylinders), 2))
+                c = np.minimum(c, footprint_clearance(part, at, cylinders[:, 2], half))
+            out[i : i + CLEARANCE_CHUNK] = c
+        return out
 
     def episode_info(self, protocol: EvalProtocol, seed: int, params: JackalParams = JACKAL) -> EpisodeInfo:
         return EpisodeInfo(
@@ -326,7 +341,7 @@ class Simulation:
             goal=self.goal.copy(),
             goal_tolerance=protocol.goal_tolerance,
             seed=seed,
-            static_obstacles=np.array(self.world.layout.cylinders, dtype=np.float64).reshape(-1, 3),
+            static_obstacles=self.static_cylinders.copy(),
         )
 
 
@@ -752,16 +767,7 @@ def _finish(episode: Episode, start: EpisodeStart) -> EpisodeResult:
         obstacle_xy[step] = episode.obstacle_log[max(step - 1, 0)] if step else obstacle_xy[0]
     else:
         obstacle_xy, _ = episode.player.positions_at(np.arange(step + 1) * cfg.dt)
-    half = (JACKAL.length / 2, JACKAL.width / 2)
-    clearance = sim.clearance(traj, obstacle_xy)
-    static = np.array(sim.world.layout.cylinders, dtype=np.float64).reshape(-1, 3)
-    if len(static):  # static cylinders (BARN worlds): in time chunks, to bound the memory
-        for i in range(0, len(traj), 1000):
-            part = traj[i : i + 1000]
-            xy = np.broadcast_to(static[:, :2], (len(part), len(static), 2))
-            clearance[i : i + 1000] = np.minimum(
-                clearance[i : i + 1000], footprint_clearance(part, xy, static[:, 2], half)
-            )
+    clearance = sim.clearance(traj, obstacle_xy, static=True)
     mean_ms, p95_ms = compute_percentiles(episode.planner_ms[:n_ticks])
     wall = time.perf_counter() - episode.wall_t0
     goal = (float(sim.goal[0]), float(sim.goal[1]))
