@@ -93,6 +93,14 @@ def _dijkstra_field(
     return _Field(cost=cost.reshape(ny, nx), pred=pred.tolist(), nx=nx, ny=ny)
 
 
+def grid_indices(x: np.ndarray, y: np.ndarray, resolution: float, nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
+    """Row (y) and column (x) indices of points in a grid of `resolution` over BOUNDS,
+    clipped to the grid (points outside read its edge)."""
+    i = np.clip(((y - BOUNDS[2]) / resolution).astype(np.int64), 0, ny - 1)
+    j = np.clip(((x - BOUNDS[0]) / resolution).astype(np.int64), 0, nx - 1)
+    return i, j
+
+
 def _cell(x: float, y: float, nx: int, ny: int, resolution: float) -> int:
     i = min(max(int((y - BOUNDS[2]) / resolution), 0), ny - 1)
     j = min(max(int((x - BOUNDS[0]) / resolution), 0), nx - 1)
@@ -188,8 +196,7 @@ class GlobalPlanner:
         centres_y = (costmap.origin[1] + np.arange(n) + 0.5) * res
         gx, gy = np.meshgrid(centres_x, centres_y)
         f = self.field
-        cells_i = np.clip(((gy - BOUNDS[2]) / self.resolution).astype(np.int64), 0, f.ny - 1)
-        cells_j = np.clip(((gx - BOUNDS[0]) / self.resolution).astype(np.int64), 0, f.nx - 1)
+        cells_i, cells_j = grid_indices(gx, gy, self.resolution, f.nx, f.ny)
         total = local + f.cost[cells_i, cells_j].ravel()
         # Hand over to the static field only on the window's border (or at the goal):
         # inside, the static cost-to-go ignores the obstacles the detour goes around.

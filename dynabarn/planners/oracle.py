@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
-from dynabarn.planners.global_planner import BOUNDS, GlobalPlanner
+from dynabarn.planners.global_planner import BOUNDS, GlobalPlanner, grid_indices
 
 
 @dataclass
@@ -120,9 +120,7 @@ class OraclePlanner(Planner):
     def _cost_to_go(self, xy: np.ndarray) -> np.ndarray:
         f = self.global_planner.field
         res = self.global_planner.resolution
-        i = np.clip(((xy[..., 1] - BOUNDS[2]) / res).astype(np.int64), 0, f.ny - 1)
-        j = np.clip(((xy[..., 0] - BOUNDS[0]) / res).astype(np.int64), 0, f.nx - 1)
-        cost = f.cost[i, j]
+        cost = f.cost[grid_indices(xy[..., 0], xy[..., 1], res, f.nx, f.ny)]
         # Unreachable cells (inside inflated walls): fall back to the straight-line distance.
         straight = np.hypot(xy[..., 0] - self.info.goal[0], xy[..., 1] - self.info.goal[1]) + 5.0
         return np.where(np.isfinite(cost), cost, straight)
@@ -195,7 +193,4 @@ class _StaticDistance:
         self.distance = distance_transform_edt(free) * res - 0.5 * res
 
     def lookup(self, xy: np.ndarray) -> np.ndarray:
-        res = self.RESOLUTION
-        i = np.clip(((xy[..., 1] - BOUNDS[2]) / res).astype(np.int64), 0, self.ny - 1)
-        j = np.clip(((xy[..., 0] - BOUNDS[0]) / res).astype(np.int64), 0, self.nx - 1)
-        return self.distance[i, j]
+        return self.distance[grid_indices(xy[..., 0], xy[..., 1], self.RESOLUTION, self.nx, self.ny)]
