@@ -312,20 +312,29 @@ class McapRecorder:
         self._goal.log(wire.pose_in_frame(0, _WORLD_FRAME, wire.pose(gx, gy, 0.0, *identity)), log_time=0)
 
 
-def _primitive_parts(o: Obstacle) -> tuple[float, tuple[float, float, float, float], bytes]:
-    """(centre height, orientation quaternion (x, y, z, w), encoded size) of an obstacle's primitive."""
+def obstacle_pose(o: Obstacle) -> tuple[float, tuple[float, float, float, float]]:
+    """Centre height and orientation quaternion (x, y, z, w) of an obstacle's primitive: a
+    box turned by its yaw; a capsule's axis (a primitive's z) turned onto x (about y), then
+    by its yaw (about z); a cylinder upright."""
     half = o.yaw / 2
     if o.shape == "box":
-        return (
-            o.height / 2,
-            (0.0, 0.0, math.sin(half), math.cos(half)),
-            wire.vector3(2 * o.half_length, 2 * o.half_width, o.height),
-        )
-    if o.shape == "capsule":  # a cylinder along the yaw: turn z onto x (about y), then yaw (about z)
-        c, s = math.sqrt(0.5), math.sqrt(0.5)
-        q = (-s * math.sin(half), s * math.cos(half), c * math.sin(half), c * math.cos(half))
-        return o.radius, q, wire.vector3(2 * o.radius, 2 * o.radius, 2 * (o.half_length + o.radius))
-    return o.height / 2, (0.0, 0.0, 0.0, 1.0), wire.vector3(2 * o.radius, 2 * o.radius, o.height)
+        return o.height / 2, (0.0, 0.0, math.sin(half), math.cos(half))
+    if o.shape == "capsule":
+        c = math.sqrt(0.5)
+        return o.radius, (-c * math.sin(half), c * math.cos(half), c * math.sin(half), c * math.cos(half))
+    return o.height / 2, (0.0, 0.0, 0.0, 1.0)
+
+
+def _primitive_parts(o: Obstacle) -> tuple[float, tuple[float, float, float, float], bytes]:
+    """`obstacle_pose` and the encoded size of the obstacle's SceneUpdate primitive (a
+    capsule is drawn as a cylinder as long as the capsule)."""
+    if o.shape == "box":
+        size = wire.vector3(2 * o.half_length, 2 * o.half_width, o.height)
+    elif o.shape == "capsule":
+        size = wire.vector3(2 * o.radius, 2 * o.radius, 2 * (o.half_length + o.radius))
+    else:
+        size = wire.vector3(2 * o.radius, 2 * o.radius, o.height)
+    return (*obstacle_pose(o), size)
 
 
 # -- reading --------------------------------------------------------------------------

@@ -39,6 +39,7 @@ from dynabarn.recording import (
     TOPIC_POSE,
     TOPIC_SCAN,
     Recording,
+    obstacle_pose,
     obstacle_track,
     recorded_world,
 )
@@ -121,38 +122,37 @@ def _log_obstacles(stream: rr.RecordingStream, run: str, world: WorldSpec, t: np
         if not len(sel):
             continue
         obs = [world.obstacles[i] for i in sel]
-        k = len(sel)
+        n = len(t)
         centres = xy[:, sel].reshape(-1, 2)
-        counts = [k] * len(t)
-        yaw = np.tile(np.array([o.yaw for o in obs]), len(t))
+        poses = [obstacle_pose(o) for o in obs]  # the recorder's heights and orientations
+        z = np.tile([p[0] for p in poses], n)
+        quaternions = np.tile([p[1] for p in poses], (n, 1))
         if shape == "cylinder":
             columns = rr.Cylinders3D.columns(
-                centers=np.column_stack([centres, np.tile([o.height / 2 for o in obs], len(t))]),
-                radii=np.tile([o.radius for o in obs], len(t)),
-                lengths=np.tile([o.height for o in obs], len(t)),
+                centers=np.column_stack([centres, z]),
+                radii=np.tile([o.radius for o in obs], n),
+                lengths=np.tile([o.height for o in obs], n),
             )
             archetype = rr.Cylinders3D
         elif shape == "box":
             columns = rr.Boxes3D.columns(
-                centers=np.column_stack([centres, np.tile([o.height / 2 for o in obs], len(t))]),
-                half_sizes=np.tile([[o.half_length, o.half_width, o.height / 2] for o in obs], (len(t), 1)),
-                quaternions=_quat_z(yaw),
+                centers=np.column_stack([centres, z]),
+                half_sizes=np.tile([[o.half_length, o.half_width, o.height / 2] for o in obs], (n, 1)),
+                quaternions=quaternions,
             )
             archetype = rr.Boxes3D
         else:  # a capsule's segment starts at its translation and runs along its local +z
-            hl = np.tile([o.half_length for o in obs], len(t))
-            r = np.tile([o.radius for o in obs], len(t))
+            hl = np.tile([o.half_length for o in obs], n)
+            yaw = np.tile([o.yaw for o in obs], n)
             start = centres - hl[:, None] * np.column_stack([np.cos(yaw), np.sin(yaw)])
-            h = yaw / 2
-            c = math.sqrt(0.5)
             columns = rr.Capsules3D.columns(
-                translations=np.column_stack([start, r]),
+                translations=np.column_stack([start, z]),
                 lengths=2 * hl,
-                radii=r,
-                quaternions=np.column_stack([-c * np.sin(h), c * np.cos(h), c * np.sin(h), c * np.cos(h)]),
+                radii=np.tile([o.radius for o in obs], n),
+                quaternions=quaternions,
             )
             archetype = rr.Capsules3D
-        stream.send_columns(f"{run}/{entity}", indexes=index, columns=columns.partition(counts))
+        stream.send_columns(f"{run}/{entity}", indexes=index, columns=columns.partition([len(sel)] * n))
         stream.log(f"{run}/{entity}", archetype.from_fields(colors=red, fill_mode="solid"), static=True)
 
 

@@ -94,3 +94,29 @@ def test_bad_recording(tmp_path, capsys):
     bad.write_text("not an mcap")
     assert replay_main([str(bad), "--save", str(tmp_path / "x.rrd")]) == 2
     assert "not an MCAP file" in capsys.readouterr().err
+
+
+def test_shaped_and_static_obstacles_replay_as_their_archetypes(tmp_path):
+    from dynabarn.mjcf import write_world
+    from dynabarn.profiles import SHAPE_MIXES, STATIC_FIELDS, get_profile_set
+    from dynabarn.world import generate_world
+
+    world = generate_world(
+        250, get_profile_set("table1"), shapes=SHAPE_MIXES["mixed"], static_field=STATIC_FIELDS["barn-grid"]
+    )
+    path = tmp_path / "w.xml"
+    write_world(world, path)
+    mcap = tmp_path / "w.mcap"
+    run_episode(path, get_planner("stop"), get_protocol("barn"), seed=0, observers=[McapRecorder(mcap)])
+    rec = read_recording(mcap)
+    rrd = tmp_path / "w.rrd"
+    save_rrd([rec], rrd)
+    rows = _rows_per_entity(rrd)
+    n = len(rec.topic("/world/obstacles"))
+    counts = {s: sum(o.shape == s for o in world.obstacles) for s in ("cylinder", "box", "capsule")}
+    assert all(counts.values()), counts
+    # One row per obstacle update, each holding that kind's obstacles.
+    assert rows["/runs/stop_s0/obstacles"]["Cylinders3D:centers"] == n
+    assert rows["/runs/stop_s0/obstacle_boxes"]["Boxes3D:quaternions"] == n
+    assert rows["/runs/stop_s0/obstacle_capsules"]["Capsules3D:quaternions"] == n
+    assert "Cylinders3D:centers" in rows["/world/static_obstacles"]
