@@ -407,6 +407,7 @@ class Episode:
             self._yields = np.array([o.behavior == "yield" for o in obstacles])
             self._yield_distance = np.array([o.yield_distance for o in obstacles])
             self._avoids = np.array([o.behavior == "avoid" for o in obstacles])
+            self._any_avoid = bool(self._avoids.any())
             self._avoid_distance = np.array([o.avoid_distance for o in obstacles])
             self._reach = sim.bounding_radii + JACKAL.footprint_radius  # centre distance at contact
             self.obstacle_clock = np.zeros(n)
@@ -470,33 +471,26 @@ class Episode:
         """
         pos, vel = self.player.positions_at_local(self.obstacle_clock[None])
         pos, vel = pos[0], vel[0]
-        normal = self._update_normals(vel)
+        normal = self._normal = self._step_normals(vel[None])[0]
         actual = pos + self.lateral[:, None] * normal
         rel = self.sim.data.qpos[:2] - actual  # (n, 2) robot relative to each obstacle
         dist = np.hypot(rel[:, 0], rel[:, 1])
         ahead = (rel * vel).sum(axis=1) > 0.0
         rate = np.where(self._yields & ahead & (dist < self._yield_distance), 0.0, 1.0)
-        if self._avoids.any():
+        if self._any_avoid:
             rate = np.minimum(rate, self._avoid_step(rel, dist, vel, normal, ahead))
         offsets = self._step_offsets[:, None]
         local = self.obstacle_clock[None, :] + offsets * rate[None, :]
         self.obstacle_clock = self.obstacle_clock + rate * self.period
         xy, v = self.player.positions_at_local(local)
         v = v * rate[None, :, None]
-        if self._avoids.any():
+        if self._any_avoid:
             normals = self._step_normals(v)
             lateral = self.lateral[None, :] + offsets * self.lateral_speed[None, :]
             xy = xy + lateral[..., None] * normals
             v = v + self.lateral_speed[None, :, None] * normals
             self.lateral = self.lateral + self.lateral_speed * self.period
         return xy, v
-
-    def _update_normals(self, vel: np.ndarray) -> np.ndarray:
-        speed = np.hypot(vel[:, 0], vel[:, 1])
-        moving = speed > 1e-9
-        safe = np.where(moving, speed, 1.0)[:, None]
-        self._normal[moving] = np.column_stack([-vel[:, 1], vel[:, 0]])[moving] / safe[moving]
-        return self._normal
 
     def _step_normals(self, v: np.ndarray) -> np.ndarray:
         """Left normals (k, n, 2) of the paths at the period's steps (last known when stopped)."""
