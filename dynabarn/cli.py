@@ -245,7 +245,7 @@ def _worlds_stats(args: argparse.Namespace) -> int:
     import numpy as np
 
     from dynabarn.bench import parse_ids
-    from dynabarn.difficulty import difficulty_scores, motion_statistics
+    from dynabarn.difficulty import world_measures
     from dynabarn.mjcf import read_world
     from dynabarn.worldset import read_index
 
@@ -260,7 +260,7 @@ def _worlds_stats(args: argparse.Namespace) -> int:
     for e in _progress("measuring", len(entries))(entries):
         world = read_world(Path(args.folder) / e["file"])
         row = {"obstacles": len(world.obstacles), "static": len(world.layout.cylinders)}
-        row |= difficulty_scores(world) | motion_statistics(world)
+        row |= world_measures(world)
         rows.setdefault(e["difficulty"], []).append(row)
     columns = [
         ("obstacles", "obst", 5, 1),

@@ -34,33 +34,41 @@ def _inside_corridor(xy: np.ndarray, half: np.ndarray) -> np.ndarray:
     return (np.abs(xy[..., 1]) <= half) & (xy[..., 0] >= CORRIDOR_X[0]) & (xy[..., 0] <= CORRIDOR_X[1])
 
 
-def motion_statistics(world: WorldSpec) -> dict[str, float]:
-    """Per-obstacle means that explain the scores: the fraction of time in the corridor,
-    speed [m/s], loop duration [s], the span of the path in y [m] and how often the
-    path crosses y = 0 per loop (over the same 60 s window as `difficulty_scores`)."""
-    if not world.obstacles:
-        return {}
+def _sample(world: WorldSpec) -> tuple[np.ndarray, np.ndarray]:
+    """Which obstacles are in the corridor (T, n) and their velocities (T, n, 2), every
+    STEP over WINDOW seconds of the schedules."""
     xy, vel = SchedulePlayer(world).positions_at(np.arange(0.0, WINDOW, STEP))
-    inside = _inside_corridor(xy, _corridor_half_widths(world))
-    paths = [o.trajectory.xy for o in world.obstacles]
+    return _inside_corridor(xy, _corridor_half_widths(world)), vel
+
+
+def _scores(inside: np.ndarray) -> dict[str, float]:
+    entries = np.count_nonzero(inside[1:] & ~inside[:-1]) + np.count_nonzero(inside[0])
     return {
-        "time_in_corridor": float(inside.mean()),
-        "speed": float(np.hypot(vel[..., 0], vel[..., 1]).mean()),
-        "loop_duration": float(np.mean([o.trajectory.duration for o in world.obstacles])),
-        "y_span": float(np.mean([np.ptp(p[:, 1]) for p in paths])),
-        "y_zero_crossings": float(np.mean([np.count_nonzero(np.diff(np.sign(p[:, 1]))) for p in paths])),
+        "corridor_blocked": round(float(inside.any(axis=1).mean()), 6),
+        "corridor_occupancy": round(float(inside.sum(axis=1).mean()), 6),
+        "crossings_per_minute": round(float(entries * 60.0 / WINDOW), 6),
     }
 
 
 def difficulty_scores(world: WorldSpec) -> dict[str, float]:
     if not world.obstacles:
         return {"corridor_blocked": 0.0, "corridor_occupancy": 0.0, "crossings_per_minute": 0.0}
-    times = np.arange(0.0, WINDOW, STEP)
-    xy, _ = SchedulePlayer(world).positions_at(times)  # (T, n, 2)
-    inside = _inside_corridor(xy, _corridor_half_widths(world))
-    entries = np.count_nonzero(inside[1:] & ~inside[:-1]) + np.count_nonzero(inside[0])
-    return {
-        "corridor_blocked": round(float(inside.any(axis=1).mean()), 6),
-        "corridor_occupancy": round(float(inside.sum(axis=1).mean()), 6),
-        "crossings_per_minute": round(float(entries * 60.0 / WINDOW), 6),
+    return _scores(_sample(world)[0])
+
+
+def world_measures(world: WorldSpec) -> dict[str, float]:
+    """`difficulty_scores` and, from the same sampling, the per-obstacle means that explain
+    them: the fraction of time in the corridor, speed [m/s], loop duration [s], the span
+    of the path in y [m] and how often the path crosses y = 0 per loop (none without
+    moving obstacles)."""
+    if not world.obstacles:
+        return difficulty_scores(world)
+    inside, vel = _sample(world)
+    paths = [o.trajectory.xy for o in world.obstacles]
+    return _scores(inside) | {
+        "time_in_corridor": float(inside.mean()),
+        "speed": float(np.hypot(vel[..., 0], vel[..., 1]).mean()),
+        "loop_duration": float(np.mean([o.trajectory.duration for o in world.obstacles])),
+        "y_span": float(np.mean([np.ptp(p[:, 1]) for p in paths])),
+        "y_zero_crossings": float(np.mean([np.count_nonzero(np.diff(np.sign(p[:, 1]))) for p in paths])),
     }
