@@ -27,7 +27,7 @@ from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, read_recording
 from dynabarn.schedule import SchedulePlayer
-from dynabarn.sim import Simulation, run_episode
+from dynabarn.sim import Laser, Simulation, run_episode
 
 HARD_WORLD = 250
 
@@ -159,9 +159,8 @@ def scan_cost(world: Path, n: int = 300, *, closed_form: bool = True) -> float:
     a mixed world's static field begins), facing it. `closed_form=False` leaves the static
     cylinders to mj_multiRay too (what the runner did before)."""
     sim = Simulation(world)
-    if not closed_form:
-        sim.laser.static = np.zeros((0, 3))
-        sim.laser._exclude = sim.laser.robot_body
+    if not closed_form:  # a laser told of no static cylinders casts them with mj_multiRay
+        sim.laser = Laser(sim.model)
     sim.reset((2.6, 0.0, math.pi))
     mujoco.mj_kinematics(sim.model, sim.data)
     t0 = time.perf_counter()

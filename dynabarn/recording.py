@@ -210,7 +210,8 @@ class McapRecorder:
             wire.laser_scan(ns, _WORLD_FRAME, laser_pose, self._start_angle, self._end_angle, tick.scan), log_time=ns
         )
         block = self._obstacle_block.encode(tick.obstacles[self._obstacle_order])
-        self._obstacles.log(wire.scene_update_of_block(ns, _WORLD_FRAME, "obstacles", block), log_time=ns)
+        entity = wire.scene_entity(ns, _WORLD_FRAME, "obstacles", primitives=block)
+        self._obstacles.log(wire.scene_update([entity]), log_time=ns)
         v, w = tick.command.tolist()
         raw_v, raw_w = tick.raw_command.tolist()
         self.log_json(TOPIC_CMD, t, {"v": v, "w": w, "raw_v": raw_v, "raw_w": raw_w})

@@ -139,12 +139,20 @@ def scene_update(entities: list[bytes]) -> bytes:
 
 
 def scene_entity(
-    ns: int, frame: bytes, entity_id: str, *, cylinders: list[bytes] = (), cubes: list[bytes] = ()
+    ns: int,
+    frame: bytes,
+    entity_id: str,
+    *,
+    cylinders: list[bytes] = (),
+    cubes: list[bytes] = (),
+    primitives: bytes = b"",
 ) -> bytes:
-    """foxglove.SceneEntity: timestamp=1, frame_id=2, id=3, cubes=8, cylinders=10."""
+    """foxglove.SceneEntity: timestamp=1, frame_id=2, id=3, cubes=8, cylinders=10, then
+    `primitives` already encoded as fields (a `PrimitiveBlock`)."""
     parts = [length_delimited(1, timestamp(ns)), frame, string(3, entity_id)]
     parts += [length_delimited(8, c) for c in cubes]
     parts += [length_delimited(10, c) for c in cylinders]
+    parts.append(primitives)
     return b"".join(parts)
 
 
@@ -191,9 +199,3 @@ class PrimitiveBlock:
         """The block's bytes with positions xy (n, 2) [m], in the primitives' order."""
         self._bytes[self._index] = np.ascontiguousarray(xy, dtype="<f8").view(np.uint8).ravel()
         return bytes(self._buffer)
-
-
-def scene_update_of_block(ns: int, frame: bytes, entity_id: str, block: bytes) -> bytes:
-    """foxglove.SceneUpdate with one entity (timestamp, frame, id) holding a pre-encoded block."""
-    header = length_delimited(1, timestamp(ns)) + frame + string(3, entity_id)
-    return length_delimited(2, header + block)
