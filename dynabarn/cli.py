@@ -303,23 +303,12 @@ def _planner_config(text: str | None) -> dict:
     """--planner-config: a preset name, a JSON file, or inline `key=value,key=value` (values as JSON)."""
     import json
 
-    from dynabarn.planners import PRESETS_DIR, planner_presets
+    from dynabarn.planners import planner_presets, read_planner_config
 
     if not text:
         return {}
-    path = Path(text)
-    if text in planner_presets():
-        path = PRESETS_DIR / f"{text}.json"
-    if path.suffix == ".json":
-        if not path.is_file():
-            raise DynabarnError(f"planner config file not found: {path}")
-        try:
-            cfg = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            raise DynabarnError(f"{path}: planner config is not valid JSON ({exc})") from None
-        if not isinstance(cfg, dict):
-            raise DynabarnError(f"{path}: planner config must be a JSON object")
-        return {k: v for k, v in cfg.items() if not k.startswith("_")}  # "_source" and other notes
+    if text in planner_presets() or text.endswith(".json"):
+        return read_planner_config(text)
     cfg = {}
     for item in text.split(","):
         key, sep, value = item.partition("=")
@@ -820,10 +809,72 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--record", choices=["none", "failures", "all"], default="none", help="which episodes to keep as MCAP"
     )
-    parser.add_argument("--out", type=Path, required=True, help="output folder (results.jsonl, summary, fig5.png)")
+    parser.add_argument(
+        "--out", type=Path, default=None, help="output folder (results.jsonl, summary, fig5.png); required for a sweep"
+    )
     parser.add_argument("--force", action="store_true", help="start over in an --out that holds another sweep")
+    golden = parser.add_argument_group(
+        "golden set",
+        "about 30 committed episodes that must come out the same on every machine (README Reproducibility)",
+    )
+    golden.add_argument(
+        "--verify-golden",
+        action="store_true",
+        help="re-run the golden set and print every field that differs from the committed results; exit 1 if any",
+    )
+    golden.add_argument(
+        "--update-golden", action="store_true", help="re-run the golden set and rewrite the committed results"
+    )
+    golden.add_argument(
+        "--reference",
+        type=Path,
+        default=None,
+        help="folder with the reference data the imported golden worlds need (dynabarn60.json, barn300_static.json); "
+        "default: ../shared/reference beside the repository; cases that need it are skipped without it",
+    )
     args = parser.parse_args(argv)
+    if args.verify_golden or args.update_golden:
+        return _run(_golden, args)
+    if args.out is None:
+        parser.error("--out is required for a sweep")
     return _run(_bench, args)
+
+
+def _golden(args: argparse.Namespace) -> int:
+    import json
+
+    from tqdm import tqdm
+
+    from dynabarn import golden
+    from dynabarn.provenance import machine
+
+    if args.jobs < 1:
+        raise DynabarnError("--jobs must be at least 1")
+    reference = args.reference or golden.DEFAULT_REFERENCE
+
+    def progress(stream, total):
+        return tqdm(stream, total=total, desc="golden episodes", unit="ep", disable=None)
+
+    if args.update_golden:
+        path, _ = golden.update(reference, jobs=args.jobs, progress=progress)
+        print(f"wrote {len(golden.CASES)} golden episodes to {path}")
+        return 0
+    t0 = time.perf_counter()
+    report = golden.verify(reference, jobs=args.jobs, progress=progress)
+    print(f"machine: {json.dumps(machine(), sort_keys=True)}")
+    for note in report.version_notes:
+        print(f"versions differ: {note}")
+    for case in report.skipped:
+        print(f"skipped (no reference data under {reference}): {case}")
+    for m in report.mismatches:
+        print(f"MISMATCH {m}")
+    cases = len({m.case for m in report.mismatches})
+    verdict = "identical" if report.ok else f"{len(report.mismatches)} fields differ in {cases} episodes"
+    print(
+        f"golden set: {report.checked} episodes checked, {len(report.skipped)} skipped, {verdict} "
+        f"({time.perf_counter() - t0:.1f} s)"
+    )
+    return 0 if report.ok else 1
 
 
 def _bench(args: argparse.Namespace) -> int:

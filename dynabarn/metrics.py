@@ -67,6 +67,9 @@ class EpisodeResult:
     world_file: str = ""
     world_sha256: str = ""
     versions: dict = field(default_factory=dict)
+    """Package versions that decide the result (the same under the lock)."""
+    machine: dict = field(default_factory=dict)
+    """CPU, SIMD targets, BLAS kernels and threads (`provenance.machine`)."""
     planner_config: dict = field(default_factory=dict)
     protocol_version: int = 1
 

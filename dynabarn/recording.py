@@ -38,6 +38,7 @@ from foxglove.mcap import MCAPWriteOptions
 from foxglove.messages import LaserScan, PoseInFrame, SceneUpdate
 
 from dynabarn import wire
+from dynabarn.determinism import snap_array
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import EpisodeResult
 from dynabarn.sim import EpisodeStart, Tick, portable_path
@@ -45,7 +46,14 @@ from dynabarn.world import Obstacle, WorldSpec
 
 CHUNK_SIZE = 64 * 1024
 WALL_CLOCK_FIELDS = ("rtf", "wall_time", "planner_ms_mean", "planner_ms_p95")
-"""Result fields that depend on the machine, kept out of recordings."""
+"""Result fields that depend on the machine's speed, kept out of recordings."""
+MACHINE_FIELDS = (*WALL_CLOCK_FIELDS, "machine")
+"""Result fields kept out of the recording's messages (the machine block goes into the
+MCAP metadata record `dynabarn.machine`), so the messages are byte-identical across machines."""
+MACHINE_METADATA = "dynabarn.machine"
+DEBUG_RESOLUTION = 1e-4
+"""[m] Planner debug geometry is recorded on this grid: DWA's and the oracle's rollouts use
+numpy's sin and cos, whose last bits differ between CPUs."""
 PROFILE = "dynabarn"
 
 TOPIC_METADATA = "/world/metadata"
@@ -88,6 +96,13 @@ _JSON_SCHEMAS = {
     TOPIC_DEBUG: ("dynabarn.PlannerDebug", {"type": "object"}),
     TOPIC_RESULT: ("dynabarn.EpisodeResult", {"type": "object"}),
 }
+
+
+def _on_grid(value):
+    """Float arrays on the debug grid (other values as they are)."""
+    if isinstance(value, np.ndarray) and value.dtype.kind == "f":
+        return snap_array(value, DEBUG_RESOLUTION)
+    return value
 
 
 def _ns(t: float) -> int:
@@ -222,27 +237,24 @@ class McapRecorder:
             {"v": mv, "w": mw, "clearance": tick.clearance, "distance_to_goal": tick.distance_to_goal},
         )
         if tick.debug:
-            self.log_json(TOPIC_DEBUG, t, tick.debug)
+            self.log_json(TOPIC_DEBUG, t, {k: _on_grid(v) for k, v in tick.debug.items()})
 
     def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
         ns = np.round(times * 1e9).astype(np.int64).tolist()
-        half_yaw = poses[:, 2] * 0.5
         log = self._pose.log
-        for n, x, y, qz, qw in zip(
-            ns,
-            poses[:, 0].tolist(),
-            poses[:, 1].tolist(),
-            np.sin(half_yaw).tolist(),
-            np.cos(half_yaw).tolist(),
-            strict=True,
-        ):
-            log(wire.pose_in_frame(n, _WORLD_FRAME, wire.pose(x, y, 0.0, 0.0, 0.0, qz, qw)), log_time=n)
+        sin, cos = math.sin, math.cos  # libm, not numpy's CPU-dependent SIMD paths
+        for n, x, y, yaw in zip(ns, poses[:, 0].tolist(), poses[:, 1].tolist(), poses[:, 2].tolist(), strict=True):
+            half = yaw * 0.5
+            log(wire.pose_in_frame(n, _WORLD_FRAME, wire.pose(x, y, 0.0, 0.0, 0.0, sin(half), cos(half))), log_time=n)
 
     def on_end(self, result: EpisodeResult) -> None:
         if self._writer is None:
             return
-        d = {k: v for k, v in result.to_dict().items() if k not in WALL_CLOCK_FIELDS}
-        self.log_json(TOPIC_RESULT, result.sim_time, d)
+        d = result.to_dict()
+        self._writer.write_metadata(
+            MACHINE_METADATA, {k: json.dumps(v, sort_keys=True) for k, v in d.get("machine", {}).items()}
+        )
+        self.log_json(TOPIC_RESULT, result.sim_time, {k: v for k, v in d.items() if k not in MACHINE_FIELDS})
         self.close()
 
     # -- helpers ------------------------------------------------------------------------
@@ -424,6 +436,28 @@ def _json_decoder_factory():
             return None
 
     return JsonDecoderFactory()
+
+
+def message_digest(path: Path | str) -> str:
+    """sha256 over every message of a recording (topic, log time, bytes) in file order: the
+    same on every machine for the same episode (the machine block is a metadata record,
+    not a message). A file cut short raises DynabarnError."""
+    import hashlib
+
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as f:
+            for _schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
+                h.update(channel.topic.encode())
+                h.update(message.log_time.to_bytes(8, "little"))
+                h.update(len(message.data).to_bytes(8, "little"))
+                h.update(message.data)
+    except (McapError, OSError) as exc:
+        raise DynabarnError(f"{path}: cannot read the recording ({exc})") from None
+    return h.hexdigest()
 
 
 def read_recording(path: Path | str, *, decode: bool = True) -> Recording:

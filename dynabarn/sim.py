@@ -28,6 +28,14 @@ from typing import Protocol
 import mujoco
 import numpy as np
 
+from dynabarn.determinism import (
+    COMMAND_RESOLUTION,
+    LASER_RESOLUTION,
+    OBSTACLE_SPEED_RESOLUTION,
+    RECORD_RESOLUTION,
+    snap,
+    snap_array,
+)
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import (
     EpisodeResult,
@@ -45,6 +53,7 @@ from dynabarn.metrics import (
 from dynabarn.mjcf import REPO_ROOT, ROBOT_PREFIX, STATIC_FIELD_BODY, load_model, read_world
 from dynabarn.planners.base import EndEpisode, EpisodeInfo, Observation, ObstacleState, Planner
 from dynabarn.protocol import EvalProtocol, GoalRegion
+from dynabarn.provenance import machine, versions
 from dynabarn.robot import JACKAL, LASER_GEOM_GROUPS, JackalParams
 from dynabarn.schedule import SchedulePlayer
 from dynabarn.world import WorldSpec
@@ -162,16 +171,6 @@ class EpisodeObserver(Protocol):
     def on_end(self, result: EpisodeResult) -> None: ...
 
 
-def versions() -> dict:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        ours = version("dynabarn")
-    except PackageNotFoundError:  # pragma: no cover
-        ours = "0+unknown"
-    return {"dynabarn": ours, "mujoco": mujoco.__version__, "numpy": np.__version__}
-
-
 class Laser:
     """The UST-10 scan by `mj_multiRay` from the laser site, buffers reused every tick.
 
@@ -266,7 +265,9 @@ class Laser:
         ranges = self.cast(model, data, yaw)
         ranges += rng.normal(0.0, self.params.laser_noise_std, self.n)
         np.clip(ranges, self.params.laser_range_min, self.params.laser_range_max, out=ranges)
-        return ranges
+        # Whole millimetres, as the UST-10 reports: also what keeps last-bit differences of
+        # the ray directions (numpy's sin and cos differ between CPUs) out of the planner.
+        return snap_array(ranges, LASER_RESOLUTION, out=ranges)
 
 
 class Simulation:
@@ -396,6 +397,7 @@ class Episode:
         self.step = 0
         self.n_ticks = 0
         self.prev_cmd = np.zeros(2)
+        self.raw_command = (0.0, 0.0)
         self.wall_t0 = time.perf_counter()
         self._batch_xy = self._batch_vel = None
         # Reactive obstacles run on their own clocks (a yielding one pauses its schedule);
@@ -517,8 +519,9 @@ class Episode:
         speed_lat = np.where(self._avoids, speed_lat, 0.0)
         # Never further than AVOID_MAX_OFFSET from the path.
         limit = (AVOID_MAX_OFFSET - np.abs(self.lateral)) / self.period
-        self.lateral_speed = np.where(
-            np.sign(speed_lat) == np.sign(self.lateral), np.clip(speed_lat, -limit, limit), speed_lat
+        self.lateral_speed = snap_array(
+            np.where(np.sign(speed_lat) == np.sign(self.lateral), np.clip(speed_lat, -limit, limit), speed_lat),
+            OBSTACLE_SPEED_RESOLUTION,
         )
         in_way = near & ahead & (np.abs(side) < reach)
         brake = np.clip((dist - reach) / AVOID_BRAKE_BAND, 0.0, 1.0)
@@ -534,6 +537,9 @@ class Episode:
             return self.outcome
         sim, cfg, p = self.sim, self.sim.config, JACKAL
         data, model = sim.data, sim.model
+        # On a fixed grid: a planner's last-bit differences between machines stop here.
+        raw_v, raw_w = snap(raw_v, COMMAND_RESOLUTION), snap(raw_w, COMMAND_RESOLUTION)
+        self.raw_command = (raw_v, raw_w)
         v = min(max(raw_v, p.v_min), p.v_max)
         w = min(max(raw_w, -p.w_max), p.w_max)
         dv, dw = cfg.max_linear_accel * self.period, cfg.max_angular_accel * self.period
@@ -585,8 +591,8 @@ class Episode:
         self.step, self.t_start, self.outcome = step, t_start, outcome
         return outcome
 
-    def tick_record(self, raw: tuple[float, float], debug: dict) -> Tick:
-        """The last observation and command, for observers."""
+    def tick_record(self, debug: dict) -> Tick:
+        """The last observation and command (as received, on its grid), for observers."""
         obs, sim = self._obs, self.sim
         laser_xy = sim.data.site_xpos[sim.laser.site]
         pose = obs.pose
@@ -597,12 +603,15 @@ class Episode:
             pose=pose,
             velocity=obs.velocity,
             command=self.prev_cmd.copy(),
-            raw_command=np.array(raw, dtype=np.float64),
+            raw_command=np.array(self.raw_command, dtype=np.float64),
             obstacles=self._batch_xy[0].copy(),
-            clearance=float(sim.clearance(pose[None], self._batch_xy[:1])[0])
-            if sim.shaped
-            else footprint_clearance_at(
-                pose[0], pose[1], pose[2], self._batch_xy[0], sim.radii, (JACKAL.length / 2, JACKAL.width / 2)
+            clearance=snap(
+                float(sim.clearance(pose[None], self._batch_xy[:1])[0])
+                if sim.shaped
+                else footprint_clearance_at(
+                    pose[0], pose[1], pose[2], self._batch_xy[0], sim.radii, (JACKAL.length / 2, JACKAL.width / 2)
+                ),
+                RECORD_RESOLUTION,
             ),
             distance_to_goal=math.hypot(sim.goal[0] - pose[0], sim.goal[1] - pose[1]),
             planner_ms=float(self.planner_ms[self.n_ticks - 1]) if self.n_ticks else 0.0,
@@ -652,7 +661,7 @@ def run_episode(
         clock_offset=episode.clock_offset,
         config=sim.config,
         info=episode.info,
-        versions=versions(),
+        versions=versions() | planner.versions(),
     )
     for obs_ in observers:
         obs_.on_start(start)
@@ -677,7 +686,7 @@ def run_episode(
             if episode.apply(raw_v, raw_w) is Outcome.ERROR:
                 break
             if observers:
-                tick = episode.tick_record((raw_v, raw_w), planner.debug())
+                tick = episode.tick_record(planner.debug())
                 for obs_ in observers:
                     obs_.on_tick(tick)
                 times, poses = episode.poses_between(first)
@@ -795,6 +804,7 @@ def _finish(episode: Episode, start: EpisodeStart) -> EpisodeResult:
         world_file=portable_path(sim.world_path),
         world_sha256=sim.world_sha256,
         versions=start.versions,
+        machine=machine(),
         planner_config=start.planner_config,
         protocol_version=protocol.version,
     )

@@ -10,9 +10,10 @@ from dynabarn.mjcf import resolve_world
 from dynabarn.planners import get_planner, register_planner
 from dynabarn.planners.base import Planner
 from dynabarn.protocol import get_protocol
+from dynabarn.recording import MACHINE_FIELDS
 from dynabarn.sim import run_episode
 
-WALL_CLOCK = {"rtf", "wall_time", "planner_ms_mean", "planner_ms_p95"}
+WALL_CLOCK = set(MACHINE_FIELDS)
 BARN = get_protocol("barn")
 
 

@@ -95,3 +95,20 @@ PRESETS_DIR = Path(__file__).resolve().parent / "presets"
 def planner_presets() -> list[str]:
     """Names of the shipped planner configurations, e.g. `dwa_barn_challenge`."""
     return sorted(p.stem for p in PRESETS_DIR.glob("*.json"))
+
+
+def read_planner_config(text: str) -> dict:
+    """A shipped preset by name, or a planner configuration .json file: the parameters
+    (keys starting with "_", such as "_source", are notes and left out)."""
+    import json
+
+    path = PRESETS_DIR / f"{text}.json" if text in planner_presets() else Path(text)
+    if not path.is_file():
+        raise DynabarnError(f"planner config file not found: {path}")
+    try:
+        cfg = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise DynabarnError(f"{path}: planner config is not valid JSON ({exc})") from None
+    if not isinstance(cfg, dict):
+        raise DynabarnError(f"{path}: planner config must be a JSON object")
+    return {k: v for k, v in cfg.items() if not k.startswith("_")}

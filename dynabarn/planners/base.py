@@ -133,3 +133,8 @@ class Planner(abc.ABC):
     def config(self) -> dict:
         """The planner's parameters, recorded with every episode."""
         return {}
+
+    def versions(self) -> dict[str, str]:
+        """Versions of the libraries beyond the runner's that decide this planner's
+        commands (e.g. PyTorch), recorded with every episode."""
+        return {}

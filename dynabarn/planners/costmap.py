@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
+from dynabarn.determinism import exp
+
 LETHAL = 254
 INSCRIBED = 253
 
@@ -136,7 +138,9 @@ class LocalCostmap:
             return
         d = distance_transform_edt(~self.occupied) * cfg.resolution
         self.distance = d
-        cost = 252.0 * np.exp(-cfg.cost_scaling * (d - cfg.inscribed_radius))
+        # Whole numbers, as costmap_2d's unsigned char costs: the same on every CPU, so
+        # equal costs tie exactly in the planners' comparisons and Dijkstra.
+        cost = np.rint(252.0 * exp(-cfg.cost_scaling * (d - cfg.inscribed_radius)))
         cost[d > cfg.inflation_radius] = 0.0
         cost[d <= cfg.inscribed_radius] = INSCRIBED
         cost[self.occupied] = LETHAL

@@ -28,6 +28,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap
 from dynabarn.planners.global_planner import GlobalPlanner
@@ -88,8 +89,9 @@ def rollout(pose: np.ndarray, v: np.ndarray, w: np.ndarray, times: np.ndarray) -
     th = th0 + w * t
     straight = np.abs(w) < 1e-6
     w_safe = np.where(straight, 1.0, w)
-    x_arc = x0 + v / w_safe * (np.sin(th) - math.sin(th0))
-    y_arc = y0 - v / w_safe * (np.cos(th) - math.cos(th0))
+    sin_th, cos_th = sincos(th)  # the same bits on every CPU (numpy's sin and cos are not)
+    x_arc = x0 + v / w_safe * (sin_th - math.sin(th0))
+    y_arc = y0 - v / w_safe * (cos_th - math.cos(th0))
     x_line = x0 + v * t * math.cos(th0)
     y_line = y0 + v * t * math.sin(th0)
     x = np.where(straight, x_line, x_arc)
@@ -163,7 +165,8 @@ class DWAPlanner(Planner):
         res = self.costmap.cfg.resolution
         end = xy[:, -1]
         heading = traj[:, -1, 2]
-        front = end + cfg.forward_point_distance * np.column_stack([np.cos(heading), np.sin(heading)])
+        sin_h, cos_h = sincos(heading)
+        front = end + cfg.forward_point_distance * np.column_stack([cos_h, sin_h])
         path_cost = distance_to_polyline(end, near) / res
         if np.hypot(*(pose[:2] - info.goal)) < cfg.lookahead:
             # The goal itself is in reach: bring the robot's centre (not the point ahead of
@@ -180,7 +183,8 @@ class DWAPlanner(Planner):
             + cfg.occdist_scale * occ_cost
         )
         total[~ok] = np.inf
-        best = int(np.argmin(total))
+        # Ties in exact arithmetic stay ties on every CPU; the first candidate wins.
+        best = int(np.argmin(snap_array(total, SCORE_RESOLUTION, out=total)))
         self._last_plan = xy[best]
         self._prev = np.array([v[best], w[best]])
         return float(v[best]), float(w[best])

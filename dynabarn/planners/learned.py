@@ -34,11 +34,17 @@ class LearnedPlanner(Planner):
         torch.set_num_threads(1)
         path = Path(policy) if policy else SHIPPED / f"{self.kind}.pt"
         self.actor, self.header = load_policy(path)
+        # Inference in float64: PyTorch's CPU kernels (AVX2, AVX-512, threads) differ in the
+        # last bits, which float32 would leave at 1e-7 (too close to the command grid).
+        self.actor.double()
         self.lookahead = float(self.header.get("lookahead", 2.0))
         self.policy_path = str(path)
 
     def config(self) -> dict:
         return {"policy": self.policy_path, "kind": self.header.get("kind"), "lookahead": self.lookahead}
+
+    def versions(self) -> dict[str, str]:
+        return {"torch": self._torch.__version__}
 
     def reset(self, info: EpisodeInfo) -> None:
         self.global_planner = GlobalPlanner.for_robot(info.walls, info.goal, info.footprint, info.static_obstacles)
@@ -48,7 +54,7 @@ class LearnedPlanner(Planner):
 
         lg, _ = self.global_planner.local_goal(float(obs.pose[0]), float(obs.pose[1]), self.lookahead)
         g = to_robot_frame(lg[None], obs.pose)[0]
-        x = np.concatenate([obs.scan, g]).astype(np.float32)[None]
+        x = np.concatenate([obs.scan, g]).astype(np.float64)[None]
         with self._torch.no_grad():
             a = self.actor(self._torch.from_numpy(x)).numpy()[0]
         return action_to_command(a)

@@ -22,6 +22,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.planners.global_planner import BOUNDS, GlobalPlanner, grid_indices
 
@@ -105,8 +106,9 @@ class OraclePlanner(Planner):
         w = np.where(self._in_first[None, :], self._w1[:, None], self._w2[:, None])
         th = pose[2] + np.cumsum(w * dt, axis=1)
         th_mid = th - 0.5 * w * dt
-        x = pose[0] + np.cumsum(v * np.cos(th_mid) * dt, axis=1)
-        y = pose[1] + np.cumsum(v * np.sin(th_mid) * dt, axis=1)
+        sin_mid, cos_mid = sincos(th_mid)  # the same bits on every CPU (numpy's are not)
+        x = pose[0] + np.cumsum(v * cos_mid * dt, axis=1)
+        y = pose[1] + np.cumsum(v * sin_mid * dt, axis=1)
         return np.stack([x, y, th], axis=-1)
 
     def _wall_distance(self, xy: np.ndarray) -> np.ndarray:
@@ -157,12 +159,13 @@ class OraclePlanner(Planner):
         cost = np.where(reached, -10.0 + 0.01 * np.argmax(goal_d < 0.2, axis=1), cost)
         if ok.any():
             cost = np.where(ok, cost, np.inf)
-            best = int(np.argmin(cost))
+            # Ties in exact arithmetic stay ties on every CPU; the first candidate wins.
+            best = int(np.argmin(snap_array(cost, SCORE_RESOLUTION, out=cost)))
         else:
             # Nothing is safe for the whole horizon: stay clear for as long as possible, and
             # never run into a static cylinder to get away from a mover if avoidable.
             first_hit = np.where(blocked, np.arange(clear.shape[1])[None, :], clear.shape[1]).min(axis=1)
-            best = int(np.argmax(static_ok * 1e6 + first_hit * 1000.0 + min_clear))
+            best = int(np.argmax(snap_array(static_ok * 1e6 + first_hit * 1000.0 + min_clear, SCORE_RESOLUTION)))
         self._last = xy[best]
         return float(self._v1[best]), float(self._w1[best])
 

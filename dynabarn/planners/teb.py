@@ -39,6 +39,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from dynabarn.determinism import STATE_RESOLUTION, exp, sincos, snap_array
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap
 from dynabarn.planners.global_planner import GlobalPlanner
@@ -78,6 +79,11 @@ class TEBConfig:
         if cfg.n_poses < 3:
             raise TypeError("n_poses must be at least 3")
         return cfg
+
+
+def _headings(d: np.ndarray) -> np.ndarray:
+    """Directions of the segments d (m, 2) with libm's atan2 (numpy's differs between CPUs)."""
+    return np.array([math.atan2(dy, dx) for dx, dy in d.tolist()])
 
 
 def _wrap(a: np.ndarray) -> np.ndarray:
@@ -137,10 +143,10 @@ class TEBPlanner(Planner):
         xy[0], xy[-1] = start[:2], goal[:2]
         d = np.diff(xy, axis=0)
         th = np.empty(n)
-        th[:-1] = np.arctan2(d[:, 1], d[:, 0])
+        th[:-1] = _headings(d)
         th[0], th[-1] = start[2], goal[2]
         band = np.column_stack([xy, th])
-        dseg = np.hypot(*d.T)
+        dseg = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2)
         return band, np.maximum(dseg / (0.7 * self.cfg.max_vel_x), 0.05)
 
     def _warm_band(self, start: np.ndarray, goal: np.ndarray, path: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -160,16 +166,16 @@ class TEBPlanner(Planner):
         xy = np.column_stack([np.interp(s, along, pts[:, 0]), np.interp(s, along, pts[:, 1])])
         d = np.diff(xy, axis=0)
         th = np.empty(self.cfg.n_poses)
-        th[:-1] = np.arctan2(d[:, 1], d[:, 0])
+        th[:-1] = _headings(d)
         th[0], th[-1] = start[2], goal[2]
-        dseg = np.hypot(*d.T)
+        dseg = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2)
         total_time = float(self._dts[k:].sum()) if k < len(self._dts) else along[-1] / self.cfg.max_vel_x
         dts = np.maximum(dseg / max(along[-1], 1e-6) * max(total_time, 0.1), 0.02)
         return np.column_stack([xy, th]), dts
 
     # -- optimisation --------------------------------------------------------------------------
     def _pack(self, band: np.ndarray, dts: np.ndarray) -> np.ndarray:
-        return np.concatenate([band[1:-1].ravel(), np.log(dts)])
+        return np.concatenate([band[1:-1].ravel(), [math.log(t) for t in dts.tolist()]])
 
     def _unpack(self, z: np.ndarray, start: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Band (..., n, 3) and intervals (..., n - 1) from variables z (..., n_var)."""
@@ -179,7 +185,7 @@ class TEBPlanner(Planner):
         band = np.concatenate(
             [np.broadcast_to(start, (*lead, 1, 3)), inner, np.broadcast_to(goal, (*lead, 1, 3))], axis=-2
         )
-        return band, np.exp(np.clip(z[..., 3 * m :], -7.0, 3.0))  # dT in [1 ms, 20 s]
+        return band, exp(np.clip(z[..., 3 * m :], -7.0, 3.0))  # dT in [1 ms, 20 s]
 
     def _residuals(self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray) -> np.ndarray:
         """Weighted residuals (..., n_res) for variables z (..., n_var): batched over leading axes."""
@@ -188,8 +194,8 @@ class TEBPlanner(Planner):
         x, y, th = band[..., 0], band[..., 1], band[..., 2]
         dx, dy = np.diff(x, axis=-1), np.diff(y, axis=-1)
         dth = _wrap(np.diff(th, axis=-1))
-        dist = np.hypot(dx, dy)
-        c, s = np.cos(th), np.sin(th)
+        dist = np.sqrt(dx * dx + dy * dy)
+        s, c = sincos(th)
         # Direction of motion relative to the heading: + forwards, - backwards.
         along = dx * c[..., :-1] + dy * s[..., :-1]
         v = np.sign(along) * dist / dts
@@ -203,7 +209,8 @@ class TEBPlanner(Planner):
         alpha_over = np.maximum(0.0, np.abs(np.diff(w, axis=-1) / mid_dt) - cfg.acc_lim_theta)
         if len(obstacles):
             ox, oy = obstacles[:, 0], obstacles[:, 1]
-            d = np.hypot(x[..., 1:-1, None] - ox, y[..., 1:-1, None] - oy).min(axis=-1)
+            ex, ey = x[..., 1:-1, None] - ox, y[..., 1:-1, None] - oy
+            d = np.sqrt(ex * ex + ey * ey).min(axis=-1)
         else:
             d = np.full(x[..., 1:-1].shape, np.inf)
         w_ = self._sqrt_weights
@@ -238,7 +245,8 @@ class TEBPlanner(Planner):
         x0, y0, yaw = obs.pose
         lx = x0 + math.cos(yaw) * info.laser_offset[0]
         ly = y0 + math.sin(yaw) * info.laser_offset[0]
-        return np.column_stack([lx + r[keep] * np.cos(a), ly + r[keep] * np.sin(a)])
+        sin_a, cos_a = sincos(a)
+        return np.column_stack([lx + r[keep] * cos_a, ly + r[keep] * sin_a])
 
     def act(self, obs: Observation) -> tuple[float, float]:
         cfg = self.cfg
@@ -272,6 +280,11 @@ class TEBPlanner(Planner):
             x_scale="jac",
         )
         band, dts = self._unpack(sol.x, start, goal)
+        # The band on a fixed grid: MINPACK's QR runs on OpenBLAS, whose kernels (CPU type,
+        # threads) and version change its last bits; snapped, the warm start and the command
+        # drawn from it are the same on every machine.
+        snap_array(band, STATE_RESOLUTION, out=band)
+        snap_array(dts, STATE_RESOLUTION, out=dts)
         self._band, self._dts = band, dts
         if len(obstacles):
             d = np.hypot(band[:3, None, 0] - obstacles[None, :, 0], band[:3, None, 1] - obstacles[None, :, 1]).min()
