@@ -1,24 +1,44 @@
 # DynaBARN on MuJoCo. `make demo` runs the main job, `make test` runs the tests.
-# Both create the virtual environment in .venv when it is missing.
+# Both create the virtual environment in .venv when it is missing, with the exact versions
+# of requirements.lock (pyproject.toml keeps ranges for people who pip install into their
+# own environment); `make lock` resolves the ranges anew and rewrites the lock.
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 TEST_STAMP := $(VENV)/.installed-test
+LOCK := requirements.lock
+# The extras the tests exercise; the lock covers the package and all of them.
+EXTRAS := test,ray,learn
 
-.PHONY: install demo worlds test lint format bench clean system-deps
+.PHONY: install demo worlds test lint format bench clean system-deps lock verify-golden
 
 # The package and what running it needs.
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e .
+	$(BIN)/python -m pip install --quiet -c $(LOCK) -e .
 	touch $(STAMP)
 
 # Plus the test tools and the optional extras the tests exercise (Ray, PyTorch CPU, Gymnasium).
 $(TEST_STAMP): $(STAMP)
-	$(BIN)/python -m pip install --quiet -e '.[test,ray,learn]'
+	$(BIN)/python -m pip install --quiet -c $(LOCK) -e '.[$(EXTRAS)]'
 	touch $(TEST_STAMP)
+
+# Resolve pyproject's ranges anew in a scratch environment and write the lock (then commit it,
+# run `make test` and `dynabarn-bench --update-golden` if a version that decides results moved).
+# PyTorch is taken as the CPU build that lies on this machine kind's disk: a bare range would
+# pull a CUDA build of several GB.
+lock:
+	rm -rf .venv-lock && $(PY) -m venv .venv-lock
+	.venv-lock/bin/python -m pip install --quiet --upgrade pip
+	.venv-lock/bin/python -m pip install --quiet torch==2.13.0
+	.venv-lock/bin/python -m pip install --quiet -e '.[$(EXTRAS)]'
+	{ echo "# Exact versions for make install / make test (x86_64 Linux, CPython 3.11), from \`make lock\`."; \
+	  echo "# pyproject.toml keeps the ranges; every result records the versions that decide it."; \
+	  .venv-lock/bin/python -m pip freeze --exclude-editable | grep -v '^dynabarn'; } > $(LOCK).tmp
+	mv $(LOCK).tmp $(LOCK)
+	rm -rf .venv-lock
 
 install: $(STAMP)
 
@@ -48,5 +68,9 @@ format: $(TEST_STAMP)
 bench: $(STAMP)
 	$(BIN)/python -m dynabarn.benchmarks
 
+# The golden set: the same episodes as the committed ones, or every field that differs.
+verify-golden: $(TEST_STAMP)
+	$(BIN)/dynabarn-bench --verify-golden
+
 clean:
-	rm -rf $(VENV) runs *.egg-info
+	rm -rf $(VENV) .venv-lock runs *.egg-info .golden_worlds

@@ -9,7 +9,7 @@ one control tick to the next, is snapped to a fixed grid far coarser than those 
 and far finer than anything physical:
 
 - the laser range, to the UST-10's own resolution (1 mm, as its driver reports);
-- the command the robot receives, to 1 mm/s and 1 mrad/s;
+- the command the robot receives, to 1 um/s and 1 urad/s;
 - a planner's continuous state carried to the next tick (TEB's band), to 0.1 mm / 0.1 mrad;
 - a reactive obstacle's sideways speed, to 1 um/s;
 - the scores by which DWA and the oracle choose among candidates, to 1e-6: candidates
@@ -19,7 +19,7 @@ and far finer than anything physical:
   geometry).
 
 A last-bit difference then changes nothing unless it straddles a grid boundary, which
-for differences of 1e-12 and grids of 1e-4..1e-3 happens about once in 1e8 values.
+for differences of 1e-14 and grids of 1e-6..1e-3 happens about once in 1e8 values.
 
 Where a computation amplifies last bits by itself (TEB's Levenberg-Marquardt: an ulp in a
 residual moves the band by centimetres within one tick, through the finite-difference
@@ -37,8 +37,9 @@ import numpy as np
 
 LASER_RESOLUTION = 1e-3
 """[m] The Hokuyo UST-10 reports whole millimetres."""
-COMMAND_RESOLUTION = 1e-3
-"""[m/s, rad/s] What reaches the actuators."""
+COMMAND_RESOLUTION = 1e-6
+"""[m/s, rad/s] What reaches the actuators. (1e-3 was tried: DWA's smallest turning rates
+then round to zero and it can stand still for good in a narrow passage.)"""
 STATE_RESOLUTION = 1e-4
 """[m, rad, s] A planner's continuous state kept from one tick to the next."""
 OBSTACLE_SPEED_RESOLUTION = 1e-6

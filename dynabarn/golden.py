@@ -21,7 +21,7 @@ import functools
 import json
 import os
 import tempfile
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -276,16 +276,17 @@ def verify(
     *,
     jobs: int = 1,
     golden_path: Path = GOLDEN_FILE,
+    cases: Sequence[GoldenCase] = CASES,
     progress: Callable[[Iterable, int], Iterable] = lambda it, total: it,
 ) -> Verification:
-    """Re-run the golden set and compare with the committed results."""
+    """Re-run the golden set (or some of its cases) and compare with the committed results."""
     from dynabarn.provenance import versions
 
     golden = read_golden(golden_path)
     episodes = golden["episodes"]
     mismatches, skipped = [], []
     checked = 0
-    for case, row in progress(run_cases(CASES, reference, jobs=jobs), len(CASES)):
+    for case, row in progress(run_cases(cases, reference, jobs=jobs), len(cases)):
         if row is None:
             skipped.append(case.key)
             continue

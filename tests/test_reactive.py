@@ -72,8 +72,9 @@ def test_avoiding_obstacle_steps_around_the_robot_and_back_onto_its_path(tmp_pat
     side = xy[:, 0] - 11.0
     # It stepped aside by more than the robot's and its own half sizes (0.33 + 0.5) ...
     assert np.abs(side).max() > 0.83
-    # ... on one side only (to its left, -x, with the robot dead ahead), passed, and went back onto its path.
-    assert side.max() < 1e-9
+    # ... on one side only (to its left, -x, with the robot dead ahead), passed, and went back onto its path
+    # (its sideways speed is on a 1 um/s grid, so the spring's last few micrometres stay: the dead band).
+    assert side.max() < 1e-5
     passed = xy[:, 1] > 2.0
     assert passed.any() and abs(side[-1]) < 0.02 and xy[-1, 1] == pytest.approx(9.0)
 
