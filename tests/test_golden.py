@@ -134,8 +134,8 @@ def test_results_and_recordings_carry_versions_and_the_machine(tmp_path):
     assert m["numpy_simd"]["baseline"] and isinstance(m["numpy_simd"]["dispatched"], list)
     assert m["blas"] and m["blas"][0]["architecture"] and m["torch_cpu_capability"]
     rec = read_recording(path)
-    assert rec.metadata()["versions"] == result.versions
-    assert "machine" not in rec.result(), "the messages stay the same on every machine"
+    assert rec.metadata["versions"] == result.versions
+    assert "machine" not in rec.result, "the messages stay the same on every machine"
     from mcap.reader import make_reader
 
     with open(path, "rb") as f:
