@@ -9,6 +9,7 @@ the policy shipped in `dynabarn/policies/` is used. Files load with
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
 import numpy as np
@@ -39,9 +40,18 @@ class LearnedPlanner(Planner):
         self.actor.double()
         self.lookahead = float(self.header.get("lookahead", 2.0))
         self.policy_path = str(path)
+        self.policy_sha256 = hashlib.sha256(path.read_bytes()).hexdigest()
 
     def config(self) -> dict:
-        return {"policy": self.policy_path, "kind": self.header.get("kind"), "lookahead": self.lookahead}
+        # The shipped policy by its place in the package, so results and recordings read the
+        # same wherever the package is installed; any policy by its content.
+        shipped = Path(self.policy_path).resolve().parent == SHIPPED
+        return {
+            "policy": f"dynabarn/policies/{Path(self.policy_path).name}" if shipped else self.policy_path,
+            "policy_sha256": self.policy_sha256,
+            "kind": self.header.get("kind"),
+            "lookahead": self.lookahead,
+        }
 
     def versions(self) -> dict[str, str]:
         return {"torch": self._torch.__version__}
