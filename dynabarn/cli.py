@@ -856,7 +856,7 @@ def _golden(args: argparse.Namespace) -> int:
         return tqdm(stream, total=total, desc="golden episodes", unit="ep", disable=None)
 
     if args.update_golden:
-        path, _ = golden.update(reference, jobs=args.jobs, progress=progress)
+        path = golden.update(reference, jobs=args.jobs, progress=progress)
         print(f"wrote {len(golden.CASES)} golden episodes to {path}")
         return 0
     t0 = time.perf_counter()

@@ -176,8 +176,7 @@ def run_case(case: GoldenCase, world: Path) -> dict:
         rec = Path(tmp) / "episode.mcap"
         result = run_episode(world, planner, get_protocol(case.protocol), seed=case.seed, observers=[McapRecorder(rec)])
         digest = message_digest(rec)
-    row = {"case": case.key, **result.to_dict(), "recording_digest": digest}
-    return row
+    return {"case": case.key, **result.to_dict(), "recording_digest": digest}
 
 
 def _run_one(item: tuple[GoldenCase, str]) -> dict:
@@ -309,7 +308,7 @@ def update(
     jobs: int = 1,
     golden_path: Path = GOLDEN_FILE,
     progress: Callable[[Iterable, int], Iterable] = lambda it, total: it,
-) -> tuple[Path, list[str]]:
+) -> Path:
     """Run every case and write the golden set; refuses when reference data is missing
     (a golden set must cover every case)."""
     rows, skipped = {}, []
@@ -323,4 +322,4 @@ def update(
     errors = [k for k, r in rows.items() if r.get("outcome") == "error"]
     if errors:
         raise DynabarnError(f"{len(errors)} golden cases raised ({errors[0]}: {rows[errors[0]].get('reason')})")
-    return write_golden(rows, golden_path), []
+    return write_golden(rows, golden_path)
