@@ -13,7 +13,7 @@ if "MUJOCO_GL" not in _os.environ and not _os.environ.get("DISPLAY"):
 
 from dynabarn.errors import DynabarnError, ProfileError, WorldError
 from dynabarn.metrics import EpisodeResult, Outcome
-from dynabarn.mjcf import load_model, read_world, resolve_world, write_world
+from dynabarn.mjcf import load_model, read_world, write_world
 from dynabarn.planners import (
     EpisodeInfo,
     Observation,
@@ -23,7 +23,11 @@ from dynabarn.planners import (
     get_planner,
     register_planner,
 )
-from dynabarn.profiles import (
+from dynabarn.protocol import PROTOCOLS, EvalProtocol, get_protocol, register_protocol
+from dynabarn.recording import McapRecorder, Recording, read_recording
+from dynabarn.sim import SimConfig, Simulation, run_episode
+from dynabarn.worlds.generate import PAPER60, generate_world
+from dynabarn.worlds.profiles import (
     PROFILE_SETS,
     SHAPE_MIXES,
     STATIC_FIELDS,
@@ -33,12 +37,10 @@ from dynabarn.profiles import (
     StaticField,
     get_profile_set,
 )
-from dynabarn.protocol import PROTOCOLS, EvalProtocol, get_protocol, register_protocol
-from dynabarn.recording import McapRecorder, Recording, read_recording
-from dynabarn.schedule import SchedulePlayer
-from dynabarn.sim import SimConfig, Simulation, run_episode
-from dynabarn.trajectory import Trajectory, generate_trajectory
-from dynabarn.world import PAPER60, Layout, Obstacle, WorldSpec, generate_world
+from dynabarn.worlds.schedule import SchedulePlayer
+from dynabarn.worlds.spec import Layout, Obstacle, WorldSpec
+from dynabarn.worlds.trajectory import Trajectory, generate_trajectory
+from dynabarn.worldset import resolve_world
 
 __all__ = [
     "PAPER60",

@@ -34,9 +34,9 @@ from pathlib import Path
 
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import Outcome
-from dynabarn.mjcf import GENERATED_WORLDS
 from dynabarn.protocol import EvalProtocol
-from dynabarn.world import PAPER60
+from dynabarn.provenance import GENERATED_WORLDS
+from dynabarn.worlds.generate import PAPER60
 from dynabarn.worldset import read_index
 
 RESULTS = "results.jsonl"
@@ -450,7 +450,7 @@ def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
 
 
 def metadata(args_dict: dict, jobs: list[Job]) -> dict:
-    from dynabarn.sim import versions
+    from dynabarn.provenance import versions
 
     world_hashes = sorted({hashlib.sha256(Path(j.world_file).read_bytes()).hexdigest()[:16] for j in jobs})
     return {

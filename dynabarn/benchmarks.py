@@ -22,12 +22,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from dynabarn.mjcf import resolve_world
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, read_recording
-from dynabarn.schedule import SchedulePlayer
 from dynabarn.sim import Laser, Simulation, run_episode
+from dynabarn.worlds.schedule import SchedulePlayer
+from dynabarn.worldset import resolve_world
 
 HARD_WORLD = 250
 
@@ -172,8 +172,8 @@ def scan_cost(world: Path, n: int = 300, *, closed_form: bool = True) -> float:
 def variant_worlds(tmp: Path) -> list[tuple[str, Path]]:
     """World 250 as the paper's, with mixed shapes, and with shapes and a static BARN field."""
     from dynabarn.mjcf import write_world
-    from dynabarn.profiles import SHAPE_MIXES, STATIC_FIELDS, get_profile_set
-    from dynabarn.world import generate_world
+    from dynabarn.worlds.generate import generate_world
+    from dynabarn.worlds.profiles import SHAPE_MIXES, STATIC_FIELDS, get_profile_set
 
     out = []
     for label, kw in (
@@ -192,7 +192,7 @@ def variant_worlds(tmp: Path) -> list[tuple[str, Path]]:
 
 
 def world_generation() -> float:
-    from dynabarn.profiles import get_profile_set
+    from dynabarn.worlds.profiles import get_profile_set
     from dynabarn.worldset import generate_worlds
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -60,9 +60,10 @@ def _progress(desc: str, total: int | None = None):
 
 
 def worlds_main(argv: Sequence[str] | None = None) -> int:
-    from dynabarn.mjcf import GENERATED_WORLDS
-    from dynabarn.profiles import PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS
-    from dynabarn.world import BEHAVIORS, DEFAULT_BASE_SEED
+    from dynabarn.provenance import GENERATED_WORLDS
+    from dynabarn.worlds.generate import DEFAULT_BASE_SEED
+    from dynabarn.worlds.profiles import PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS
+    from dynabarn.worlds.spec import BEHAVIORS
 
     parser = _parser("dynabarn-worlds", "Generate, import and inspect DynaBARN worlds.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -153,9 +154,9 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
 
 
 def _worlds_generate(args: argparse.Namespace) -> int:
-    from dynabarn.mjcf import GENERATED_WORLDS
-    from dynabarn.profiles import get_profile_set, get_shape_mix, get_static_field
-    from dynabarn.world import N_WORLDS
+    from dynabarn.provenance import GENERATED_WORLDS
+    from dynabarn.worlds.generate import N_WORLDS
+    from dynabarn.worlds.profiles import get_profile_set, get_shape_mix, get_static_field
     from dynabarn.worldset import generate_worlds
 
     variant = args.shapes != "cylinder" or args.static != "none" or args.behavior != "scripted"
@@ -180,11 +181,11 @@ def _worlds_import(args: argparse.Namespace) -> int:
     from dynabarn.worldset import write_worlds
 
     if args.format == "barn-static":
-        from dynabarn.barn import import_barn_static, load_barn_json
+        from dynabarn.worlds.importers.barn import import_barn_static, load_barn_json
 
         worlds = import_barn_static(load_barn_json(args.file))
     else:
-        from dynabarn.release import import_release, load_release_json
+        from dynabarn.worlds.importers.release import import_release, load_release_json
 
         worlds = import_release(load_release_json(args.file), use_effective=not args.declared_obstacles)
     sets = {
@@ -202,7 +203,8 @@ def _worlds_import(args: argparse.Namespace) -> int:
 def _worlds_show(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from dynabarn.mjcf import load_model, read_world, resolve_world
+    from dynabarn.mjcf import load_model, read_world
+    from dynabarn.worldset import resolve_world
 
     path = resolve_world(args.world)
     world = read_world(path)
@@ -235,7 +237,7 @@ def _worlds_show(args: argparse.Namespace) -> int:
             f"{np.min(s):>9.2f}-{np.max(s):.2f}  {size:<26}{o.behavior}"
         )
     if args.plot:
-        from dynabarn.plot import plot_world
+        from dynabarn.worlds.plot import plot_world
 
         print(f"wrote {plot_world(world, args.plot)}")
     return 0
@@ -245,8 +247,8 @@ def _worlds_stats(args: argparse.Namespace) -> int:
     import numpy as np
 
     from dynabarn.bench import parse_ids
-    from dynabarn.difficulty import world_measures
     from dynabarn.mjcf import read_world
+    from dynabarn.worlds.difficulty import world_measures
     from dynabarn.worldset import read_index
 
     index = read_index(args.folder)
@@ -369,11 +371,11 @@ def _run_episode(args: argparse.Namespace) -> int:
     import json
 
     from dynabarn.metrics import Outcome
-    from dynabarn.mjcf import resolve_world
     from dynabarn.planners import get_planner
     from dynabarn.protocol import get_protocol
     from dynabarn.recording import McapRecorder, default_run_path
     from dynabarn.sim import SimConfig, Simulation, run_episode
+    from dynabarn.worldset import resolve_world
 
     world_path = resolve_world(args.world)
     protocol = get_protocol(args.protocol)
@@ -567,9 +569,10 @@ def _teleop(args: argparse.Namespace) -> int:
     import os
 
     from dynabarn.metrics import Outcome
-    from dynabarn.mjcf import read_world, resolve_world
+    from dynabarn.mjcf import read_world
     from dynabarn.protocol import get_protocol
     from dynabarn.teleop import append_manifest, next_demo_path, run_teleop
+    from dynabarn.worldset import resolve_world
 
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         raise DynabarnError("dynabarn-teleop needs a display (or Xvfb); none is set")

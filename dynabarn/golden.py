@@ -26,8 +26,10 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from dynabarn.errors import DynabarnError
-from dynabarn.mjcf import GENERATED_WORLDS, resolve_world, write_world
+from dynabarn.mjcf import write_world
+from dynabarn.provenance import GENERATED_WORLDS
 from dynabarn.recording import MACHINE_FIELDS
+from dynabarn.worldset import resolve_world
 
 GOLDEN_FILE = Path(__file__).resolve().parent / "golden_set.json"
 GOLDEN_WORLDS = GENERATED_WORLDS.parent / ".golden_worlds"
@@ -113,19 +115,19 @@ class Mismatch:
 
 def _imported(source: str, reference: Path) -> list:
     if source == "release":
-        from dynabarn.release import import_release, load_release_json
+        from dynabarn.worlds.importers.release import import_release, load_release_json
 
         path = reference / "dynabarn60.json"
         return import_release(load_release_json(path)) if path.is_file() else []
-    from dynabarn.barn import import_barn_static, load_barn_json
+    from dynabarn.worlds.importers.barn import import_barn_static, load_barn_json
 
     path = reference / "barn300_static.json"
     return import_barn_static(load_barn_json(path)) if path.is_file() else []
 
 
 def _generated(source: str, world_id: int):
-    from dynabarn.profiles import get_profile_set, get_shape_mix, get_static_field
-    from dynabarn.world import generate_world
+    from dynabarn.worlds.generate import generate_world
+    from dynabarn.worlds.profiles import get_profile_set, get_shape_mix, get_static_field
 
     profiles = get_profile_set("table1")
     if source == "mixed":

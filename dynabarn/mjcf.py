@@ -28,10 +28,8 @@ import numpy as np
 
 from dynabarn.errors import WorldError
 from dynabarn.robot import JACKAL_XML, GeomGroup, build_jackal_spec
-from dynabarn.world import WorldSpec
+from dynabarn.worlds.spec import WorldSpec
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-GENERATED_WORLDS = REPO_ROOT / "generated_worlds"
 METADATA_TEXT = "dynabarn_world"
 ROBOT_PREFIX = "jackal/"
 STATIC_FIELD_BODY = "static_obstacles"
@@ -224,21 +222,6 @@ def read_world(path: Path | str) -> WorldSpec:
         return WorldSpec.from_dict(meta, keyframes)
     except WorldError as exc:
         raise WorldError(f"{path}: {exc}") from None
-
-
-def resolve_world(id_or_path: str | int | Path) -> Path:
-    """A generated world id ("137") or a path, to an existing world file."""
-    s = str(id_or_path)
-    if s.isdigit():
-        n = int(s)
-        path = GENERATED_WORLDS / f"world_{n:03d}.xml"
-        if not path.is_file():
-            raise WorldError(f"unknown world id {s}: generated worlds are 0-299 (no {path.name} in {GENERATED_WORLDS})")
-        return path
-    path = Path(s)
-    if not path.is_file():
-        raise WorldError(f"world not found: {s} (give a world id 0-299 or the path of a world .xml)")
-    return path
 
 
 _RUNTIME_ROBOT = "jackal_runtime.xml"

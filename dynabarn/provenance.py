@@ -1,5 +1,6 @@
-"""What produced a result: package versions (decide results, the same under the lock)
-and the machine (CPU features and math kernels that numpy, OpenBLAS and PyTorch chose).
+"""Where things are and what produced a result: the repository's paths, package versions
+(decide results, the same under the lock) and the machine (CPU features and math kernels
+that numpy, OpenBLAS and PyTorch chose).
 
 `versions()` goes into every result, bench row and recording. `machine()` goes into
 results, bench rows and `metadata.json`, and into a recording's MCAP metadata record
@@ -14,6 +15,20 @@ import os
 import platform
 import sys
 from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+"""The checkout (or the site-packages folder of an installed wheel) holding the package."""
+GENERATED_WORLDS = REPO_ROOT / "generated_worlds"
+"""Where `make worlds` writes the 300 generated worlds and their index."""
+
+
+def portable_path(path: Path) -> str:
+    """A path that reads the same on every checkout (relative to the repository)."""
+    try:
+        return Path(path).resolve().relative_to(REPO_ROOT).as_posix()
+    except ValueError:
+        return str(path)
 
 ENVIRONMENT_KNOBS = (
     "NPY_DISABLE_CPU_FEATURES",

@@ -41,8 +41,9 @@ from dynabarn import wire
 from dynabarn.determinism import snap_array
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import EpisodeResult
-from dynabarn.sim import EpisodeStart, Tick, portable_path
-from dynabarn.world import Obstacle, WorldSpec
+from dynabarn.provenance import portable_path
+from dynabarn.sim import EpisodeStart, Tick
+from dynabarn.worlds.spec import Obstacle, WorldSpec
 
 CHUNK_SIZE = 64 * 1024
 WALL_CLOCK_FIELDS = ("rtf", "wall_time", "planner_ms_mean", "planner_ms_p95")

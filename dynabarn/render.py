@@ -23,7 +23,7 @@ import numpy as np
 from dynabarn.errors import DynabarnError
 from dynabarn.mjcf import load_model, write_world
 from dynabarn.recording import TOPIC_POSE, Recording, obstacle_track, recorded_world
-from dynabarn.schedule import SchedulePlayer
+from dynabarn.worlds.schedule import SchedulePlayer
 
 TRAIL_SECONDS = 2.0
 

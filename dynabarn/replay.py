@@ -43,7 +43,7 @@ from dynabarn.recording import (
     obstacle_track,
     recorded_world,
 )
-from dynabarn.world import WorldSpec
+from dynabarn.worlds.spec import WorldSpec
 
 APP_ID = "dynabarn_replay"
 TIMELINE = "sim_time"

@@ -50,13 +50,13 @@ from dynabarn.metrics import (
     stalled_time,
     sum_abs_change,
 )
-from dynabarn.mjcf import REPO_ROOT, ROBOT_PREFIX, STATIC_FIELD_BODY, load_model, read_world
+from dynabarn.mjcf import ROBOT_PREFIX, STATIC_FIELD_BODY, load_model, read_world
 from dynabarn.planners.base import EndEpisode, EpisodeInfo, Observation, ObstacleState, Planner
 from dynabarn.protocol import EvalProtocol, GoalRegion
-from dynabarn.provenance import machine, versions
+from dynabarn.provenance import machine, portable_path, versions
 from dynabarn.robot import JACKAL, LASER_GEOM_GROUPS, JackalParams
-from dynabarn.schedule import SchedulePlayer
-from dynabarn.world import WorldSpec
+from dynabarn.worlds.schedule import SchedulePlayer
+from dynabarn.worlds.spec import WorldSpec
 
 MAX_CLOCK_OFFSET = 5.0
 """Trials start the obstacles' clocks at a seeded offset in [0, 5) s."""
@@ -727,14 +727,6 @@ def _constant_velocity(t0: float, xy: np.ndarray, vel: np.ndarray):
         return pos if arr.ndim else pos[0]
 
     return predict
-
-
-def portable_path(path: Path) -> str:
-    """A world path that reads the same on every checkout (relative to the repository)."""
-    try:
-        return path.resolve().relative_to(REPO_ROOT).as_posix()
-    except ValueError:
-        return str(path)
 
 
 def _optimal_length(protocol: EvalProtocol, world: WorldSpec, goal: tuple[float, float]) -> float:

@@ -12,19 +12,13 @@ import json
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from dynabarn.difficulty import difficulty_scores
 from dynabarn.errors import WorldError
-from dynabarn.mjcf import GENERATED_WORLDS, write_world
-from dynabarn.profiles import ProfileSet, ShapeMix, StaticField
-from dynabarn.world import (
-    DEFAULT_BASE_SEED,
-    N_WORLDS,
-    PAPER60,
-    EndBehavior,
-    Interpolation,
-    WorldSpec,
-    generate_world,
-)
+from dynabarn.mjcf import write_world
+from dynabarn.provenance import GENERATED_WORLDS
+from dynabarn.worlds.difficulty import difficulty_scores
+from dynabarn.worlds.generate import DEFAULT_BASE_SEED, N_WORLDS, PAPER60, generate_world
+from dynabarn.worlds.profiles import ProfileSet, ShapeMix, StaticField
+from dynabarn.worlds.spec import EndBehavior, Interpolation, WorldSpec
 
 INDEX_NAME = "index.json"
 
@@ -143,3 +137,18 @@ def read_index(path_or_dir: Path | str = GENERATED_WORLDS) -> dict:
     if index.get("format") != "dynabarn-index":
         raise WorldError(f"{p}: not a dynabarn world index")
     return index
+
+
+def resolve_world(id_or_path: str | int | Path) -> Path:
+    """A generated world id ("137") or a path, to an existing world file."""
+    s = str(id_or_path)
+    if s.isdigit():
+        n = int(s)
+        path = GENERATED_WORLDS / f"world_{n:03d}.xml"
+        if not path.is_file():
+            raise WorldError(f"unknown world id {s}: generated worlds are 0-299 (no {path.name} in {GENERATED_WORLDS})")
+        return path
+    path = Path(s)
+    if not path.is_file():
+        raise WorldError(f"world not found: {s} (give a world id 0-299 or the path of a world .xml)")
+    return path

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.mjcf import write_world
-from dynabarn.trajectory import Trajectory
-from dynabarn.world import EndBehavior, Interpolation, Obstacle, WorldSpec
+from dynabarn.worlds.spec import EndBehavior, Interpolation, Obstacle, WorldSpec
+from dynabarn.worlds.trajectory import Trajectory
 
 
 def obstacle(name: str, keyframes) -> Obstacle:

@@ -4,7 +4,6 @@ import mujoco
 import numpy as np
 import pytest
 
-from dynabarn.barn import cell_xy, import_barn_static, reference_length_check
 from dynabarn.cli import worlds_main
 from dynabarn.errors import ImportFormatError
 from dynabarn.metrics import Outcome
@@ -12,6 +11,7 @@ from dynabarn.mjcf import load_model, read_world, write_world
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.sim import run_episode
+from dynabarn.worlds.importers.barn import cell_xy, import_barn_static, reference_length_check
 
 NARROW_DWA = {"collision_radius": 0.26, "costmap.inscribed_radius": 0.22}
 

@@ -6,12 +6,12 @@ import pytest
 
 from dynabarn import bench
 from dynabarn.cli import bench_main
-from dynabarn.mjcf import resolve_world
 from dynabarn.planners import get_planner, register_planner
 from dynabarn.planners.base import Planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_FIELDS
 from dynabarn.sim import run_episode
+from dynabarn.worldset import resolve_world
 
 WALL_CLOCK = set(MACHINE_FIELDS)
 BARN = get_protocol("barn")

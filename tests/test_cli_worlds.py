@@ -21,8 +21,8 @@ def test_show_lists_shapes_and_static_cylinders_of_a_mixed_world(tmp_path, capsy
     from PIL import Image
 
     from dynabarn.mjcf import write_world
-    from dynabarn.profiles import SHAPE_MIXES, STATIC_FIELDS, get_profile_set
-    from dynabarn.world import generate_world
+    from dynabarn.worlds.generate import generate_world
+    from dynabarn.worlds.profiles import SHAPE_MIXES, STATIC_FIELDS, get_profile_set
 
     world = generate_world(
         250, get_profile_set("table1"), shapes=SHAPE_MIXES["mixed"], static_field=STATIC_FIELDS["barn-grid"]
@@ -41,8 +41,8 @@ def test_show_lists_shapes_and_static_cylinders_of_a_mixed_world(tmp_path, capsy
 
 
 def test_generate_subset_is_byte_identical(tmp_path):
-    from dynabarn.mjcf import GENERATED_WORLDS
-    from dynabarn.profiles import get_profile_set
+    from dynabarn.provenance import GENERATED_WORLDS
+    from dynabarn.worlds.profiles import get_profile_set
     from dynabarn.worldset import generate_worlds
 
     generate_worlds(get_profile_set("table1"), tmp_path, world_ids=[0, 137, 299])

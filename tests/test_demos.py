@@ -7,11 +7,11 @@ from dynabarn import bench
 from dynabarn.cli import demos_main
 from dynabarn.demos import load_dataset
 from dynabarn.errors import DynabarnError
-from dynabarn.mjcf import resolve_world
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, read_recording
 from dynabarn.sim import run_episode
+from dynabarn.worldset import resolve_world
 
 HARD_AND_MEDIUM = "150,155,200,201,205,210,215"
 

@@ -4,9 +4,10 @@ import json
 
 import pytest
 
-from dynabarn.difficulty import difficulty_scores
-from dynabarn.mjcf import GENERATED_WORLDS, read_world
-from dynabarn.world import EndBehavior, Interpolation, WorldSpec
+from dynabarn.mjcf import read_world
+from dynabarn.provenance import GENERATED_WORLDS
+from dynabarn.worlds.difficulty import difficulty_scores
+from dynabarn.worlds.spec import EndBehavior, Interpolation, WorldSpec
 from tests.helpers import obstacle
 
 

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from dynabarn.profiles import get_profile_set
-from dynabarn.trajectory import generate_trajectory
+from dynabarn.worlds.profiles import get_profile_set
+from dynabarn.worlds.trajectory import generate_trajectory
 
 SPEED_D_MAX = 0.10
 WAYPOINTS_D_MAX = 0.30

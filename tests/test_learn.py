@@ -12,11 +12,11 @@ from dynabarn.errors import DynabarnError  # noqa: E402
 from dynabarn.learn.env import action_to_command, command_to_action  # noqa: E402
 from dynabarn.learn.models import Actor, load_policy  # noqa: E402
 from dynabarn.metrics import Outcome  # noqa: E402
-from dynabarn.mjcf import resolve_world  # noqa: E402
 from dynabarn.planners import get_planner  # noqa: E402
 from dynabarn.protocol import get_protocol  # noqa: E402
 from dynabarn.recording import McapRecorder  # noqa: E402
 from dynabarn.sim import run_episode  # noqa: E402
+from dynabarn.worldset import resolve_world  # noqa: E402
 
 
 def test_env_passes_gymnasium_checker():

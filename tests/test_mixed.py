@@ -11,11 +11,11 @@ from dynabarn.metrics import Outcome
 from dynabarn.mjcf import load_model, read_world, write_world
 from dynabarn.planners import get_planner
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.profiles import STATIC_FIELDS, StaticField, get_profile_set
 from dynabarn.protocol import get_protocol
 from dynabarn.sim import Simulation, run_episode
-from dynabarn.static_field import _enclosed, _smooth, blocked_for_robot, crosses, generate_static_field
-from dynabarn.world import generate_world
+from dynabarn.worlds.generate import generate_world
+from dynabarn.worlds.profiles import STATIC_FIELDS, StaticField, get_profile_set
+from dynabarn.worlds.static_field import _enclosed, _smooth, blocked_for_robot, crosses, generate_static_field
 from dynabarn.worldset import read_index
 from tests.test_barn import NARROW_DWA
 
@@ -126,8 +126,8 @@ def test_closed_form_scan_of_static_cylinders_equals_mujoco_ray_casting(tmp_path
 
     import mujoco
 
-    from dynabarn.profiles import SHAPE_MIXES
     from dynabarn.robot import LASER_GEOM_GROUPS
+    from dynabarn.worlds.profiles import SHAPE_MIXES
 
     world = generate_world(250, get_profile_set("table1"), static_field=FIELD, shapes=SHAPE_MIXES["mixed"])
     path = tmp_path / "w.xml"

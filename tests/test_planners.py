@@ -9,13 +9,13 @@ import pytest
 from dynabarn.cli import run_main
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import Outcome
-from dynabarn.mjcf import resolve_world
 from dynabarn.planners import available_planners, get_planner
 from dynabarn.planners.costmap import LETHAL, LocalCostmap
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_FIELDS
 from dynabarn.sim import MAX_CLOCK_OFFSET, run_episode
+from dynabarn.worldset import resolve_world
 from tests.helpers import crafted_world, obstacle
 
 BARN = get_protocol("barn")

@@ -1,7 +1,7 @@
 import pytest
 
 from dynabarn.errors import ProfileError
-from dynabarn.profiles import (
+from dynabarn.worlds.profiles import (
     PROFILE_SETS,
     CountClass,
     Difficulty,

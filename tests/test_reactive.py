@@ -10,7 +10,7 @@ from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_FIELDS, McapRecorder, read_recording
 from dynabarn.sim import Episode, Simulation, run_episode
-from dynabarn.world import EndBehavior, Interpolation, Obstacle, WorldSpec
+from dynabarn.worlds.spec import EndBehavior, Interpolation, Obstacle, WorldSpec
 from tests.helpers import obstacle
 
 
@@ -119,8 +119,8 @@ def test_privileged_prediction_extrapolates_reactive_obstacles(tmp_path):
 
 def test_generated_worlds_can_make_every_obstacle_reactive(tmp_path):
     from dynabarn.cli import worlds_main
-    from dynabarn.profiles import get_profile_set
-    from dynabarn.world import generate_world
+    from dynabarn.worlds.generate import generate_world
+    from dynabarn.worlds.profiles import get_profile_set
     from dynabarn.worldset import read_index
 
     plain = generate_world(137, get_profile_set("table1"))

@@ -12,12 +12,12 @@ from mcap.reader import make_reader
 
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import Outcome
-from dynabarn.mjcf import resolve_world
 from dynabarn.planners import get_planner
 from dynabarn.planners.base import Planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, RecordingError, read_recording
 from dynabarn.sim import run_episode
+from dynabarn.worldset import resolve_world
 
 BARN = get_protocol("barn")
 
@@ -144,7 +144,7 @@ def test_killed_process_keeps_what_it_wrote(tmp_path):
     script = textwrap.dedent(
         f"""
         import time
-        from dynabarn.mjcf import resolve_world
+        from dynabarn.worldset import resolve_world
         from dynabarn.planners.base import Planner
         from dynabarn.protocol import get_protocol
         from dynabarn.recording import McapRecorder
@@ -175,8 +175,8 @@ def test_killed_process_keeps_what_it_wrote(tmp_path):
 def test_beyond_paper_worlds_record_byte_identically(tmp_path):
     """Shapes, a static field and avoiding obstacles: still the same bytes for the same seed."""
     from dynabarn.mjcf import write_world
-    from dynabarn.profiles import SHAPE_MIXES, STATIC_FIELDS, get_profile_set
-    from dynabarn.world import generate_world
+    from dynabarn.worlds.generate import generate_world
+    from dynabarn.worlds.profiles import SHAPE_MIXES, STATIC_FIELDS, get_profile_set
 
     world = generate_world(
         250,

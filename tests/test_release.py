@@ -6,8 +6,8 @@ import pytest
 from dynabarn.cli import worlds_main
 from dynabarn.errors import ImportFormatError
 from dynabarn.mjcf import load_model, read_world
-from dynabarn.release import import_release, load_release_json
-from dynabarn.schedule import SchedulePlayer
+from dynabarn.worlds.importers.release import import_release, load_release_json
+from dynabarn.worlds.schedule import SchedulePlayer
 from dynabarn.worldset import read_index
 
 

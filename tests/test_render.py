@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from dynabarn.cli import render_main, run_main
-from dynabarn.mjcf import resolve_world
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder
 from dynabarn.sim import run_episode
+from dynabarn.worldset import resolve_world
 
 
 def _yellow_centroid(frame: np.ndarray) -> np.ndarray:

@@ -8,12 +8,12 @@ from pathlib import Path
 import pytest
 
 from dynabarn.cli import replay_main
-from dynabarn.mjcf import resolve_world
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, read_recording
 from dynabarn.replay import save_rrd
 from dynabarn.sim import run_episode
+from dynabarn.worldset import resolve_world
 
 RERUN = shutil.which("rerun") or str(Path(__import__("sys").executable).parent / "rerun")
 
@@ -98,8 +98,8 @@ def test_bad_recording(tmp_path, capsys):
 
 def test_shaped_and_static_obstacles_replay_as_their_archetypes(tmp_path):
     from dynabarn.mjcf import write_world
-    from dynabarn.profiles import SHAPE_MIXES, STATIC_FIELDS, get_profile_set
-    from dynabarn.world import generate_world
+    from dynabarn.worlds.generate import generate_world
+    from dynabarn.worlds.profiles import SHAPE_MIXES, STATIC_FIELDS, get_profile_set
 
     world = generate_world(
         250, get_profile_set("table1"), shapes=SHAPE_MIXES["mixed"], static_field=STATIC_FIELDS["barn-grid"]

@@ -1,7 +1,8 @@
 import mujoco
 import numpy as np
 
-from dynabarn.mjcf import GENERATED_WORLDS, load_model
+from dynabarn.mjcf import load_model
+from dynabarn.provenance import GENERATED_WORLDS
 from dynabarn.robot import JACKAL, JACKAL_XML, LASER_GEOM_GROUPS, build_jackal_spec
 
 ASSET_DIR = JACKAL_XML.parent

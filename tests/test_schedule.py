@@ -1,9 +1,10 @@
 import numpy as np
 
-from dynabarn.mjcf import GENERATED_WORLDS, read_world
-from dynabarn.schedule import SchedulePlayer
-from dynabarn.trajectory import Trajectory
-from dynabarn.world import EndBehavior, Interpolation, Obstacle, WorldSpec
+from dynabarn.mjcf import read_world
+from dynabarn.provenance import GENERATED_WORLDS
+from dynabarn.worlds.schedule import SchedulePlayer
+from dynabarn.worlds.spec import EndBehavior, Interpolation, Obstacle, WorldSpec
+from dynabarn.worlds.trajectory import Trajectory
 
 
 def _world(interp, end, xy, times):

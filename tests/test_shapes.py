@@ -10,12 +10,13 @@ from dynabarn.errors import WorldError
 from dynabarn.metrics import Outcome, footprint_clearance, shape_clearance
 from dynabarn.mjcf import load_model, read_world, write_world
 from dynabarn.planners import get_planner
-from dynabarn.profiles import SHAPE_MIXES, get_profile_set
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, obstacle_track, read_recording
 from dynabarn.robot import JACKAL
 from dynabarn.sim import Episode, Simulation, run_episode
-from dynabarn.world import EndBehavior, Interpolation, Obstacle, WorldSpec, generate_world
+from dynabarn.worlds.generate import generate_world
+from dynabarn.worlds.profiles import SHAPE_MIXES, get_profile_set
+from dynabarn.worlds.spec import EndBehavior, Interpolation, Obstacle, WorldSpec
 from tests.helpers import obstacle
 
 HALF = (JACKAL.length / 2, JACKAL.width / 2)

@@ -7,12 +7,12 @@ import pytest
 
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import Outcome
-from dynabarn.mjcf import resolve_world
 from dynabarn.planners import get_planner
 from dynabarn.planners.base import Planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_FIELDS
 from dynabarn.sim import SimConfig, run_episode
+from dynabarn.worldset import resolve_world
 from tests.helpers import crafted_world, obstacle
 
 BARN = get_protocol("barn")

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from dynabarn.profiles import PROFILE_SETS, WaypointScheme
-from dynabarn.trajectory import edge_crossings, generate_trajectory, newton_coefficients, newton_eval
+from dynabarn.worlds.profiles import PROFILE_SETS, WaypointScheme
+from dynabarn.worlds.trajectory import edge_crossings, generate_trajectory, newton_coefficients, newton_eval
 
 
 def test_newton_polynomial_interpolates_its_points():

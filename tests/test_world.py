@@ -5,9 +5,11 @@ import numpy as np
 import pytest
 
 from dynabarn.errors import WorldError
-from dynabarn.mjcf import GENERATED_WORLDS, load_model, read_world
-from dynabarn.profiles import PROFILE_SETS
-from dynabarn.world import PAPER60, WorldSpec, branch_of, generate_world
+from dynabarn.mjcf import load_model, read_world
+from dynabarn.provenance import GENERATED_WORLDS
+from dynabarn.worlds.generate import PAPER60, branch_of, generate_world
+from dynabarn.worlds.profiles import PROFILE_SETS
+from dynabarn.worlds.spec import WorldSpec
 from dynabarn.worldset import read_index
 
 INDEX = read_index(GENERATED_WORLDS)

@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.errors import ImportFormatError
-from dynabarn.profiles import Difficulty
-from dynabarn.release import read_import_json
-from dynabarn.world import EndBehavior, Interpolation, Layout, WorldSpec
+from dynabarn.worlds.importers.release import read_import_json
+from dynabarn.worlds.profiles import Difficulty
+from dynabarn.worlds.spec import EndBehavior, Interpolation, Layout, WorldSpec
 
 CYLINDER_RADIUS = 0.075
 CELL = 0.15

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dynabarn.schedule import SchedulePlayer
-from dynabarn.world import Interpolation, Obstacle, WorldSpec
+from dynabarn.worlds.schedule import SchedulePlayer
+from dynabarn.worlds.spec import Interpolation, Obstacle, WorldSpec
 
 # Spawn points of the two protocols (DESIGN.md); drawn for orientation only.
 _SPAWNS = {"barn": (11.0, 0.0), "paper2022": (12.0, 0.0)}

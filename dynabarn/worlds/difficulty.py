@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from dynabarn.robot import JACKAL
-from dynabarn.schedule import SchedulePlayer
-from dynabarn.world import WorldSpec
+from dynabarn.worlds.schedule import SchedulePlayer
+from dynabarn.worlds.spec import WorldSpec
 
 WINDOW = 60.0
 STEP = 0.1

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dynabarn.world import EndBehavior, Interpolation, WorldSpec
+from dynabarn.worlds.spec import EndBehavior, Interpolation, WorldSpec
 
 _STRIDE = 1.0e6
 """Seconds between obstacles in the flat key array; schedules are far shorter."""

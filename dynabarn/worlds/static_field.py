@@ -14,7 +14,7 @@ from collections import deque
 import numpy as np
 
 from dynabarn.errors import WorldError
-from dynabarn.profiles import StaticField
+from dynabarn.worlds.profiles import StaticField
 
 ROBOT_RADIUS = 0.333
 """[m] the Jackal's circumscribed radius: a field must let it through, room to turn included."""

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from dynabarn.profiles import ARENA_HALF_SIZE, MotionProfile, WaypointScheme
+from dynabarn.worlds.profiles import ARENA_HALF_SIZE, MotionProfile, WaypointScheme
 
 POSITION_DECIMALS = 3
 """Waypoint positions are stored to 1 mm."""

@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.errors import ImportFormatError
-from dynabarn.profiles import CountClass, MotionClass, difficulty_of
-from dynabarn.trajectory import Trajectory
-from dynabarn.world import EndBehavior, Interpolation, Layout, Obstacle, WorldSpec
+from dynabarn.worlds.profiles import CountClass, MotionClass, difficulty_of
+from dynabarn.worlds.spec import EndBehavior, Interpolation, Layout, Obstacle, WorldSpec
+from dynabarn.worlds.trajectory import Trajectory
 
 RELEASE_PROFILE_SET = "dynabarn-release"
 
