@@ -61,9 +61,9 @@ def _progress(desc: str, total: int | None = None):
 
 def worlds_main(argv: Sequence[str] | None = None) -> int:
     from dynabarn.provenance import GENERATED_WORLDS
+    from dynabarn.sim.behaviors import available_behaviors
     from dynabarn.worlds.generate import DEFAULT_BASE_SEED
     from dynabarn.worlds.profiles import PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS
-    from dynabarn.worlds.spec import BEHAVIORS
 
     parser = _parser("dynabarn-worlds", "Generate, import and inspect DynaBARN worlds.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -112,7 +112,7 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
     )
     g.add_argument(
         "--behavior",
-        choices=list(BEHAVIORS),
+        choices=available_behaviors(),
         default="scripted",
         help="every obstacle's behaviour (beyond the paper): scripted = the paper's; yield = pauses while "
         "the robot is within 1.5 m ahead; avoid = steers around the robot (social force) and back",
@@ -155,6 +155,7 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
 
 def _worlds_generate(args: argparse.Namespace) -> int:
     from dynabarn.provenance import GENERATED_WORLDS
+    from dynabarn.sim.behaviors import get_behavior
     from dynabarn.worlds.generate import N_WORLDS
     from dynabarn.worlds.profiles import get_profile_set, get_shape_mix, get_static_field
     from dynabarn.worldset import generate_worlds
@@ -171,6 +172,7 @@ def _worlds_generate(args: argparse.Namespace) -> int:
         shapes=get_shape_mix(args.shapes),
         static_field=None if args.static == "none" else get_static_field(args.static),
         behavior=args.behavior,
+        behavior_params=get_behavior(args.behavior).defaults(),
         progress=_progress("generating", N_WORLDS),
     )
     print(f"wrote {N_WORLDS} worlds and {index} in {time.perf_counter() - t0:.1f} s")

@@ -31,8 +31,9 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.errors import DynabarnError
-from dynabarn.planners.global_planner import GlobalPlanner, to_robot_frame
+from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.recording import TOPIC_CMD, TOPIC_SCAN, Recording, read_recording
+from dynabarn.robot import to_robot_frame
 
 DATASET_FORMAT = "dynabarn-demos-v1"
 DEFAULT_LOOKAHEAD = 2.0

@@ -23,6 +23,10 @@ class ImportFormatError(DynabarnError):
     """A file handed to `dynabarn-worlds import` that does not match its format."""
 
 
+class EndEpisode(Exception):
+    """Raised by a planner to end its episode on purpose (outcome `error`, this reason)."""
+
+
 def unknown_choice(kind: str, name: str, available: list[str] | tuple[str, ...]) -> str:
     """The message for a name not in a registry, listing what is available."""
     return f"unknown {kind} {name!r}; available: {', '.join(sorted(available))}"

@@ -126,6 +126,7 @@ def _imported(source: str, reference: Path) -> list:
 
 
 def _generated(source: str, world_id: int):
+    from dynabarn.sim.behaviors import get_behavior
     from dynabarn.worlds.generate import generate_world
     from dynabarn.worlds.profiles import get_profile_set, get_shape_mix, get_static_field
 
@@ -134,7 +135,7 @@ def _generated(source: str, world_id: int):
         return generate_world(
             world_id, profiles, shapes=get_shape_mix("mixed"), static_field=get_static_field("barn-grid")
         )
-    return generate_world(world_id, profiles, behavior=source)
+    return generate_world(world_id, profiles, behavior=source, behavior_params=get_behavior(source).defaults())
 
 
 def world_file(case: GoldenCase, reference: Path, worlds_dir: Path = GOLDEN_WORLDS) -> Path | None:

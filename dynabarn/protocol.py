@@ -83,7 +83,13 @@ class EvalProtocol:
         """OT of the BARN score [s]."""
         return self.reference_path_length / self.max_speed
 
+    def timer_started(self, x: float, y: float) -> bool:
+        """The robot at (x, y) has left its spawn far enough for the clock to run."""
+        dx, dy = x - self.spawn[0], y - self.spawn[1]
+        return dx**2 + dy**2 >= self.timer_start_distance**2
+
     def reached(self, x: float, y: float, goal: tuple[float, float]) -> bool:
+        """The robot centre at (x, y) is inside the success region around `goal`."""
         dx, dy = x - goal[0], y - goal[1]
         if self.goal_region == GoalRegion.DISC:
             return dx * dx + dy * dy < self.goal_tolerance * self.goal_tolerance

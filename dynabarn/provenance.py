@@ -30,6 +30,7 @@ def portable_path(path: Path) -> str:
     except ValueError:
         return str(path)
 
+
 ENVIRONMENT_KNOBS = (
     "NPY_DISABLE_CPU_FEATURES",
     "NPY_ENABLE_CPU_FEATURES",

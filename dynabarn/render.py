@@ -123,7 +123,7 @@ def render_recording(
     data = mujoco.MjData(model)
     trail_steps = np.arange(-TRAIL_SECONDS, 0.0001, 0.25)
     trail_times = np.clip(frame_times[:, None] + trail_steps, 0, None).ravel()
-    if any(o.behavior != "scripted" for o in world.obstacles):
+    if any(o.reactive for o in world.obstacles):
         # Reactive obstacles went where the robot made them go: play what was recorded.
         t_obs, xy_obs = obstacle_track(rec, world)
         obstacle_xy, trail_xy = _interpolate(t_obs, xy_obs, frame_times), _interpolate(t_obs, xy_obs, trail_times)

@@ -245,3 +245,10 @@ def write_jackal_xml(path: Path = JACKAL_XML) -> str:
 if __name__ == "__main__":  # pragma: no cover
     write_jackal_xml()
     print(f"wrote {JACKAL_XML}")
+
+
+def to_robot_frame(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """World points (n, 2) into the robot frame of pose (x, y, yaw)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    d = np.asarray(points) - pose[:2]
+    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])

@@ -9,7 +9,7 @@ reproduces the committed files byte for byte.
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 from dynabarn.errors import WorldError
@@ -18,7 +18,7 @@ from dynabarn.provenance import GENERATED_WORLDS
 from dynabarn.worlds.difficulty import difficulty_scores
 from dynabarn.worlds.generate import DEFAULT_BASE_SEED, N_WORLDS, PAPER60, generate_world
 from dynabarn.worlds.profiles import ProfileSet, ShapeMix, StaticField
-from dynabarn.worlds.spec import EndBehavior, Interpolation, WorldSpec
+from dynabarn.worlds.spec import SCRIPTED, EndBehavior, Interpolation, WorldSpec
 
 INDEX_NAME = "index.json"
 
@@ -85,7 +85,8 @@ def generate_worlds(
     end_behavior: str = "loop",
     shapes: ShapeMix | None = None,
     static_field: StaticField | None = None,
-    behavior: str = "scripted",
+    behavior: str = SCRIPTED,
+    behavior_params: Mapping[str, float] | None = None,
     progress: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> Path:
     """Generate and write the benchmark's worlds; returns the index path.
@@ -104,6 +105,7 @@ def generate_worlds(
             shapes=shapes,
             static_field=static_field,
             behavior=behavior,
+            behavior_params=behavior_params,
         )
         for i in ids
     )
@@ -119,7 +121,7 @@ def generate_worlds(
         meta["shapes"] = shapes.to_dict()
     if static_field is not None:
         meta["static_field"] = static_field.to_dict()
-    if behavior != "scripted":
+    if behavior != SCRIPTED:
         meta["behavior"] = behavior
     return write_worlds(worlds, out_dir, meta=meta, sets=sets, progress=progress)
 

@@ -14,7 +14,8 @@ from dynabarn.planners.costmap import LETHAL, LocalCostmap
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_FIELDS
-from dynabarn.sim import MAX_CLOCK_OFFSET, run_episode
+from dynabarn.sim import run_episode
+from dynabarn.sim.config import MAX_CLOCK_OFFSET
 from dynabarn.worldset import resolve_world
 from tests.helpers import crafted_world, obstacle
 

@@ -1,5 +1,7 @@
 """Reactive obstacles: a yielding obstacle stops short of a robot in its way; a scripted one does not."""
 
+from typing import ClassVar
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,7 @@ from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_FIELDS, McapRecorder, read_recording
 from dynabarn.sim import Episode, Simulation, run_episode
+from dynabarn.sim.behaviors import ObstacleBehavior, Parameter, Surroundings, register_behavior
 from dynabarn.worlds.spec import EndBehavior, Interpolation, Obstacle, WorldSpec
 from tests.helpers import obstacle
 
@@ -17,7 +20,8 @@ from tests.helpers import obstacle
 def _world(path, behavior):
     # A cylinder walking at 1 m/s along x = 11 through the robot parked at the barn spawn (11, 0).
     o = obstacle("obstacle_000", [[0, 11, -9], [18, 11, 9]])
-    o = Obstacle(o.name, o.trajectory, behavior=behavior, yield_distance=1.5, avoid_distance=3.0)
+    params = {"yield": {"yield_distance": 1.5}, "avoid": {"avoid_distance": 3.0}}.get(behavior, {})
+    o = Obstacle(o.name, o.trajectory, behavior=behavior, behavior_params=params)
     world = WorldSpec(
         name=f"walker_{behavior}",
         world_id=None,
@@ -47,7 +51,7 @@ def test_yielding_obstacle_stops_while_scripted_one_collides(tmp_path):
 @pytest.mark.parametrize("speed", [0.5, 1.0, 2.0])
 def test_avoiding_obstacle_steps_around_the_robot_and_back_onto_its_path(tmp_path, speed):
     o = obstacle("obstacle_000", [[0, 11, -9], [18 / speed, 11, 9]])
-    o = Obstacle(o.name, o.trajectory, behavior="avoid", avoid_distance=3.0)
+    o = Obstacle(o.name, o.trajectory, behavior="avoid", behavior_params={"avoid_distance": 3.0})
     world = WorldSpec(
         name="walker_avoid",
         world_id=None,
@@ -92,11 +96,47 @@ def test_behavior_round_trips_and_is_validated(tmp_path):
     path = _world(tmp_path / "y.xml", "yield")
     assert read_world(path).obstacles[0].behavior == "yield"
     o = obstacle("obstacle_000", [[0, 0, 0], [1, 1, 1]])
-    with pytest.raises(WorldError, match="unknown behavior"):
-        Obstacle(o.name, o.trajectory, behavior="dance")
+    with pytest.raises(WorldError, match="must be a name"):
+        Obstacle(o.name, o.trajectory, behavior="../x")
+    with pytest.raises(WorldError, match="finite number"):
+        Obstacle(o.name, o.trajectory, behavior="yield", behavior_params={"yield_distance": float("nan")})
+    with pytest.raises(WorldError, match="scripted obstacle takes no"):
+        Obstacle(o.name, o.trajectory, behavior_params={"yield_distance": 1.0})
     assert np.all(read_world(tmp_path / "y.xml").obstacles[0].trajectory.xy[:, 0] == 11)
     avoid = read_world(_world(tmp_path / "a.xml", "avoid")).obstacles[0]
-    assert (avoid.behavior, avoid.avoid_distance) == ("avoid", 3.0)
+    assert (avoid.behavior, dict(avoid.behavior_params)) == ("avoid", {"avoid_distance": 3.0})
+    # Names and parameters are checked against the registry when the world is loaded to run.
+    for behavior, params, message in [
+        ("dance", {}, "unknown obstacle behaviour 'dance'; available: avoid, "),
+        ("yield", {"speed": 1.0}, "yield has no parameter 'speed'"),
+        ("avoid", {"avoid_distance": -1.0}, r"avoid_distance = -1.0 outside \[0, inf\]"),
+    ]:
+        bad = Obstacle(o.name, o.trajectory, behavior=behavior, behavior_params=params)
+        world = WorldSpec(name="bad", world_id=None, difficulty="easy", obstacles=(bad,))
+        write_world(world, tmp_path / "bad.xml")
+        with pytest.raises(WorldError, match=message):
+            Simulation(tmp_path / "bad.xml")
+
+
+class Freeze(ObstacleBehavior):
+    """The README's example: stops dead while the robot is within `freeze_distance`."""
+
+    name = "freeze"
+    parameters: ClassVar = {"freeze_distance": Parameter(2.0, "[m] centre to centre")}
+
+    def rates(self, s: Surroundings) -> np.ndarray:
+        return np.where(self.members & (s.dist < self.params["freeze_distance"]), 0.0, 1.0)
+
+
+def test_a_new_behaviour_is_one_class(tmp_path):
+    register_behavior(Freeze)
+    o = obstacle("obstacle_000", [[0, 11, -9], [18, 11, 9]])
+    o = Obstacle(o.name, o.trajectory, behavior="freeze", behavior_params=Freeze.defaults())
+    world = WorldSpec(name="freeze", world_id=None, difficulty="easy", obstacles=(o,), end_behavior=EndBehavior.HOLD)
+    write_world(world, tmp_path / "f.xml")
+    result = run_episode(tmp_path / "f.xml", get_planner("stop"), get_protocol("barn"), seed=0)
+    assert result.outcome is Outcome.TIMEOUT, "it froze before touching the parked robot"
+    assert 2.0 - 0.5 - 0.4 < result.min_clearance < 2.0
 
 
 def test_privileged_prediction_extrapolates_reactive_obstacles(tmp_path):
@@ -124,7 +164,7 @@ def test_generated_worlds_can_make_every_obstacle_reactive(tmp_path):
     from dynabarn.worldset import read_index
 
     plain = generate_world(137, get_profile_set("table1"))
-    avoid = generate_world(137, get_profile_set("table1"), behavior="avoid")
+    avoid = generate_world(137, get_profile_set("table1"), behavior="avoid", behavior_params={"avoid_distance": 3.0})
     assert {o.behavior for o in avoid.obstacles} == {"avoid"} and avoid.provenance["behavior"] == "avoid"
     assert [o.trajectory for o in avoid.obstacles] == [o.trajectory for o in plain.obstacles]
     out = tmp_path / "yield"

@@ -60,9 +60,9 @@ from gymnasium import spaces
 
 from dynabarn.bench import world_set as resolve_world_set
 from dynabarn.metrics import Outcome
-from dynabarn.planners.global_planner import GlobalPlanner, to_robot_frame
+from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.protocol import get_protocol
-from dynabarn.robot import JACKAL
+from dynabarn.robot import JACKAL, to_robot_frame
 from dynabarn.sim import Episode, Simulation
 
 V_MIN, V_MAX, W_MAX = JACKAL.v_min, JACKAL.v_max, JACKAL.w_max

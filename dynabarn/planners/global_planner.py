@@ -277,10 +277,3 @@ class LocalReplanner:
         dist, pred = dijkstra(self._graph, directed=True, indices=start_cell, return_predecessors=True)
         dist[dist >= 1e6] = np.inf
         return dist, pred.tolist()
-
-
-def to_robot_frame(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
-    """World points (n, 2) into the robot frame of pose (x, y, yaw)."""
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    d = np.asarray(points) - pose[:2]
-    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])

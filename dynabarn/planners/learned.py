@@ -16,7 +16,8 @@ import numpy as np
 
 from dynabarn.errors import DynabarnError
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner
-from dynabarn.planners.global_planner import GlobalPlanner, to_robot_frame
+from dynabarn.planners.global_planner import GlobalPlanner
+from dynabarn.robot import to_robot_frame
 
 SHIPPED = Path(__file__).resolve().parent.parent / "policies"
 

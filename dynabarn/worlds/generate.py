@@ -15,6 +15,7 @@ paper's baselines: ids 0-19, 100-109, 150-159, 200-219.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -27,7 +28,7 @@ from dynabarn.worlds.profiles import (
     StaticField,
     difficulty_of,
 )
-from dynabarn.worlds.spec import SHAPE_NAMES, EndBehavior, Interpolation, Layout, Obstacle, WorldSpec
+from dynabarn.worlds.spec import SCRIPTED, SHAPE_NAMES, EndBehavior, Interpolation, Layout, Obstacle, WorldSpec
 from dynabarn.worlds.static_field import generate_static_field
 from dynabarn.worlds.trajectory import generate_trajectory
 
@@ -65,14 +66,16 @@ def generate_world(
     end_behavior: EndBehavior = EndBehavior.LOOP,
     shapes: ShapeMix | None = None,
     static_field: StaticField | None = None,
-    behavior: str = "scripted",
+    behavior: str = SCRIPTED,
+    behavior_params: Mapping[str, float] | None = None,
 ) -> WorldSpec:
     """Alg. 2 for world `world_id` of the 300: count, then one Alg. 1 trajectory each.
 
     Beyond the paper, `shapes` draws every obstacle's shape, `static_field` adds a
-    BARN-style field of static cylinders and `behavior` makes every obstacle reactive
-    (`yield` or `avoid`, with their default distances). Each draws from its own stream
-    (SeedSequence([seed, id, 1]) and [seed, id, 2]), so the motions are the same as in the
+    BARN-style field of static cylinders and `behavior` with `behavior_params` makes every
+    obstacle reactive (e.g. `yield` with `sim.behaviors.get_behavior("yield").defaults()`).
+    Each draws from its own stream (SeedSequence([seed, id, 1]) and [seed, id, 2]), so the
+    motions are the same as in the
     plain world of the same id and seed.
     """
     count_class, motion_class = branch_of(world_id)
@@ -95,10 +98,16 @@ def generate_world(
         static_rng = np.random.default_rng(np.random.SeedSequence([base_seed, world_id, 2]))
         layout = Layout(cylinders=generate_static_field(static_rng, static_field))
         provenance["static_field"] = static_field.to_dict()
-    if behavior != "scripted":
+    if behavior != SCRIPTED:
         provenance["behavior"] = behavior
     obstacles = tuple(
-        Obstacle(name=f"obstacle_{k:03d}", trajectory=traj, behavior=behavior, **kw)
+        Obstacle(
+            name=f"obstacle_{k:03d}",
+            trajectory=traj,
+            behavior=behavior,
+            behavior_params=dict(behavior_params or {}),
+            **kw,
+        )
         for k, (traj, kw) in enumerate(zip(trajectories, shape_kwargs, strict=True))
     )
     return WorldSpec(

@@ -9,6 +9,7 @@ from __future__ import annotations
 import enum
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -90,8 +91,16 @@ class Layout:
         )
 
 
-BEHAVIORS = ("scripted", "yield", "avoid")
+SCRIPTED = "scripted"
+"""The paper's behaviour: the obstacle follows its schedule whatever the robot does."""
 SHAPE_NAMES = ("cylinder", "box", "capsule")
+
+
+OBSTACLE_FIELDS = frozenset(
+    {"name", "profile", "order", "avg_speed", "avg_std", "radius", "height", "source", "behavior", "keyframes"}
+    | {"shape", "half_length", "half_width", "yaw"}
+)
+"""Keys of an obstacle in a world file; any other key is a parameter of its behaviour."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,25 +123,27 @@ class Obstacle:
     height: float = OBSTACLE_HEIGHT
     source: str = ""
     """Provenance, e.g. the release plugin it was imported from."""
-    behavior: str = "scripted"
-    """`scripted` (the paper's: follows its schedule whatever the robot does), `yield`
-    (pauses its schedule while the robot is within `yield_distance` ahead of it) or
-    `avoid` (social-force steering sideways around the robot within `avoid_distance`,
-    then back onto its path)."""
-    yield_distance: float = 1.5
-    """[m] centre to centre, for `yield`."""
-    avoid_distance: float = 3.0
-    """[m] centre to centre, for `avoid`: the robot is ignored beyond it."""
+    behavior: str = SCRIPTED
+    """How it answers the robot: `scripted` (the paper's: follows its schedule whatever the
+    robot does) or a reactive behaviour such as `yield` or `avoid` (`dynabarn.sim.behaviors`,
+    where behaviours are registered and their parameters checked)."""
+    behavior_params: Mapping[str, float] = field(default_factory=dict)
+    """The behaviour's parameters, e.g. {"yield_distance": 1.5}; stored beside `behavior`."""
     shape: str = "cylinder"
     half_length: float = 0.0
     half_width: float = 0.0
     yaw: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.behavior not in BEHAVIORS:
-            raise WorldError(
-                f"obstacle {self.name!r}: unknown behavior {self.behavior!r}; available: " + ", ".join(BEHAVIORS)
-            )
+        if not (isinstance(self.behavior, str) and self.behavior.isidentifier()):
+            raise WorldError(f"obstacle {self.name!r}: behavior must be a name, got {self.behavior!r}")
+        for key, value in self.behavior_params.items():
+            if key in OBSTACLE_FIELDS or not key.isidentifier():
+                raise WorldError(f"obstacle {self.name!r}: {key!r} cannot be a behaviour parameter")
+            if not (isinstance(value, int | float) and math.isfinite(value)):
+                raise WorldError(f"obstacle {self.name!r}: {key} must be a finite number, got {value!r}")
+        if self.behavior == SCRIPTED and self.behavior_params:
+            raise WorldError(f"obstacle {self.name!r}: a scripted obstacle takes no {sorted(self.behavior_params)}")
         if self.shape not in SHAPE_NAMES:
             raise WorldError(
                 f"obstacle {self.name!r}: unknown shape {self.shape!r}; available: " + ", ".join(SHAPE_NAMES)
@@ -154,6 +165,11 @@ class Obstacle:
             )
 
     @property
+    def reactive(self) -> bool:
+        """It answers the robot (any behaviour but the paper's `scripted`)."""
+        return self.behavior != SCRIPTED
+
+    @property
     def half_extents(self) -> tuple[float, float]:
         """Half sizes of the core rectangle, (along yaw, across) [m]."""
         return (self.half_length, self.half_width)
@@ -172,10 +188,8 @@ class Obstacle:
         """What a non-default behaviour or shape adds to the world file (nothing for the
         paper's scripted cylinders, so their files stay as they were)."""
         d: dict = {}
-        if self.behavior == "yield":
-            d.update(behavior="yield", yield_distance=self.yield_distance)
-        elif self.behavior == "avoid":
-            d.update(behavior="avoid", avoid_distance=self.avoid_distance)
+        if self.reactive:
+            d.update(behavior=self.behavior, **self.behavior_params)
         if self.shape != "cylinder":
             d.update(shape=self.shape, half_length=self.half_length, half_width=self.half_width, yaw=self.yaw)
         return d
@@ -311,9 +325,8 @@ class WorldSpec:
                         radius=float(od["radius"]),
                         height=float(od["height"]),
                         source=str(od.get("source", "")),
-                        behavior=str(od.get("behavior", "scripted")),
-                        yield_distance=float(od.get("yield_distance", 1.5)),
-                        avoid_distance=float(od.get("avoid_distance", 3.0)),
+                        behavior=str(od.get("behavior", SCRIPTED)),
+                        behavior_params={k: float(v) for k, v in od.items() if k not in OBSTACLE_FIELDS},
                         shape=str(od.get("shape", "cylinder")),
                         half_length=float(od.get("half_length", 0.0)),
                         half_width=float(od.get("half_width", 0.0)),

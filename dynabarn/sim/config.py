@@ -1,0 +1,54 @@
+"""Settings of the episode loop: physics step, control and pose rates, command limits."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from dynabarn.errors import DynabarnError
+
+MAX_CLOCK_OFFSET = 5.0
+"""Trials start the obstacles' clocks at a seeded offset in [0, 5) s."""
+
+
+@dataclass(frozen=True, slots=True)
+class SimConfig:
+    """Settings of the episode loop.
+
+    Attributes:
+        dt: physics step [s] (<= 0.01: at 0.05 s a 2 m/s obstacle passes through the robot).
+        control_rate: planner and scan rate [Hz]; the control period must be a whole
+            number of physics steps.
+        pose_rate: rate at which robot poses are handed to observers (and recorded) [Hz].
+        max_linear_accel: |dv/dt| limit on the command [m/s^2] (jackal_control's
+            diff-drive controller: linear.x.max_acceleration 20).
+        max_angular_accel: |dw/dt| limit on the command [rad/s^2] (angular.z.max_acceleration 25).
+    """
+
+    dt: float = 0.005
+    control_rate: float = 10.0
+    pose_rate: float = 50.0
+    max_linear_accel: float = 20.0
+    max_angular_accel: float = 25.0
+
+    def __post_init__(self) -> None:
+        if not 0 < self.dt <= 0.01:
+            raise DynabarnError(f"physics step dt must be in (0, 0.01] s, got {self.dt}")
+        if self.control_rate <= 0 or self.pose_rate <= 0:
+            raise DynabarnError("control and pose rates must be positive")
+        k = 1.0 / (self.control_rate * self.dt)
+        if abs(k - round(k)) > 1e-6 or round(k) < 1:
+            raise DynabarnError(
+                f"the control period 1/{self.control_rate} s must be a whole number of physics steps of {self.dt} s"
+            )
+
+    @property
+    def steps_per_tick(self) -> int:
+        return round(1.0 / (self.control_rate * self.dt))
+
+    @property
+    def control_period(self) -> float:
+        return self.steps_per_tick * self.dt
+
+    @property
+    def pose_every(self) -> int:
+        return max(1, round(1.0 / (self.pose_rate * self.dt)))

@@ -1,0 +1,263 @@
+"""One episode's state, advanced one control period at a time."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import mujoco
+import numpy as np
+
+from dynabarn.determinism import (
+    COMMAND_RESOLUTION,
+    RECORD_RESOLUTION,
+    snap,
+)
+from dynabarn.metrics import (
+    EpisodeResult,
+    Outcome,
+    footprint_clearance_at,
+)
+from dynabarn.protocol import EvalProtocol
+from dynabarn.robot import JACKAL, to_robot_frame
+from dynabarn.sim.behaviors import ReactiveObstacles
+from dynabarn.sim.config import MAX_CLOCK_OFFSET
+from dynabarn.sim.events import EpisodeStart, Tick
+from dynabarn.sim.observation import Observation, ObstacleState
+from dynabarn.sim.result import episode_result
+from dynabarn.sim.simulation import Simulation
+from dynabarn.worlds.schedule import SchedulePlayer
+
+
+class Episode:
+    """One episode's state, advanced one control period at a time.
+
+    `observe()` places the obstacles for the current time and casts the scan; `apply(v, w)`
+    limits the command and runs the physics steps of one control period, checking contacts,
+    the goal and the clock after every step. `run_episode` and the Gymnasium environment
+    both drive episodes through this class.
+
+    Args:
+        sim: the compiled world.
+        protocol: the rules.
+        seed: the trial seed (obstacle clock offset in [0, 5) s, laser noise).
+        privileged: include the true obstacle states in observations.
+    """
+
+    def __init__(self, sim: Simulation, protocol: EvalProtocol, *, seed: int = 0, privileged: bool = False) -> None:
+        self.sim = sim
+        self.protocol = protocol
+        self.seed = seed
+        self.privileged = privileged
+        config = sim.config
+        self.rng = np.random.default_rng(np.random.SeedSequence(seed))
+        self.clock_offset = float(self.rng.uniform(0.0, MAX_CLOCK_OFFSET))
+        self.player = SchedulePlayer(sim.world, clock_offset=self.clock_offset)
+        self.info = sim.episode_info(protocol, seed)
+        self.dt = config.dt
+        self.k = config.steps_per_tick
+        self.period = config.control_period
+        # Longest possible episode: the clock may start as late as `limit`, then run `limit`.
+        max_steps = math.ceil(2 * protocol.time_limit / self.dt) + 2 * self.k
+        self.poses = np.zeros((max_steps + 1, 3))  # robot pose after every physics step
+        n_ticks_max = max_steps // self.k + 2
+        self.tick_v = np.zeros(n_ticks_max)
+        self.tick_w = np.zeros(n_ticks_max)
+        self.tick_w_cmd = np.zeros(n_ticks_max)
+        self.planner_ms = np.zeros(n_ticks_max)
+        self._step_offsets = np.arange(self.k) * self.dt
+        sim.reset(protocol.spawn)
+        self.poses[0] = protocol.spawn
+        self.outcome: Outcome | None = None
+        self.reason = ""
+        self.t_start: float | None = 0.0 if protocol.timer_start_distance == 0.0 else None
+        self.step = 0
+        self.n_ticks = 0
+        self.prev_cmd = np.zeros(2)
+        self.raw_command = (0.0, 0.0)
+        self.wall_t0 = time.perf_counter()
+        self._batch_xy = self._batch_vel = None
+        # Reactive obstacles run on their own clocks (a yielding one pauses its schedule);
+        # scripted-only worlds keep the exact global clock.
+        self.reactive: ReactiveObstacles | None = None
+        if any(o.reactive for o in sim.world.obstacles):
+            self.reactive = ReactiveObstacles(
+                sim.world.obstacles,
+                self.player,
+                sim.bounding_radii,
+                period=self.period,
+                step_offsets=self._step_offsets,
+                max_steps=max_steps,
+            )
+
+    @property
+    def time(self) -> float:
+        return self.step * self.dt
+
+    def observe(self) -> Observation:
+        """Place the obstacles for now, cast the scan, and return what a planner sees."""
+        sim = self.sim
+        model, data = sim.model, sim.data
+        t = self.time
+        # All obstacle positions of this control period in one vectorised call.
+        if self.reactive is not None:
+            self._batch_xy, self._batch_vel = self.reactive.batch(data.qpos[:2])
+        else:
+            self._batch_xy, self._batch_vel = self.player.positions_at(t + self._step_offsets)
+        sim.set_obstacles(self._batch_xy[0])
+        mujoco.mj_kinematics(model, data)
+        qpos, qvel = data.qpos, data.qvel
+        pose = qpos[:3].copy()
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        velocity = np.array([c * qvel[0] + s * qvel[1], qvel[2]])
+        scan = sim.laser.scan(model, data, pose[2], self.rng)
+        privileged = None
+        if self.privileged:
+            privileged = ObstacleState(
+                positions=self._batch_xy[0].copy(),
+                velocities=self._batch_vel[0].copy(),
+                radii=sim.bounding_radii.copy(),
+                predict=_constant_velocity(t, self._batch_xy[0], self._batch_vel[0])
+                if self.reactive is not None
+                else _predictor(self.player),
+            )
+        self._obs = Observation(
+            time=t,
+            scan=scan,
+            pose=pose,
+            velocity=velocity,
+            goal_in_robot=to_robot_frame(sim.goal[None], pose)[0],
+            goal_in_world=sim.goal.copy(),
+            obstacles=privileged,
+        )
+        return self._obs
+
+    def end(self, outcome: Outcome, reason: str) -> None:
+        self.outcome, self.reason = outcome, reason
+
+    def apply(self, raw_v: float, raw_w: float) -> Outcome | None:
+        """Limit the command, then run one control period of physics; the outcome if it ended."""
+        if not (math.isfinite(raw_v) and math.isfinite(raw_w)):
+            self.end(Outcome.ERROR, f"planner returned a non-finite command ({raw_v}, {raw_w})")
+            return self.outcome
+        sim, cfg, p = self.sim, self.sim.config, JACKAL
+        data, model = sim.data, sim.model
+        # On a fixed grid: a planner's last-bit differences between machines stop here.
+        raw_v, raw_w = snap(raw_v, COMMAND_RESOLUTION), snap(raw_w, COMMAND_RESOLUTION)
+        self.raw_command = (raw_v, raw_w)
+        v = min(max(raw_v, p.v_min), p.v_max)
+        w = min(max(raw_w, -p.w_max), p.w_max)
+        dv, dw = cfg.max_linear_accel * self.period, cfg.max_angular_accel * self.period
+        prev = self.prev_cmd
+        v = min(max(v, prev[0] - dv), prev[0] + dv)
+        w = min(max(w, prev[1] - dw), prev[1] + dw)
+        self.prev_cmd = np.array([v, w])
+        data.ctrl[0], data.ctrl[1], data.ctrl[2] = v, 0.0, w
+        n = self.n_ticks
+        self.tick_v[n], self.tick_w[n], self.tick_w_cmd[n] = self._obs.velocity[0], self._obs.velocity[1], w
+        self.n_ticks += 1
+
+        protocol = self.protocol
+        dt, poses, batch_xy = self.dt, self.poses, self._batch_xy
+        robot_qpos = data.qpos[:3]  # views reused every physics step
+        mocap_xy = data.mocap_pos[: sim.radii.size, :2]
+        goal = (float(sim.goal[0]), float(sim.goal[1]))
+        limit = protocol.time_limit
+        step, t_start = self.step, self.t_start
+        outcome = None
+        if self.reactive is not None:  # what the obstacles really did, for the clearance metric
+            log = self.reactive.log
+            n_log = min(self.k, len(log) - step)
+            log[step : step + n_log] = batch_xy[:n_log]
+        for j in range(self.k):
+            mocap_xy[...] = batch_xy[j]
+            mujoco.mj_step(model, data)
+            step += 1
+            poses[step] = robot_qpos
+            x, y = robot_qpos[0], robot_qpos[1]
+            if data.ncon:
+                self.reason = f"hit {_contact_partner(model, data, sim.robot_geoms)}"
+                outcome = Outcome.COLLISION
+                break
+            ts = step * dt
+            if t_start is None and protocol.timer_started(x, y):
+                t_start = ts
+            if protocol.reached(x, y, goal):
+                outcome, self.reason = Outcome.SUCCESS, "reached the goal"
+                break
+            if ts - (t_start if t_start is not None else 0.0) >= limit:
+                outcome, self.reason = Outcome.TIMEOUT, f"time limit {limit:g} s"
+                break
+        self.step, self.t_start, self.outcome = step, t_start, outcome
+        return outcome
+
+    def tick_record(self, debug: dict) -> Tick:
+        """The last observation and command (as received, on its grid), for observers."""
+        obs, sim = self._obs, self.sim
+        laser_xy = sim.data.site_xpos[sim.laser.site]
+        pose = obs.pose
+        return Tick(
+            time=obs.time,
+            scan=obs.scan,
+            laser_pose=np.array([laser_xy[0], laser_xy[1], pose[2]]),
+            pose=pose,
+            velocity=obs.velocity,
+            command=self.prev_cmd.copy(),
+            raw_command=np.array(self.raw_command, dtype=np.float64),
+            obstacles=self._batch_xy[0].copy(),
+            clearance=snap(
+                float(sim.clearance(pose[None], self._batch_xy[:1])[0])
+                if sim.shaped
+                else footprint_clearance_at(
+                    pose[0], pose[1], pose[2], self._batch_xy[0], sim.radii, (JACKAL.length / 2, JACKAL.width / 2)
+                ),
+                RECORD_RESOLUTION,
+            ),
+            distance_to_goal=math.hypot(sim.goal[0] - pose[0], sim.goal[1] - pose[1]),
+            planner_ms=float(self.planner_ms[self.n_ticks - 1]) if self.n_ticks else 0.0,
+            debug=debug,
+        )
+
+    def poses_between(self, first: int) -> tuple[np.ndarray, np.ndarray]:
+        """Times and poses at the pose rate after physics step `first` up to now (the last
+        pose always included once the episode has ended)."""
+        every = self.sim.config.pose_every
+        first_idx = 0 if first == 0 else first + every - first % every
+        idx = np.arange(first_idx, self.step + 1, every)
+        if self.step % every and self.outcome is not None:
+            idx = np.append(idx, self.step)
+        return idx * self.dt, self.poses[idx].copy()
+
+    def result(self, start: EpisodeStart) -> EpisodeResult:
+        return episode_result(self, start)
+
+
+def _predictor(player: SchedulePlayer):
+    """Exact future obstacle positions: (n, 2) for a time, (T, n, 2) for an array of times."""
+
+    def predict(t_future):
+        arr = np.asarray(t_future, dtype=np.float64)
+        pos, _ = player.positions_at(np.atleast_1d(arr))
+        return pos if arr.ndim else pos[0]
+
+    return predict
+
+
+def _constant_velocity(t0: float, xy: np.ndarray, vel: np.ndarray):
+    """Reactive obstacles' future depends on the robot: extrapolate their present motion."""
+    xy, vel = xy.copy(), vel.copy()
+
+    def predict(t_future):
+        arr = np.asarray(t_future, dtype=np.float64)
+        dt = np.atleast_1d(arr) - t0
+        pos = xy[None] + dt[:, None, None] * vel[None]
+        return pos if arr.ndim else pos[0]
+
+    return predict
+
+
+def _contact_partner(model: mujoco.MjModel, data: mujoco.MjData, robot_geoms: set[int]) -> str:
+    con = data.contact[0]
+    g1, g2 = int(con.geom[0]), int(con.geom[1])
+    other = g2 if g1 in robot_geoms else g1
+    return model.geom(other).name or f"geom {other}"

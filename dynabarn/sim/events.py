@@ -1,0 +1,64 @@
+"""What observers of an episode receive: `EpisodeStart`, every `Tick`, robot poses, the result.
+
+The MCAP recorder is one observer; the loop knows nothing of recording."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from dynabarn.metrics import (
+    EpisodeResult,
+)
+from dynabarn.protocol import EvalProtocol
+from dynabarn.sim.config import SimConfig
+from dynabarn.sim.observation import EpisodeInfo
+from dynabarn.worlds.spec import WorldSpec
+
+
+@dataclass(frozen=True, slots=True)
+class EpisodeStart:
+    """What observers learn when an episode starts."""
+
+    world: WorldSpec
+    world_path: Path
+    world_sha256: str
+    protocol: EvalProtocol
+    planner: str
+    planner_config: dict
+    seed: int
+    clock_offset: float
+    config: SimConfig
+    info: EpisodeInfo
+    versions: dict
+
+
+@dataclass(slots=True)
+class Tick:
+    """One control tick, as observers see it. Arrays are fresh (observers may keep them)."""
+
+    time: float
+    scan: np.ndarray  # (n_beams,)
+    laser_pose: np.ndarray  # (3,) x, y, yaw of the laser in the world
+    pose: np.ndarray  # (3,)
+    velocity: np.ndarray  # (2,) measured v, w
+    command: np.ndarray  # (2,) limited v, w sent to the robot
+    raw_command: np.ndarray  # (2,) what the planner returned
+    obstacles: np.ndarray  # (n_obstacles, 2)
+    clearance: float
+    distance_to_goal: float
+    planner_ms: float
+    debug: dict = field(default_factory=dict)
+
+
+class EpisodeObserver(Protocol):
+    def on_start(self, start: EpisodeStart) -> None: ...
+
+    def on_tick(self, tick: Tick) -> None: ...
+
+    def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None: ...
+
+    def on_end(self, result: EpisodeResult) -> None: ...

@@ -1,0 +1,95 @@
+"""An ended episode's `EpisodeResult`: outcome, time, score, SPL, clearance, smoothness."""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from dynabarn.metrics import (
+    EpisodeResult,
+    Outcome,
+    compute_percentiles,
+    mean_abs_jerk,
+    path_length,
+    spl,
+    stalled_time,
+    sum_abs_change,
+)
+from dynabarn.protocol import EvalProtocol
+from dynabarn.provenance import machine, portable_path
+from dynabarn.sim.events import EpisodeStart
+
+if TYPE_CHECKING:
+    from dynabarn.sim.episode import Episode
+from dynabarn.worlds.spec import WorldSpec
+
+
+def _optimal_length(protocol: EvalProtocol, world: WorldSpec, goal: tuple[float, float]) -> float:
+    """SPL's shortest path: the world's reference path when the protocol says so, else a straight line."""
+    ref = world.provenance.get("reference_path_length") if protocol.reference_from_world else None
+    if ref is not None:
+        return max(float(ref) - protocol.goal_tolerance, 0.0)
+    return protocol.optimal_path_length(goal)
+
+
+def episode_result(episode: Episode, start: EpisodeStart) -> EpisodeResult:
+    """The metrics of an ended episode (DESIGN.md "Episode, protocols and metrics")."""
+    sim = episode.sim
+    cfg = sim.config
+    protocol = start.protocol
+    outcome, reason, step, t_start = episode.outcome, episode.reason, episode.step, episode.t_start
+    n_ticks = episode.n_ticks
+    sim_time = step * cfg.dt
+    traj = episode.poses[: step + 1]
+    # The protocol's clock: from the first `timer_start_distance` of motion, if any.
+    ep_time = sim_time - t_start if t_start is not None else sim_time
+    success = outcome is Outcome.SUCCESS
+    length = path_length(traj[:, :2])
+    # Clearance at every physics step, from one batched schedule evaluation.
+    if episode.reactive is not None:
+        log = episode.reactive.log
+        obstacle_xy = log[: step + 1]
+        obstacle_xy[step] = log[max(step - 1, 0)] if step else obstacle_xy[0]
+    else:
+        obstacle_xy, _ = episode.player.positions_at(np.arange(step + 1) * cfg.dt)
+    clearance = sim.clearance(traj, obstacle_xy, static=True)
+    mean_ms, p95_ms = compute_percentiles(episode.planner_ms[:n_ticks])
+    wall = time.perf_counter() - episode.wall_t0
+    goal = (float(sim.goal[0]), float(sim.goal[1]))
+    tick_v, tick_w, tick_w_cmd = episode.tick_v, episode.tick_w, episode.tick_w_cmd
+    return EpisodeResult(
+        world=sim.world.name,
+        planner=start.planner,
+        protocol=protocol.name,
+        seed=start.seed,
+        outcome=outcome,
+        reason=reason,
+        time=ep_time,
+        sim_time=sim_time,
+        path_length=length,
+        score=protocol.score(
+            success,
+            ep_time,
+            sim.world.provenance.get("reference_path_length") if protocol.reference_from_world else None,
+        ),
+        spl=spl(success, _optimal_length(protocol, sim.world, goal), length),
+        min_clearance=float(clearance.min()) if clearance.size else math.inf,
+        mean_abs_jerk=mean_abs_jerk(tick_v[:n_ticks], cfg.control_period),
+        sum_abs_dw=sum_abs_change(tick_w_cmd[:n_ticks]),
+        time_stalled=stalled_time(tick_v[:n_ticks], tick_w[:n_ticks], cfg.control_period),
+        planner_ms_mean=mean_ms,
+        planner_ms_p95=p95_ms,
+        rtf=sim_time / wall if wall > 0 else math.inf,
+        wall_time=wall,
+        clock_offset=start.clock_offset,
+        n_ticks=n_ticks,
+        world_file=portable_path(sim.world_path),
+        world_sha256=sim.world_sha256,
+        versions=start.versions,
+        machine=machine(),
+        planner_config=start.planner_config,
+        protocol_version=protocol.version,
+    )
