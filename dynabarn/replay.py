@@ -14,7 +14,7 @@ Entity tree (one per recording; several recordings of one world go under
 | <run>/scan | Points3D: laser returns in the world frame | every scan |
 | <run>/scan_beams | LineStrips3D: one beam in four from the laser to its return | every scan |
 | <run>/local_plan | LineStrips3D | when the planner recorded one |
-| metrics/{v, w, clearance, distance_to_goal}/<run> | Scalars | every control tick |
+| metrics/<field>/<run> | Scalars: the fields `recording.topics` plots (v, w, clearance, ...) | every control tick |
 | description | TextDocument: world, planner, outcome | static |
 
 Everything per-time is sent in bulk with `rr.send_columns`, one call per entity. rerun's
@@ -35,7 +35,6 @@ import rerun.blueprint as rrb
 from dynabarn.recording import (
     TOPIC_CMD,
     TOPIC_DEBUG,
-    TOPIC_METRICS,
     TOPIC_POSE,
     TOPIC_SCAN,
     Recording,
@@ -43,6 +42,7 @@ from dynabarn.recording import (
     obstacle_track,
     recorded_world,
 )
+from dynabarn.recording.topics import plotted
 from dynabarn.worlds.spec import WorldSpec
 
 APP_ID = "dynabarn_replay"
@@ -259,23 +259,16 @@ def log_recording(
         )
         stream.log(f"{run}/local_plan", rr.LineStrips3D.from_fields(colors=[(250, 200, 0)], radii=[0.04]), static=True)
 
-    # Time series.
-    cmd = rec.topic(TOPIC_CMD)
-    met = rec.topic(TOPIC_METRICS)
-    series = {
-        "v": (_times(cmd), [m["v"] for _, m in cmd]),
-        "w": (_times(cmd), [m["w"] for _, m in cmd]),
-        "clearance": (_times(met), [m["clearance"] if m["clearance"] is not None else np.nan for _, m in met]),
-        "distance_to_goal": (_times(met), [m["distance_to_goal"] for _, m in met]),
-    }
-    for name, (times, values) in series.items():
-        if len(times):
-            stream.send_columns(
-                f"metrics/{name}/{run}",
-                indexes=[_time_column(times)],
-                columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)),
-            )
-            stream.log(f"metrics/{name}/{run}", rr.SeriesLines(colors=[color], names=[f"{run} {name}"]), static=True)
+    # Time series: every field the topic table marks for plotting.
+    for topic, name in plotted():
+        msgs = rec.topic(topic.name)
+        if not msgs:
+            continue
+        values = np.array([np.nan if m.get(name) is None else m[name] for _, m in msgs], dtype=np.float64)
+        stream.send_columns(
+            f"metrics/{name}/{run}", indexes=[_time_column(_times(msgs))], columns=rr.Scalars.columns(scalars=values)
+        )
+        stream.log(f"metrics/{name}/{run}", rr.SeriesLines(colors=[color], names=[f"{run} {name}"]), static=True)
     return ReplayCounts(scans=len(st), poses=len(pt), obstacle_updates=len(ot), ticks=len(tt))
 
 
@@ -294,9 +287,7 @@ def describe(recs: list[tuple[str, Recording]]) -> str:
 
 def blueprint(runs: list[str]) -> rrb.Blueprint:
     """Top-down 3D scene beside the scan and the plots."""
-    plots = [
-        rrb.TimeSeriesView(name=name, origin=f"/metrics/{name}") for name in ("v", "w", "clearance", "distance_to_goal")
-    ]
+    plots = [rrb.TimeSeriesView(name=name, origin=f"/metrics/{name}") for _, name in plotted()]
     # Looking down on the arena from above its centre, +x to the right.
     top_down = rrb.EyeControls3D(position=[0.5, -6.0, 30.0], look_target=[0.5, 0.0, 0.0], eye_up=[0.0, 0.0, 1.0])
     scene = rrb.Spatial3DView(name="world", origin="/", eye_controls=top_down)

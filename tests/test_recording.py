@@ -66,6 +66,21 @@ def test_recording_reads_back_with_plain_mcap(tmp_path):
     assert len(rec.topic("/world/obstacles")[0][1].entities[0].cylinders) == result_obstacles(rec)
 
 
+def test_topic_table_is_what_is_recorded_and_what_the_readme_says(tmp_path):
+    from pathlib import Path
+
+    from dynabarn.recording.topics import TOPICS, markdown_table
+
+    path = tmp_path / "dwa.mcap"
+    _record(path, world=0, planner="dwa", seed=1)  # DWA records a local plan: every topic appears
+    with path.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    recorded = {c.topic: (summary.schemas[c.schema_id].name, c.message_encoding) for c in summary.channels.values()}
+    assert recorded == {t.name: (t.schema, t.encoding) for t in TOPICS}
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    assert markdown_table() in readme, "README's topic table: regenerate it from recording.topics.markdown_table()"
+
+
 def result_obstacles(rec):
     return len(rec.metadata["world"]["obstacles"])
 

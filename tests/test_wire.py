@@ -19,7 +19,7 @@ from foxglove.messages import (
 from mcap.records import Schema
 from mcap_protobuf.decoder import DecoderFactory
 
-from dynabarn import wire
+from dynabarn.recording import wire
 
 FRAME = wire.string(2, "world")
 
@@ -110,7 +110,7 @@ def test_scene_update_matches_sdk():
 
 
 def test_primitive_block_equals_encoding_each_primitive_anew():
-    from dynabarn import wire
+    from dynabarn.recording import wire
 
     rng = np.random.default_rng(1)
     color = wire.color(1, 0, 0, 1)

@@ -1,35 +1,19 @@
-"""MCAP recordings of episodes: writing (an `EpisodeObserver`) and crash-tolerant reading.
+"""Writing MCAP recordings of episodes as they run: `McapRecorder`, an `EpisodeObserver`.
 
 Written with foxglove-sdk's built-in protobuf schemas, so files open in Foxglove as they
-are; custom data travels on JSON channels with JSON schemas. Log time = simulated time
-(nanoseconds from the episode start). Wall-clock measurements (planner compute time,
-real-time factor) are left out, so the same world, planner, protocol and seed give a
-byte-identical file on any machine. Chunks are small (64 KiB), so a killed process
-loses only the last moments; `read_recording` recovers everything before a cut.
-
-Topics (also in the README):
-
-| topic | schema | rate |
-|---|---|---|
-| /world/metadata | JSON `dynabarn.EpisodeStart` | once |
-| /world/static | foxglove.SceneUpdate (walls, goal, static cylinders) | once |
-| /goal | foxglove.PoseInFrame | once |
-| /world/obstacles | foxglove.SceneUpdate (cylinders and capsules as cylinders, boxes as cubes) | control rate |
-| /scan | foxglove.LaserScan (frame `world`, pose = laser pose) | control rate |
-| /robot/pose | foxglove.PoseInFrame (frame `world`) | pose rate (50 Hz) |
-| /cmd_vel | JSON `dynabarn.Command` | control rate |
-| /metrics | JSON `dynabarn.StepMetrics` | control rate |
-| /planner/debug | JSON `dynabarn.PlannerDebug` (e.g. local plan) | control rate, when the planner has any |
-| /episode/result | JSON `dynabarn.EpisodeResult` | once, at the end |
+are; custom data travels on JSON channels with JSON schemas (the topics: `topics.TOPICS`).
+Log time = simulated time (nanoseconds from the episode start). Wall-clock measurements
+(planner compute time, real-time factor) are left out and the machine block is an MCAP
+metadata record, so the same world, planner, protocol and seed give byte-identical
+messages on any machine. Chunks are small (64 KiB), so a killed process loses only the
+last moments; `reader.read_recording` recovers everything before a cut.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections import defaultdict
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 
 import foxglove
@@ -37,13 +21,22 @@ import numpy as np
 from foxglove.mcap import MCAPWriteOptions
 from foxglove.messages import LaserScan, PoseInFrame, SceneUpdate
 
-from dynabarn import wire
-from dynabarn.determinism import snap_array
-from dynabarn.errors import DynabarnError
 from dynabarn.metrics import EpisodeResult
 from dynabarn.provenance import portable_path
-from dynabarn.sim import EpisodeStart, Tick
-from dynabarn.worlds.spec import Obstacle, WorldSpec
+from dynabarn.recording import wire
+from dynabarn.recording.topics import (
+    TOPIC_GOAL,
+    TOPIC_METADATA,
+    TOPIC_OBSTACLES,
+    TOPIC_POSE,
+    TOPIC_RESULT,
+    TOPIC_SCAN,
+    TOPIC_STATIC,
+    TOPICS,
+)
+from dynabarn.robot import JACKAL
+from dynabarn.sim.events import EpisodeStart, Tick
+from dynabarn.worlds.spec import Obstacle
 
 CHUNK_SIZE = 64 * 1024
 WALL_CLOCK_FIELDS = ("rtf", "wall_time", "planner_ms_mean", "planner_ms_p95")
@@ -52,58 +45,8 @@ MACHINE_FIELDS = (*WALL_CLOCK_FIELDS, "machine")
 """Result fields kept out of the recording's messages (the machine block goes into the
 MCAP metadata record `dynabarn.machine`), so the messages are byte-identical across machines."""
 MACHINE_METADATA = "dynabarn.machine"
-DEBUG_RESOLUTION = 1e-4
-"""[m] Planner debug geometry is recorded on this grid: DWA's and the oracle's rollouts use
-numpy's sin and cos, whose last bits differ between CPUs."""
 PROFILE = "dynabarn"
-
-TOPIC_METADATA = "/world/metadata"
-TOPIC_STATIC = "/world/static"
-TOPIC_GOAL = "/goal"
-TOPIC_OBSTACLES = "/world/obstacles"
-TOPIC_SCAN = "/scan"
-TOPIC_POSE = "/robot/pose"
-TOPIC_CMD = "/cmd_vel"
-TOPIC_METRICS = "/metrics"
-TOPIC_DEBUG = "/planner/debug"
-TOPIC_RESULT = "/episode/result"
-
-_JSON_SCHEMAS = {
-    TOPIC_METADATA: ("dynabarn.EpisodeStart", {"type": "object"}),
-    TOPIC_CMD: (
-        "dynabarn.Command",
-        {
-            "type": "object",
-            "properties": {
-                "v": {"type": "number", "description": "forward speed sent [m/s]"},
-                "w": {"type": "number", "description": "yaw rate sent [rad/s]"},
-                "raw_v": {"type": "number", "description": "planner output before limits [m/s]"},
-                "raw_w": {"type": "number", "description": "planner output before limits [rad/s]"},
-            },
-        },
-    ),
-    TOPIC_METRICS: (
-        "dynabarn.StepMetrics",
-        {
-            "type": "object",
-            "properties": {
-                "v": {"type": "number"},
-                "w": {"type": "number"},
-                "clearance": {"type": "number"},
-                "distance_to_goal": {"type": "number"},
-            },
-        },
-    ),
-    TOPIC_DEBUG: ("dynabarn.PlannerDebug", {"type": "object"}),
-    TOPIC_RESULT: ("dynabarn.EpisodeResult", {"type": "object"}),
-}
-
-
-def _on_grid(value):
-    """Float arrays on the debug grid (other values as they are)."""
-    if isinstance(value, np.ndarray) and value.dtype.kind == "f":
-        return snap_array(value, DEBUG_RESOLUTION)
-    return value
+PER_TICK = tuple(t for t in TOPICS if t.per_tick is not None)
 
 
 def _ns(t: float) -> int:
@@ -166,8 +109,6 @@ class McapRecorder:
 
     # -- EpisodeObserver --------------------------------------------------------------
     def on_start(self, start: EpisodeStart) -> None:
-        from dynabarn.robot import JACKAL
-
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._ctx = foxglove.Context()
         self._writer = foxglove.open_mcap(
@@ -188,8 +129,10 @@ class McapRecorder:
         self._goal = proto_channel(TOPIC_GOAL, PoseInFrame)
         self._static = proto_channel(TOPIC_STATIC, SceneUpdate)
         self._obstacles = proto_channel(TOPIC_OBSTACLES, SceneUpdate)
-        for topic in (*_JSON_SCHEMAS, *self.extra_channels):
-            name, schema = _JSON_SCHEMAS.get(topic, (f"dynabarn{topic.replace('/', '.')}", {"type": "object"}))
+        json_topics = [(t.name, t.schema, t.json_schema) for t in TOPICS if t.json_schema is not None]
+        for topic in self.extra_channels:
+            json_topics.append((topic, f"dynabarn{topic.replace('/', '.')}", {"type": "object"}))
+        for topic, name, schema in json_topics:
             self._json[topic] = foxglove.Channel(
                 topic,
                 schema=foxglove.Schema(name=name, encoding="jsonschema", data=json.dumps(schema).encode()),
@@ -228,17 +171,10 @@ class McapRecorder:
         block = self._obstacle_block.encode(tick.obstacles[self._obstacle_order])
         entity = wire.scene_entity(ns, _WORLD_FRAME, "obstacles", primitives=block)
         self._obstacles.log(wire.scene_update([entity]), log_time=ns)
-        v, w = tick.command.tolist()
-        raw_v, raw_w = tick.raw_command.tolist()
-        self.log_json(TOPIC_CMD, t, {"v": v, "w": w, "raw_v": raw_v, "raw_w": raw_w})
-        mv, mw = tick.velocity.tolist()
-        self.log_json(
-            TOPIC_METRICS,
-            t,
-            {"v": mv, "w": mw, "clearance": tick.clearance, "distance_to_goal": tick.distance_to_goal},
-        )
-        if tick.debug:
-            self.log_json(TOPIC_DEBUG, t, {k: _on_grid(v) for k, v in tick.debug.items()})
+        for topic in PER_TICK:
+            message = topic.per_tick(tick)
+            if message is not None:
+                self.log_json(topic.name, t, message)
 
     def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
         ns = np.round(times * 1e9).astype(np.int64).tolist()
@@ -270,8 +206,6 @@ class McapRecorder:
             self._writer = None
 
     def _metadata(self, start: EpisodeStart) -> dict:
-        from dataclasses import asdict
-
         info = start.info
         return {
             "world": start.world.metadata(),
@@ -349,155 +283,3 @@ def _primitive_parts(o: Obstacle) -> tuple[float, tuple[float, float, float, flo
     else:
         size = wire.vector3(2 * o.radius, 2 * o.radius, o.height)
     return (*obstacle_pose(o), size)
-
-
-# -- reading --------------------------------------------------------------------------
-
-
-@dataclass
-class Recording:
-    """A recording read back: messages per topic, in file order.
-
-    Attributes:
-        messages: topic -> list of (log_time [s], decoded message); JSON topics decode to
-            dicts, foxglove topics to protobuf messages.
-        schemas: topic -> schema name.
-        truncated: True when the file ended early (a killed writer); `error` says how.
-    """
-
-    path: Path
-    messages: dict[str, list[tuple[float, object]]] = field(default_factory=lambda: defaultdict(list))
-    schemas: dict[str, str] = field(default_factory=dict)
-    truncated: bool = False
-    error: str = ""
-
-    def topic(self, name: str) -> list[tuple[float, object]]:
-        return self.messages.get(name, [])
-
-    @property
-    def metadata(self) -> dict | None:
-        m = self.topic(TOPIC_METADATA)
-        return m[0][1] if m else None  # type: ignore[return-value]
-
-    @property
-    def result(self) -> dict | None:
-        m = self.topic(TOPIC_RESULT)
-        return m[-1][1] if m else None  # type: ignore[return-value]
-
-    def counts(self) -> dict[str, int]:
-        return {k: len(v) for k, v in self.messages.items()}
-
-
-class RecordingError(DynabarnError):
-    """A file that is not a readable MCAP recording at all."""
-
-
-def recorded_world(rec: Recording) -> WorldSpec:
-    """The world the episode ran in, from the recording's metadata."""
-    meta = rec.metadata
-    if not meta or "world" not in meta or "keyframes" not in meta:
-        raise DynabarnError(f"{rec.path}: no world metadata in this recording")
-    world = meta["world"]
-    try:
-        keyframes = [np.asarray(meta["keyframes"][o["name"]]) for o in world["obstacles"]]
-    except (KeyError, TypeError) as exc:
-        raise DynabarnError(f"{rec.path}: malformed world metadata ({exc})") from None
-    return WorldSpec.from_dict(world, keyframes)
-
-
-def obstacle_track(rec: Recording, world: WorldSpec) -> tuple[np.ndarray, np.ndarray]:
-    """What the obstacles did, as recorded: times (T,) [s] and centres (T, n, 2) [m].
-
-    The recorder puts boxes in the update's cubes and the other obstacles in its
-    cylinders, each in world order; this undoes that."""
-    updates = rec.topic(TOPIC_OBSTACLES)
-    n = len(world.obstacles)
-    is_box = np.array([o.shape == "box" for o in world.obstacles], dtype=bool)
-    times = np.array([t for t, _ in updates], dtype=np.float64)
-    xy = np.zeros((len(updates), n, 2))
-    for k, (_, m) in enumerate(updates):
-        entity = m.entities[0] if m.entities else None
-        cyl = [(c.pose.position.x, c.pose.position.y) for c in entity.cylinders] if entity else []
-        cub = [(c.pose.position.x, c.pose.position.y) for c in entity.cubes] if entity else []
-        if len(cyl) != n - is_box.sum() or len(cub) != is_box.sum():
-            raise DynabarnError(f"{rec.path}: obstacle update at {times[k]:.2f} s does not match the world's obstacles")
-        if n:
-            xy[k, ~is_box] = np.asarray(cyl).reshape(-1, 2)
-            xy[k, is_box] = np.asarray(cub).reshape(-1, 2)
-    return times, xy
-
-
-def _json_decoder_factory():
-    from mcap.decoder import DecoderFactory
-
-    class JsonDecoderFactory(DecoderFactory):
-        def decoder_for(self, message_encoding: str, schema) -> Callable[[bytes], object] | None:
-            if message_encoding == "json":
-                return lambda data: json.loads(bytes(data))
-            return None
-
-    return JsonDecoderFactory()
-
-
-def message_digest(path: Path | str) -> str:
-    """sha256 over every message of a recording (topic, log time, bytes) in file order: the
-    same on every machine for the same episode (the machine block is a metadata record,
-    not a message). A file cut short raises DynabarnError."""
-    import hashlib
-
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-
-    h = hashlib.sha256()
-    try:
-        with open(path, "rb") as f:
-            for _schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
-                h.update(channel.topic.encode())
-                h.update(message.log_time.to_bytes(8, "little"))
-                h.update(len(message.data).to_bytes(8, "little"))
-                h.update(message.data)
-    except (McapError, OSError) as exc:
-        raise DynabarnError(f"{path}: cannot read the recording ({exc})") from None
-    return h.hexdigest()
-
-
-def read_recording(path: Path | str, *, decode: bool = True) -> Recording:
-    """Read every message of an MCAP recording, recovering a truncated file up to its cut.
-
-    Uses mcap's NonSeekingReader in file order (no summary section needed), so files
-    whose writer was killed read back up to the last complete chunk.
-    """
-    from mcap.exceptions import McapError
-    from mcap.reader import NonSeekingReader
-    from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
-
-    path = Path(path)
-    if not path.is_file():
-        raise RecordingError(f"recording not found: {path}")
-    rec = Recording(path=path)
-    with path.open("rb") as f:
-        magic = f.read(8)
-        if magic != b"\x89MCAP0\r\n":
-            raise RecordingError(f"{path}: not an MCAP file")
-        f.seek(0)
-        reader = NonSeekingReader(
-            f, validate_crcs=True, decoder_factories=[ProtobufDecoderFactory(), _json_decoder_factory()]
-        )
-        try:
-            if decode:
-                for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
-                    rec.messages[channel.topic].append((message.log_time / 1e9, decoded))
-                    if schema is not None:
-                        rec.schemas.setdefault(channel.topic, schema.name)
-            else:
-                for schema, channel, message in reader.iter_messages(log_time_order=False):
-                    rec.messages[channel.topic].append((message.log_time / 1e9, message.data))
-                    if schema is not None:
-                        rec.schemas.setdefault(channel.topic, schema.name)
-        except (McapError, EOFError, ValueError, OSError, Exception) as exc:  # any cut or corruption
-            rec.truncated = True
-            rec.error = f"{type(exc).__name__}: {exc}"
-    rec.messages = dict(rec.messages)
-    if rec.truncated and not rec.messages:
-        raise RecordingError(f"{path}: corrupt or empty recording ({rec.error})")
-    return rec
