@@ -141,9 +141,9 @@ def env_steps_per_second(n_steps: int = 3000) -> float | None:
 
 def sweep_speedup(workers: int = 2) -> tuple[float, float]:
     """(wall seconds with 1 worker, with `workers`) for the same 40 DWA episodes of paper60."""
-    from dynabarn import bench
+    from dynabarn import bench, worldset
 
-    worlds = bench.world_set("paper60", [0, 1, 2, 3, 100, 101, 150, 151, 200, 201])
+    worlds = worldset.world_set("paper60", [0, 1, 2, 3, 100, 101, 150, 151, 200, 201])
     jobs = bench.make_jobs([("dwa", {})], worlds, get_protocol("barn"), 4)
     times = []
     for n in (1, workers):

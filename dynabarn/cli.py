@@ -248,10 +248,9 @@ def _worlds_show(args: argparse.Namespace) -> int:
 def _worlds_stats(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from dynabarn.bench import parse_ids
     from dynabarn.mjcf import read_world
     from dynabarn.worlds.difficulty import world_measures
-    from dynabarn.worldset import read_index
+    from dynabarn.worldset import parse_ids, read_index
 
     index = read_index(args.folder)
     entries = index["worlds"]
@@ -658,14 +657,14 @@ def _demos_export(args: argparse.Namespace) -> int:
 def _demos_collect(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from dynabarn import bench
+    from dynabarn import bench, worldset
     from dynabarn.planners import get_planner
     from dynabarn.protocol import get_protocol
     from dynabarn.teleop import MANIFEST, append_manifest
 
     get_planner(args.planner)
     protocol = get_protocol(args.protocol)
-    worlds = bench.world_set(args.set, bench.parse_ids(args.worlds))
+    worlds = worldset.world_set(args.set, worldset.parse_ids(args.worlds))
     jobs = bench.make_jobs([(args.planner, {})], worlds, protocol, args.trials, record="all", recordings_dir=args.out)
     report = bench.run_sweep(
         jobs,
@@ -850,7 +849,7 @@ def _golden(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from dynabarn import golden
+    from dynabarn.bench import golden
     from dynabarn.provenance import machine
 
     if args.jobs < 1:
@@ -885,7 +884,7 @@ def _golden(args: argparse.Namespace) -> int:
 def _bench(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from dynabarn import bench
+    from dynabarn import bench, worldset
     from dynabarn.planners import get_planner
     from dynabarn.protocol import get_protocol
 
@@ -898,7 +897,7 @@ def _bench(args: argparse.Namespace) -> int:
     for name in names:
         get_planner(name, **config)  # fail fast on an unknown planner or bad configuration
     protocol = get_protocol(args.protocol)
-    worlds = bench.world_set(args.set, bench.parse_ids(args.worlds))
+    worlds = worldset.world_set(args.set, worldset.parse_ids(args.worlds))
     jobs = bench.make_jobs(
         [(n, config) for n in names],
         worlds,

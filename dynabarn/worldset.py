@@ -16,8 +16,8 @@ from dynabarn.errors import WorldError
 from dynabarn.mjcf import write_world
 from dynabarn.provenance import GENERATED_WORLDS
 from dynabarn.worlds.difficulty import difficulty_scores
-from dynabarn.worlds.generate import DEFAULT_BASE_SEED, N_WORLDS, PAPER60, generate_world
-from dynabarn.worlds.profiles import ProfileSet, ShapeMix, StaticField
+from dynabarn.worlds.generate import DEFAULT_BASE_SEED, N_WORLDS, PAPER60, branch_of, generate_world
+from dynabarn.worlds.profiles import Difficulty, ProfileSet, ShapeMix, StaticField, difficulty_of
 from dynabarn.worlds.spec import SCRIPTED, EndBehavior, Interpolation, WorldSpec
 
 INDEX_NAME = "index.json"
@@ -112,9 +112,7 @@ def generate_worlds(
     sets = {
         "all": ids,
         "paper60": [i for i in PAPER60 if i in ids],
-        "easy": [i for i in ids if i < 100],
-        "medium": [i for i in ids if 100 <= i < 200],
-        "hard": [i for i in ids if i >= 200],
+        **{d.value: [i for i in ids if difficulty_of(*branch_of(i)) is d] for d in Difficulty},
     }
     meta = {"generator": "dynabarn", "profile_set": profile_set.to_dict(), "base_seed": base_seed}
     if shapes is not None and not shapes.cylinders_only:
@@ -154,3 +152,43 @@ def resolve_world(id_or_path: str | int | Path) -> Path:
     if not path.is_file():
         raise WorldError(f"world not found: {s} (give a world id 0-299 or the path of a world .xml)")
     return path
+
+
+def parse_ids(text: str | None) -> list[int] | None:
+    """'0,5,100-119' -> [0, 5, 100, ..., 119]."""
+    if not text:
+        return None
+    ids: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        lo, sep, hi = part.partition("-")
+        try:
+            if sep:
+                ids.extend(range(int(lo), int(hi) + 1))
+            else:
+                ids.append(int(part))
+        except ValueError:
+            raise WorldError(f"bad --worlds item {part!r}: use ids and ranges like 0,5,100-119") from None
+    return ids
+
+
+def world_set(name: str, ids: list[int] | None = None) -> list[tuple[int, str, str]]:
+    """(world id, file, difficulty) for `paper60`, `dynabarn300`, or a folder/index.json."""
+    if name in ("paper60", "dynabarn300"):
+        index_dir = GENERATED_WORLDS
+        chosen = list(PAPER60) if name == "paper60" else list(range(300))
+    else:
+        p = Path(name)
+        index_dir = p.parent if p.name == "index.json" else p
+        if not (index_dir / "index.json").is_file():
+            raise WorldError(f"unknown world set {name!r}: use paper60, dynabarn300, or a folder with index.json")
+        chosen = None
+    index = read_index(index_dir)  # checks the format tag; one clear line when malformed
+    entries = {e["id"]: e for e in index["worlds"]}
+    chosen = chosen if chosen is not None else sorted(entries)
+    if ids is not None:
+        missing = sorted(set(ids) - set(entries))
+        if missing:
+            raise WorldError(f"world id(s) {missing[:5]} not in set {name!r}")
+        chosen = [i for i in chosen if i in set(ids)] if name == "paper60" else ids
+    return [(i, str(index_dir / entries[i]["file"]), entries[i]["difficulty"]) for i in chosen]

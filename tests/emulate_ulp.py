@@ -62,7 +62,7 @@ def _one_ulp_off(ufunc):
 def main() -> int:
     for name in PERTURBED:
         setattr(np, name, _one_ulp_off(getattr(np, name)))
-    from dynabarn import golden
+    from dynabarn.bench import golden
 
     reference = golden.DEFAULT_REFERENCE
     if "--reference" in sys.argv:

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from dynabarn import bench
+from dynabarn import bench, worldset
 from dynabarn.cli import bench_main
 from dynabarn.planners import get_planner, register_planner
 from dynabarn.planners.base import Planner
@@ -22,14 +22,14 @@ def _strip(row: dict) -> dict:
 
 
 def _jobs(planner="straight", worlds="0,1,200", trials=2):
-    return bench.make_jobs([(planner, {})], bench.world_set("dynabarn300", bench.parse_ids(worlds)), BARN, trials)
+    return bench.make_jobs([(planner, {})], worldset.world_set("dynabarn300", worldset.parse_ids(worlds)), BARN, trials)
 
 
 def test_wilson_interval_known_values():
     lo, hi = bench.wilson_interval(8, 10)
     assert lo == pytest.approx(0.4902, abs=1e-3) and hi == pytest.approx(0.9433, abs=1e-3)
     assert bench.wilson_interval(0, 20)[0] == 0.0
-    assert bench.parse_ids("0,5,100-102") == [0, 5, 100, 101, 102]
+    assert worldset.parse_ids("0,5,100-102") == [0, 5, 100, 101, 102]
 
 
 def test_sweep_rows_and_summary_match_individual_runs(tmp_path):
@@ -86,7 +86,7 @@ class Explodes(Planner):
 
 def test_error_episodes_are_recorded_and_the_sweep_goes_on(tmp_path):
     register_planner("explodes", Explodes)
-    jobs = bench.make_jobs([("explodes", {}), ("straight", {})], bench.world_set("dynabarn300", [0]), BARN, 1)
+    jobs = bench.make_jobs([("explodes", {}), ("straight", {})], worldset.world_set("dynabarn300", [0]), BARN, 1)
     report = bench.run_sweep(jobs, tmp_path, n_workers=1)
     rows = {r["planner"]: r for r in report.rows}
     assert rows["explodes"]["outcome"] == "error" and "ZeroDivisionError" in rows["explodes"]["reason"]

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dynabarn import bench
+from dynabarn import bench, worldset
 from dynabarn.cli import demos_main
 from dynabarn.demos import load_dataset
 from dynabarn.errors import DynabarnError
@@ -17,7 +17,7 @@ HARD_AND_MEDIUM = "150,155,200,201,205,210,215"
 
 
 def test_oracle_succeeds_clearly_more_often_than_dwa(tmp_path):
-    worlds = bench.world_set("dynabarn300", bench.parse_ids(HARD_AND_MEDIUM))
+    worlds = worldset.world_set("dynabarn300", worldset.parse_ids(HARD_AND_MEDIUM))
     jobs = bench.make_jobs([("oracle", {}), ("dwa", {})], worlds, get_protocol("barn"), 2)
     rows = bench.run_sweep(jobs, tmp_path, n_workers=2).rows
     wins = {p: sum(r["outcome"] == "success" for r in rows if r["planner"] == p) for p in ("oracle", "dwa")}

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from dynabarn import golden
+from dynabarn.bench import golden
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_METADATA, McapRecorder, read_recording

@@ -9,10 +9,10 @@ torch = pytest.importorskip("torch")
 import dynabarn.learn  # noqa: E402  (registers DynaBARN-v0)
 from dynabarn.cli import demos_main, train_main  # noqa: E402
 from dynabarn.errors import DynabarnError  # noqa: E402
-from dynabarn.learn.env import action_to_command, command_to_action  # noqa: E402
-from dynabarn.learn.models import Actor, load_policy  # noqa: E402
 from dynabarn.metrics import Outcome  # noqa: E402
 from dynabarn.planners import get_planner  # noqa: E402
+from dynabarn.planners.learned.models import Actor, load_policy  # noqa: E402
+from dynabarn.planners.learned.spaces import action_to_command, command_to_action  # noqa: E402
 from dynabarn.protocol import get_protocol  # noqa: E402
 from dynabarn.recording import McapRecorder  # noqa: E402
 from dynabarn.sim import run_episode  # noqa: E402

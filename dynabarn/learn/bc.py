@@ -10,8 +10,8 @@ import numpy as np
 import torch
 
 from dynabarn.demos import load_dataset
-from dynabarn.learn.env import command_to_action
-from dynabarn.learn.models import Actor, save_policy
+from dynabarn.planners.learned.models import Actor, save_policy
+from dynabarn.planners.learned.spaces import command_to_action
 
 
 @dataclass

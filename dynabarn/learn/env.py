@@ -58,36 +58,18 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from dynabarn.bench import world_set as resolve_world_set
 from dynabarn.metrics import Outcome
 from dynabarn.planners.global_planner import GlobalPlanner
+from dynabarn.planners.learned.spaces import action_to_command, policy_input
 from dynabarn.protocol import get_protocol
-from dynabarn.robot import JACKAL, to_robot_frame
+from dynabarn.robot import JACKAL
 from dynabarn.sim import Episode, Simulation
+from dynabarn.worldset import world_set as resolve_world_set
 
-V_MIN, V_MAX, W_MAX = JACKAL.v_min, JACKAL.v_max, JACKAL.w_max
 REWARD_PROGRESS = 1.0
 REWARD_TIME = -0.01
 REWARD_COLLISION = -10.0
 REWARD_SUCCESS = 20.0
-
-
-def action_to_command(action: np.ndarray) -> tuple[float, float]:
-    """Normalised action in [-1, 1]^2 -> (v [m/s], w [rad/s])."""
-    a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
-    return V_MIN + 0.5 * (a[0] + 1.0) * (V_MAX - V_MIN), W_MAX * a[1]
-
-
-def command_to_action(v: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """(v, w) -> normalised actions (..., 2), the inverse of `action_to_command`."""
-    a0 = 2.0 * (np.asarray(v) - V_MIN) / (V_MAX - V_MIN) - 1.0
-    a1 = np.asarray(w) / W_MAX
-    return np.clip(np.stack([a0, a1], axis=-1), -1.0, 1.0).astype(np.float32)
-
-
-def local_goal(planner: GlobalPlanner, pose: np.ndarray, lookahead: float) -> np.ndarray:
-    lg, _ = planner.local_goal(float(pose[0]), float(pose[1]), lookahead)
-    return to_robot_frame(lg[None], pose)[0]
 
 
 class DynaBARNEnv(gymnasium.Env):
@@ -123,8 +105,7 @@ class DynaBARNEnv(gymnasium.Env):
     def _observe(self) -> np.ndarray:
         obs = self.episode.observe()
         self._pose = obs.pose
-        g = local_goal(self._planner, obs.pose, self.lookahead)
-        return np.concatenate([obs.scan, g]).astype(np.float32)
+        return policy_input(obs.scan, self._planner.local_goal_in_robot(obs.pose, self.lookahead), np.float32)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
@@ -172,6 +153,6 @@ class DynaBARNEnv(gymnasium.Env):
         """After the episode ended: the final pose's observation, without a new scan."""
         ep = self.episode
         self._pose = ep.poses[ep.step].copy()
-        g = local_goal(self._planner, self._pose, self.lookahead)
+        g = self._planner.local_goal_in_robot(self._pose, self.lookahead)
         scan = np.clip(ep._obs.scan, JACKAL.laser_range_min, JACKAL.laser_range_max)
-        return np.concatenate([scan, g]).astype(np.float32)
+        return policy_input(scan, g, np.float32)

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from dynabarn.learn import ENV_ID
-from dynabarn.learn.models import Actor, Critic, save_policy
+from dynabarn.planners.learned.models import Actor, Critic, save_policy
 
 
 @dataclass

@@ -1,80 +1,18 @@
-"""Planner registry: built-in planners plus any installed under the entry-point group
-`dynabarn.planners` (name = "module:factory"), so a researcher adds a planner from their
-own package without touching this one:
+"""Local planners: the interface (base), the registry (built-ins, run-time registrations
+and the entry-point group `dynabarn.planners`), the classical baselines (dwa, teb with
+costmap and global_planner), the privileged oracle, the simple floors and the learned
+baselines (learned/). A new planner: a `Planner` subclass plus one registry line or entry
+point (README "Writing a planner")."""
 
-    [project.entry-points."dynabarn.planners"]
-    my_planner = "my_pkg.planner:MyPlanner"
-"""
-
-from __future__ import annotations
-
-from collections.abc import Callable
-from importlib.metadata import entry_points
-from pathlib import Path
-
-from dynabarn.errors import DynabarnError, unknown_choice
+from dynabarn.errors import EndEpisode
 from dynabarn.planners.base import EpisodeInfo, Observation, ObstacleState, Planner
-from dynabarn.planners.dwa import DWAPlanner
-from dynabarn.planners.oracle import OraclePlanner
-from dynabarn.planners.simple import StopPlanner, StraightPlanner
-from dynabarn.planners.teb import TEBPlanner
-
-ENTRY_POINT_GROUP = "dynabarn.planners"
-
-
-def _bc(**config) -> Planner:
-    from dynabarn.planners.learned import BCPlanner
-
-    return BCPlanner(**config)
-
-
-def _td3(**config) -> Planner:
-    from dynabarn.planners.learned import TD3Planner
-
-    return TD3Planner(**config)
-
-
-_BUILTIN: dict[str, Callable[..., Planner]] = {
-    "dwa": DWAPlanner,
-    "teb": TEBPlanner,
-    "oracle": OraclePlanner,
-    "bc": _bc,  # the learned ones load torch only when used
-    "td3": _td3,
-    "straight": StraightPlanner,
-    "stop": StopPlanner,
-}
-_registered: dict[str, Callable[..., Planner]] = {}
-
-
-def register_planner(name: str, factory: Callable[..., Planner]) -> None:
-    """Register a planner factory under `name` at run time."""
-    _registered[name] = factory
-
-
-def _entry_point_planners() -> dict[str, object]:
-    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
-
-
-def available_planners() -> list[str]:
-    return sorted({*_BUILTIN, *_registered, *_entry_point_planners()})
-
-
-def get_planner(name: str, **config) -> Planner:
-    """Instantiate the planner `name` with keyword configuration."""
-    factory = _registered.get(name) or _BUILTIN.get(name)
-    if factory is None:
-        ep = _entry_point_planners().get(name)
-        if ep is None:
-            raise DynabarnError(unknown_choice("planner", name, available_planners()))
-        try:
-            factory = ep.load()
-        except Exception as exc:  # a broken third-party package: say which one
-            raise DynabarnError(f"planner {name!r} failed to load from {ep.value}: {exc}") from None
-    try:
-        return factory(**config)
-    except TypeError as exc:
-        raise DynabarnError(f"planner {name!r}: bad configuration: {exc}") from None
-
+from dynabarn.planners.registry import (
+    available_planners,
+    get_planner,
+    planner_presets,
+    read_planner_config,
+    register_planner,
+)
 
 __all__ = [
     "EndEpisode",
@@ -84,31 +22,7 @@ __all__ = [
     "Planner",
     "available_planners",
     "get_planner",
+    "planner_presets",
+    "read_planner_config",
     "register_planner",
 ]
-
-
-PRESETS_DIR = Path(__file__).resolve().parent / "presets"
-"""Named planner configurations shipped with the package (`--planner-config NAME`)."""
-
-
-def planner_presets() -> list[str]:
-    """Names of the shipped planner configurations, e.g. `dwa_barn_challenge`."""
-    return sorted(p.stem for p in PRESETS_DIR.glob("*.json"))
-
-
-def read_planner_config(text: str) -> dict:
-    """A shipped preset by name, or a planner configuration .json file: the parameters
-    (keys starting with "_", such as "_source", are notes and left out)."""
-    import json
-
-    path = PRESETS_DIR / f"{text}.json" if text in planner_presets() else Path(text)
-    if not path.is_file():
-        raise DynabarnError(f"planner config file not found: {path}")
-    try:
-        cfg = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise DynabarnError(f"{path}: planner config is not valid JSON ({exc})") from None
-    if not isinstance(cfg, dict):
-        raise DynabarnError(f"{path}: planner config must be a JSON object")
-    return {k: v for k, v in cfg.items() if not k.startswith("_")}

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dynabarn.robot import JACKAL
+from dynabarn.robot import JACKAL, to_robot_frame
 
 RESOLUTION = 0.1
 """Grid cell size [m]."""
@@ -237,6 +237,11 @@ class GlobalPlanner:
         k = int(np.searchsorted(along, lookahead))
         u = (lookahead - along[k - 1]) / max(seg[k - 1], 1e-12)
         return path[k - 1] + u * (path[k] - path[k - 1]), path
+
+    def local_goal_in_robot(self, pose: np.ndarray, lookahead: float) -> np.ndarray:
+        """The local goal `lookahead` metres along the plan from pose (x, y, yaw), in the robot frame."""
+        lg, _ = self.local_goal(float(pose[0]), float(pose[1]), lookahead)
+        return to_robot_frame(lg[None], pose)[0]
 
 
 class LocalReplanner:

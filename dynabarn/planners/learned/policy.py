@@ -12,14 +12,12 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-import numpy as np
-
 from dynabarn.errors import DynabarnError
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.robot import to_robot_frame
+from dynabarn.planners.learned.spaces import action_to_command, policy_input
 
-SHIPPED = Path(__file__).resolve().parent.parent / "policies"
+SHIPPED = Path(__file__).resolve().parents[2] / "policies"
 
 
 class LearnedPlanner(Planner):
@@ -29,11 +27,10 @@ class LearnedPlanner(Planner):
         try:
             import torch
 
-            from dynabarn.learn.models import load_policy
+            from dynabarn.planners.learned.models import load_policy
         except ImportError:
             raise DynabarnError(f"planner {self.kind!r} needs the learn extra: pip install -e '.[learn]'") from None
         self._torch = torch
-        torch.set_num_threads(1)
         path = Path(policy) if policy else SHIPPED / f"{self.kind}.pt"
         self.actor, self.header = load_policy(path)
         # Inference in float64: PyTorch's CPU kernels (AVX2, AVX-512, threads) differ in the
@@ -61,11 +58,8 @@ class LearnedPlanner(Planner):
         self.global_planner = GlobalPlanner.for_robot(info.walls, info.goal, info.footprint, info.static_obstacles)
 
     def act(self, obs: Observation) -> tuple[float, float]:
-        from dynabarn.learn.env import action_to_command
-
-        lg, _ = self.global_planner.local_goal(float(obs.pose[0]), float(obs.pose[1]), self.lookahead)
-        g = to_robot_frame(lg[None], obs.pose)[0]
-        x = np.concatenate([obs.scan, g]).astype(np.float64)[None]
+        g = self.global_planner.local_goal_in_robot(obs.pose, self.lookahead)
+        x = policy_input(obs.scan, g)[None]
         with self._torch.no_grad():
             a = self.actor(self._torch.from_numpy(x)).numpy()[0]
         return action_to_command(a)

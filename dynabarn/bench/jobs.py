@@ -1,0 +1,118 @@
+"""A sweep's jobs: one episode each (planner, configuration, world, protocol, seed), and
+`run_job`, which runs one and never raises (an exception becomes an `error` row)."""
+
+from __future__ import annotations
+
+import json
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from dynabarn.metrics import Outcome
+from dynabarn.planners.registry import get_planner, planner_factory, registered_at_run_time
+from dynabarn.protocol import EvalProtocol
+from dynabarn.recording.writer import default_run_path
+
+
+@dataclass(frozen=True)
+class Job:
+    """One episode to run."""
+
+    planner: str
+    planner_config: tuple  # sorted (key, value) pairs, hashable
+    world_file: str
+    world_id: int
+    difficulty: str
+    protocol: dict
+    seed: int
+    record: str = "none"  # none | failures | all
+    recordings_dir: str = ""
+    factory: Callable | None = None
+    """The planner's factory, for a planner registered at run time (`register_planner`):
+    worker processes that do not fork (spawn, Ray) know only installed planners."""
+
+    @property
+    def key(self) -> str:
+        """Identity of the episode in results.jsonl (what resuming compares)."""
+        cfg = json.dumps(dict(self.planner_config), sort_keys=True)
+        return f"{self.planner}|{cfg}|{Path(self.world_file).name}|{self.protocol['name']}|{self.seed}"
+
+
+def make_jobs(
+    planners: list[tuple[str, dict]],
+    worlds: list[tuple[int, str, str]],
+    protocol: EvalProtocol,
+    trials: int,
+    *,
+    record: str = "none",
+    recordings_dir: Path | None = None,
+) -> list[Job]:
+    return [
+        Job(
+            planner=name,
+            planner_config=tuple(sorted(cfg.items())),
+            world_file=file,
+            world_id=wid,
+            difficulty=difficulty,
+            protocol=protocol.to_dict(),
+            seed=seed,
+            record=record,
+            recordings_dir=str(recordings_dir or ""),
+            factory=planner_factory(name) if registered_at_run_time(name) else None,
+        )
+        for name, cfg in planners
+        for wid, file, difficulty in worlds
+        for seed in range(trials)
+    ]
+
+
+def run_job(job: Job) -> dict:
+    """Run one episode; never raises (an exception becomes an `error` row with its traceback)."""
+    from dynabarn.recording import McapRecorder
+    from dynabarn.sim import Simulation, run_episode
+
+    row: dict = {
+        "key": job.key,
+        "planner": job.planner,
+        "world_id": job.world_id,
+        "difficulty": job.difficulty,
+        "seed": job.seed,
+        "protocol": job.protocol["name"],
+    }
+    rec_path = None
+    try:
+        sim = Simulation(job.world_file)
+        planner = get_planner(job.planner, factory=job.factory, **dict(job.planner_config))
+        observers = []
+        if job.record != "none":
+            rec_path = default_run_path(
+                Path(job.recordings_dir), sim.world.name, job.planner, job.protocol["name"], job.seed
+            )
+            observers.append(McapRecorder(rec_path.with_suffix(".mcap.part")))
+        result = run_episode(
+            sim,
+            planner,
+            EvalProtocol.from_dict(job.protocol),
+            seed=job.seed,
+            observers=observers,
+            planner_name=job.planner,
+        )
+        row.update(result.to_dict())
+        if rec_path is not None:
+            part = rec_path.with_suffix(".mcap.part")
+            if job.record == "all" or result.outcome is not Outcome.SUCCESS:
+                part.replace(rec_path)
+                row["recording"] = str(rec_path)
+            else:
+                part.unlink(missing_ok=True)
+    except Exception as exc:  # foreign planner code, a broken world...: record and go on
+        row.update(
+            {
+                "outcome": Outcome.ERROR.value,
+                "reason": f"{type(exc).__name__}: {exc}",
+                "traceback": traceback.format_exc(),
+            }
+        )
+    row["planner"] = job.planner  # the registry name, whatever the planner calls itself
+    return row

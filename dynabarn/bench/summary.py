@@ -1,0 +1,164 @@
+"""The summary per planner and difficulty: success rate with a 95% Wilson interval,
+collision and timeout rates, mean time of successes, BARN score, SPL and minimum
+clearance; printed, and written as `summary.csv`, `summary.md` and a Fig. 5-style
+`fig5.png` with the paper's published values beside ours."""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections import defaultdict
+from pathlib import Path
+
+from dynabarn.worlds.profiles import Difficulty
+
+PAPER_FIG5 = {
+    "dwa": {"easy": 0.78, "medium": 0.43, "hard": 0.17},
+    "teb": {"easy": 0.40, "medium": 0.16, "hard": 0.00},
+    "bc": {"easy": 0.30, "medium": 0.08, "hard": 0.05},
+    "td3": {"easy": 0.74, "medium": 0.60, "hard": 0.28},
+}
+"""The paper's Fig. 5 success rates (read off the bar chart, +-0.02)."""
+
+
+DIFFICULTIES = tuple(d.value for d in Difficulty)
+
+
+def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """95% Wilson score interval of a binomial proportion."""
+    if n == 0:
+        return 0.0, 1.0
+    p = successes / n
+    denom = 1 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
+    # The interval always contains p; rounding could otherwise put p = 1 just above it.
+    return max(0.0, min(p, centre - half)), min(1.0, max(p, centre + half))
+
+
+def _mean(values: list[float]) -> float:
+    vals = [v for v in values if v is not None and math.isfinite(v)]
+    return sum(vals) / len(vals) if vals else float("nan")
+
+
+PAPER_PROTOCOLS = ("barn", "paper2022")
+
+
+def summarise(rows: list[dict]) -> list[dict]:
+    """One summary row per (planner, difficulty), plus 'all' per planner."""
+    groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
+    for r in rows:
+        groups[(r["planner"], r["difficulty"])].append(r)
+        groups[(r["planner"], "all")].append(r)
+    out = []
+    order = {d: i for i, d in enumerate((*DIFFICULTIES, "all"))}
+    for (planner, difficulty), rs in sorted(groups.items(), key=lambda kv: (kv[0][0], order.get(kv[0][1], 9))):
+        n = len(rs)
+        k = sum(r["outcome"] == "success" for r in rs)
+        lo, hi = wilson_interval(k, n)
+        succ = [r for r in rs if r["outcome"] == "success"]
+        out.append(
+            {
+                "planner": planner,
+                "difficulty": difficulty,
+                "episodes": n,
+                "success": k / n,
+                "success_lo": lo,
+                "success_hi": hi,
+                "collision": sum(r["outcome"] == "collision" for r in rs) / n,
+                "timeout": sum(r["outcome"] == "timeout" for r in rs) / n,
+                "error": sum(r["outcome"] == "error" for r in rs) / n,
+                "time_success": _mean([r.get("time") for r in succ]),
+                "score": _mean([r.get("score", 0.0) for r in rs]),
+                "spl": _mean([r.get("spl", 0.0) for r in rs]),
+                "min_clearance": _mean([r.get("min_clearance") for r in rs]),
+                # The paper's Fig. 5 only compares with runs in DynaBARN worlds under its protocols.
+                "paper": PAPER_FIG5.get(planner, {}).get(difficulty)
+                if all(r.get("protocol") in PAPER_PROTOCOLS for r in rs)
+                else None,
+            }
+        )
+    return out
+
+
+def format_table(summary: list[dict]) -> str:
+    head = (
+        f"{'planner':<10}{'difficulty':<11}{'n':>5}{'success [95% CI]':>22}{'coll':>7}{'timeout':>8}"
+        f"{'t_succ':>8}{'score':>7}{'SPL':>6}{'clear':>7}{'paper':>7}"
+    )
+    lines = [head, "-" * len(head)]
+    for s in summary:
+        ci = f"{s['success']:.2f} [{s['success_lo']:.2f}, {s['success_hi']:.2f}]"
+        paper = f"{s['paper']:.2f}" if s["paper"] is not None else "-"
+        lines.append(
+            f"{s['planner']:<10}{s['difficulty']:<11}{s['episodes']:>5}{ci:>22}{s['collision']:>7.2f}"
+            f"{s['timeout']:>8.2f}{s['time_success']:>8.1f}{s['score']:>7.3f}{s['spl']:>6.2f}"
+            f"{s['min_clearance']:>7.2f}{paper:>7}"
+        )
+    return "\n".join(lines)
+
+
+def write_summary(summary: list[dict], out_dir: Path, *, title: str = "") -> dict[str, Path]:
+    paths = {"csv": out_dir / "summary.csv", "md": out_dir / "summary.md", "png": out_dir / "fig5.png"}
+    with paths["csv"].open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(summary[0].keys()))
+        w.writeheader()
+        w.writerows(summary)
+    md = [
+        "| planner | difficulty | episodes | success [95% CI] | collision | timeout | mean time of successes [s] "
+        "| score | SPL | min clearance [m] | paper |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for s in summary:
+        paper = f"{s['paper']:.2f}" if s["paper"] is not None else "-"
+        md.append(
+            f"| {s['planner']} | {s['difficulty']} | {s['episodes']} | {s['success']:.2f} "
+            f"[{s['success_lo']:.2f}, {s['success_hi']:.2f}] | {s['collision']:.2f} | {s['timeout']:.2f} | "
+            f"{s['time_success']:.1f} | {s['score']:.3f} | {s['spl']:.2f} | {s['min_clearance']:.2f} | {paper} |"
+        )
+    paths["md"].write_text((f"# {title}\n\n" if title else "") + "\n".join(md) + "\n")
+    plot_fig5(summary, paths["png"], title=title)
+    return paths
+
+
+def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
+    """Bars of success per difficulty with 95% intervals, the paper's values as hatched bars."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    planners = sorted({s["planner"] for s in summary})
+    fig, ax = plt.subplots(figsize=(2.2 + 2.4 * len(planners), 4.0), dpi=120)
+    width = 0.8 / (2 * len(planners))
+    colors = plt.get_cmap("tab10")
+    x = np.arange(len(DIFFICULTIES))
+    for k, planner in enumerate(planners):
+        rows = {s["difficulty"]: s for s in summary if s["planner"] == planner}
+        ours = [rows[d]["success"] if d in rows else np.nan for d in DIFFICULTIES]
+        err = np.array(
+            [
+                [rows[d]["success"] - rows[d]["success_lo"], rows[d]["success_hi"] - rows[d]["success"]]
+                if d in rows
+                else [0, 0]
+                for d in DIFFICULTIES
+            ]
+        ).T
+        pos = x - 0.4 + width * (2 * k + 0.5)
+        ax.bar(pos, ours, width, yerr=err, capsize=3, color=colors(k), label=f"{planner} (ours)")
+        paper = [rows[d]["paper"] if d in rows and rows[d]["paper"] is not None else np.nan for d in DIFFICULTIES]
+        if not all(np.isnan(paper)):
+            ax.bar(
+                pos + width, paper, width, color="white", edgecolor=colors(k), hatch="//", label=f"{planner} (paper)"
+            )
+    ax.set_xticks(x, DIFFICULTIES)
+    ax.set_ylim(0, 1.05)
+    ax.set_ylabel("success rate")
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=8, ncol=2)
+    ax.set_title(title or "success rate per difficulty (95% Wilson intervals)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path

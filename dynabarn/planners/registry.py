@@ -1,0 +1,103 @@
+"""Planner registry: built-in planners plus any installed under the entry-point group
+`dynabarn.planners` (name = "module:factory"), so a researcher adds a planner from their
+own package without touching this one:
+
+    [project.entry-points."dynabarn.planners"]
+    my_planner = "my_pkg.planner:MyPlanner"
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from importlib.metadata import entry_points
+from pathlib import Path
+
+from dynabarn.errors import DynabarnError, unknown_choice
+from dynabarn.planners.base import Planner
+from dynabarn.planners.dwa import DWAPlanner
+from dynabarn.planners.learned import BCPlanner, TD3Planner
+from dynabarn.planners.oracle import OraclePlanner
+from dynabarn.planners.simple import StopPlanner, StraightPlanner
+from dynabarn.planners.teb import TEBPlanner
+
+ENTRY_POINT_GROUP = "dynabarn.planners"
+
+
+_BUILTIN: dict[str, Callable[..., Planner]] = {
+    "dwa": DWAPlanner,
+    "teb": TEBPlanner,
+    "oracle": OraclePlanner,
+    "bc": BCPlanner,  # the learned ones import torch only when built
+    "td3": TD3Planner,
+    "straight": StraightPlanner,
+    "stop": StopPlanner,
+}
+_registered: dict[str, Callable[..., Planner]] = {}
+
+
+def register_planner(name: str, factory: Callable[..., Planner]) -> None:
+    """Register a planner factory under `name` at run time."""
+    _registered[name] = factory
+
+
+def _entry_point_planners() -> dict[str, object]:
+    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def available_planners() -> list[str]:
+    return sorted({*_BUILTIN, *_registered, *_entry_point_planners()})
+
+
+def planner_factory(name: str) -> Callable[..., Planner]:
+    """The factory registered under `name`: registered at run time, built in, or installed."""
+    factory = _registered.get(name) or _BUILTIN.get(name)
+    if factory is not None:
+        return factory
+    ep = _entry_point_planners().get(name)
+    if ep is None:
+        raise DynabarnError(unknown_choice("planner", name, available_planners()))
+    try:
+        return ep.load()
+    except Exception as exc:  # a broken third-party package: say which one
+        raise DynabarnError(f"planner {name!r} failed to load from {ep.value}: {exc}") from None
+
+
+def registered_at_run_time(name: str) -> bool:
+    """`name` lives only in this process (`register_planner`): worker processes that do not
+    fork must be handed its factory (pickled by reference)."""
+    return name in _registered
+
+
+def get_planner(name: str, *, factory: Callable[..., Planner] | None = None, **config) -> Planner:
+    """Instantiate the planner `name` (or `factory`, when given) with keyword configuration."""
+    factory = factory or planner_factory(name)
+    try:
+        return factory(**config)
+    except TypeError as exc:
+        raise DynabarnError(f"planner {name!r}: bad configuration: {exc}") from None
+
+
+PRESETS_DIR = Path(__file__).resolve().parent / "presets"
+"""Named planner configurations shipped with the package (`--planner-config NAME`)."""
+
+
+def planner_presets() -> list[str]:
+    """Names of the shipped planner configurations, e.g. `dwa_barn_challenge`."""
+    return sorted(p.stem for p in PRESETS_DIR.glob("*.json"))
+
+
+def read_planner_config(text: str) -> dict:
+    """A shipped preset by name, or a planner configuration .json file: the parameters
+    (keys starting with "_", such as "_source", are notes and left out)."""
+    import json
+
+    path = PRESETS_DIR / f"{text}.json" if text in planner_presets() else Path(text)
+    if not path.is_file():
+        raise DynabarnError(f"planner config file not found: {path}")
+    try:
+        cfg = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise DynabarnError(f"{path}: planner config is not valid JSON ({exc})") from None
+    if not isinstance(cfg, dict):
+        raise DynabarnError(f"{path}: planner config must be a JSON object")
+    return {k: v for k, v in cfg.items() if not k.startswith("_")}
