@@ -66,7 +66,7 @@ format: $(TEST_STAMP)
 	$(BIN)/ruff format . && $(BIN)/ruff check --fix .
 
 bench: $(STAMP)
-	$(BIN)/python -m dynabarn.benchmarks
+	$(BIN)/python benchmarks/run.py
 
 # The golden set: the same episodes as the committed ones, or every field that differs.
 verify-golden: $(TEST_STAMP)

@@ -1,46 +1,61 @@
 """DynaBARN on MuJoCo: ground-robot navigation among moving obstacles.
 
 The public surface, in the order data flows: profiles -> trajectories -> worlds -> MJCF
--> simulation -> recording.
+-> simulation -> recording. Names load on first use, so `import dynabarn` is cheap and
+imports neither MuJoCo nor anything else until a name is needed (and changes no global
+state: an application that renders offscreen chooses MuJoCo's OpenGL platform itself,
+as the command-line tools do).
 """
 
-import os as _os
+from __future__ import annotations
 
-# Offscreen rendering needs an OpenGL platform before mujoco is imported: without a display,
-# use EGL (Mesa, no GPU needed); with one (or Xvfb), MuJoCo's default GLFW.
-if "MUJOCO_GL" not in _os.environ and not _os.environ.get("DISPLAY"):
-    _os.environ["MUJOCO_GL"] = "egl"
+import importlib
+from typing import TYPE_CHECKING
 
-from dynabarn.errors import DynabarnError, ProfileError, WorldError
-from dynabarn.metrics import EpisodeResult, Outcome
-from dynabarn.mjcf import load_model, read_world, write_world
-from dynabarn.planners import (
-    EpisodeInfo,
-    Observation,
-    ObstacleState,
-    Planner,
-    available_planners,
-    get_planner,
-    register_planner,
-)
-from dynabarn.protocol import PROTOCOLS, EvalProtocol, get_protocol, register_protocol
-from dynabarn.recording import McapRecorder, Recording, read_recording
-from dynabarn.sim import SimConfig, Simulation, run_episode
-from dynabarn.worlds.generate import PAPER60, generate_world
-from dynabarn.worlds.profiles import (
-    PROFILE_SETS,
-    SHAPE_MIXES,
-    STATIC_FIELDS,
-    MotionProfile,
-    ProfileSet,
-    ShapeMix,
-    StaticField,
-    get_profile_set,
-)
-from dynabarn.worlds.schedule import SchedulePlayer
-from dynabarn.worlds.spec import Layout, Obstacle, WorldSpec
-from dynabarn.worlds.trajectory import Trajectory, generate_trajectory
-from dynabarn.worldset import resolve_world
+_WHERE = {
+    "DynabarnError": "dynabarn.errors",
+    "EpisodeInfo": "dynabarn.planners",
+    "EpisodeResult": "dynabarn.metrics",
+    "EvalProtocol": "dynabarn.protocol",
+    "Layout": "dynabarn.worlds.spec",
+    "McapRecorder": "dynabarn.recording",
+    "MotionProfile": "dynabarn.worlds.profiles",
+    "Observation": "dynabarn.planners",
+    "Obstacle": "dynabarn.worlds.spec",
+    "ObstacleState": "dynabarn.planners",
+    "Outcome": "dynabarn.metrics",
+    "PAPER60": "dynabarn.worlds.generate",
+    "PROFILE_SETS": "dynabarn.worlds.profiles",
+    "PROTOCOLS": "dynabarn.protocol",
+    "Planner": "dynabarn.planners",
+    "ProfileError": "dynabarn.errors",
+    "ProfileSet": "dynabarn.worlds.profiles",
+    "Recording": "dynabarn.recording",
+    "SHAPE_MIXES": "dynabarn.worlds.profiles",
+    "STATIC_FIELDS": "dynabarn.worlds.profiles",
+    "SchedulePlayer": "dynabarn.worlds.schedule",
+    "ShapeMix": "dynabarn.worlds.profiles",
+    "SimConfig": "dynabarn.sim",
+    "Simulation": "dynabarn.sim",
+    "StaticField": "dynabarn.worlds.profiles",
+    "Trajectory": "dynabarn.worlds.trajectory",
+    "WorldError": "dynabarn.errors",
+    "WorldSpec": "dynabarn.worlds.spec",
+    "available_planners": "dynabarn.planners",
+    "generate_trajectory": "dynabarn.worlds.trajectory",
+    "generate_world": "dynabarn.worlds.generate",
+    "get_planner": "dynabarn.planners",
+    "get_profile_set": "dynabarn.worlds.profiles",
+    "get_protocol": "dynabarn.protocol",
+    "load_model": "dynabarn.mjcf",
+    "read_recording": "dynabarn.recording",
+    "read_world": "dynabarn.mjcf",
+    "register_planner": "dynabarn.planners",
+    "register_protocol": "dynabarn.protocol",
+    "resolve_world": "dynabarn.worldset",
+    "run_episode": "dynabarn.sim",
+    "write_world": "dynabarn.mjcf",
+}
 
 __all__ = [
     "PAPER60",
@@ -86,3 +101,49 @@ __all__ = [
     "run_episode",
     "write_world",
 ]
+
+
+def __getattr__(name: str):
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module 'dynabarn' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_WHERE})
+
+
+if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eagerly
+    from dynabarn.errors import DynabarnError, ProfileError, WorldError
+    from dynabarn.metrics import EpisodeResult, Outcome
+    from dynabarn.mjcf import load_model, read_world, write_world
+    from dynabarn.planners import (
+        EpisodeInfo,
+        Observation,
+        ObstacleState,
+        Planner,
+        available_planners,
+        get_planner,
+        register_planner,
+    )
+    from dynabarn.protocol import PROTOCOLS, EvalProtocol, get_protocol, register_protocol
+    from dynabarn.recording import McapRecorder, Recording, read_recording
+    from dynabarn.sim import SimConfig, Simulation, run_episode
+    from dynabarn.worlds.generate import PAPER60, generate_world
+    from dynabarn.worlds.profiles import (
+        PROFILE_SETS,
+        SHAPE_MIXES,
+        STATIC_FIELDS,
+        MotionProfile,
+        ProfileSet,
+        ShapeMix,
+        StaticField,
+        get_profile_set,
+    )
+    from dynabarn.worlds.schedule import SchedulePlayer
+    from dynabarn.worlds.spec import Layout, Obstacle, WorldSpec
+    from dynabarn.worlds.trajectory import Trajectory, generate_trajectory
+    from dynabarn.worldset import resolve_world

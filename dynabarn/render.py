@@ -7,6 +7,9 @@ updates), the robot is put at its recorded pose (interpolated between the 50 Hz 
 and each frame is drawn with the goal region, the robot's path so far and short trails
 behind the obstacles. Cameras: `top` (the whole arena from above) or `follow` (behind the
 robot). Output: `.mp4` (H.264 through imageio-ffmpeg's bundled ffmpeg) or `.gif`.
+
+MuJoCo picks its OpenGL platform when first imported: on a machine without a display set
+`MUJOCO_GL=egl` (or `osmesa`) before importing mujoco; `dynabarn-render` does so itself.
 """
 
 from __future__ import annotations

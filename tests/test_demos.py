@@ -5,7 +5,7 @@ import pytest
 
 from dynabarn import bench, worldset
 from dynabarn.cli import demos_main
-from dynabarn.demos import load_dataset
+from dynabarn.demos.dataset import load_dataset
 from dynabarn.errors import DynabarnError
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol

@@ -107,7 +107,7 @@ def test_bc_fits_a_small_dataset(dataset, tmp_path, capsys):
     assert last < 0.5 * first
     actor, header = load_policy(out)
     assert header["kind"] == "bc"
-    from dynabarn.demos import load_dataset
+    from dynabarn.demos.dataset import load_dataset
 
     ds = load_dataset(dataset)
     obs = torch.from_numpy(np.concatenate([ds["scans"], ds["local_goal"]], axis=1))

@@ -123,16 +123,16 @@ def write_summary(summary: list[dict], out_dir: Path, *, title: str = "") -> dic
 
 def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
     """Bars of success per difficulty with 95% intervals, the paper's values as hatched bars."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    # A Figure of its own, not pyplot: no global backend switch, no figure registry.
     import numpy as np
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure
 
     planners = sorted({s["planner"] for s in summary})
-    fig, ax = plt.subplots(figsize=(2.2 + 2.4 * len(planners), 4.0), dpi=120)
+    fig = Figure(figsize=(2.2 + 2.4 * len(planners), 4.0), dpi=120)
+    ax = fig.subplots()
     width = 0.8 / (2 * len(planners))
-    colors = plt.get_cmap("tab10")
+    colors = colormaps.get_cmap("tab10")
     x = np.arange(len(DIFFICULTIES))
     for k, planner in enumerate(planners):
         rows = {s["difficulty"]: s for s in summary if s["planner"] == planner}
@@ -160,5 +160,4 @@ def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
     ax.set_title(title or "success rate per difficulty (95% Wilson intervals)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
-    plt.close(fig)
     return path

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dynabarn.demos import load_dataset
+from dynabarn.demos.dataset import load_dataset
 from dynabarn.planners.learned.models import Actor, save_policy
 from dynabarn.planners.learned.spaces import command_to_action
 

@@ -186,13 +186,12 @@ def train_td3(cfg: TD3Config, out_dir: Path, *, progress=None) -> TD3Report:
 
 
 def plot_learning_curve(report: TD3Report, path: Path) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    # A Figure of its own, not pyplot: no global backend switch, no figure registry.
+    from matplotlib.figure import Figure
 
     steps = [e["step"] for e in report.evaluations]
-    fig, ax = plt.subplots(figsize=(6, 3.5), dpi=120)
+    fig = Figure(figsize=(6, 3.5), dpi=120)
+    ax = fig.subplots()
     ax.plot(steps, [e["success"] for e in report.evaluations], "o-", label="success rate")
     ax.set_xlabel("environment steps")
     ax.set_ylabel("success rate")
@@ -204,5 +203,4 @@ def plot_learning_curve(report: TD3Report, path: Path) -> Path:
     ax.set_title("TD3 on DynaBARN-v0 (deterministic evaluation)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
-    plt.close(fig)
     return path

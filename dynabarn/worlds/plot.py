@@ -33,21 +33,21 @@ def footprint_outline(obstacle: Obstacle, centre, n_arc: int = 12) -> np.ndarray
 def plot_world(world: WorldSpec, out: Path | str, *, dpi: int = 120) -> Path:
     """Write a PNG of the world: walls, goal, spawns, each obstacle's path with its start
     (filled circle at the obstacle's size) and direction (arrow at mid-path)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    # A Figure of its own, not pyplot: no global backend switch, no figure registry.
+    from matplotlib import colormaps
     from matplotlib.collections import PatchCollection
+    from matplotlib.figure import Figure
     from matplotlib.patches import Circle, Polygon, Rectangle
 
-    fig, ax = plt.subplots(figsize=(7.2, 6.4), dpi=dpi)
+    fig = Figure(figsize=(7.2, 6.4), dpi=dpi)
+    ax = fig.subplots()
     for wall in world.layout.walls:
         (cx, cy), (sx, sy, _) = wall.centre, wall.size
         ax.add_patch(Rectangle((cx - sx / 2, cy - sy / 2), sx, sy, color="0.45"))
     if world.layout.cylinders:
         static = [Circle((x, y), r) for x, y, r in world.layout.cylinders]
         ax.add_collection(PatchCollection(static, color="0.3", linewidth=0))
-    cmap = plt.get_cmap("tab20")
+    cmap = colormaps.get_cmap("tab20")
     player = SchedulePlayer(world)
     for i, o in enumerate(world.obstacles):
         color = cmap(i % 20)
@@ -95,5 +95,4 @@ def plot_world(world: WorldSpec, out: Path | str, *, dpi: int = 120) -> Path:
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
     fig.savefig(out)
-    plt.close(fig)
     return out

@@ -1,0 +1,161 @@
+"""`dynabarn-bench`: sweeps of planners x worlds x trials, their summary, and the golden set."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from dynabarn.cli.common import (
+    add_protocol,
+    make_parser,
+    planner_config,
+    run_command,
+)
+from dynabarn.errors import DynabarnError
+
+
+def bench_main(argv: Sequence[str] | None = None) -> int:
+    import os
+
+    parser = make_parser(
+        "dynabarn-bench",
+        "Run planners over a world set and trials in parallel; resumable; summary table, CSV, Markdown "
+        "and a Fig. 5-style PNG in --out.",
+    )
+    parser.add_argument("--planner", default="dwa", help="planner(s), comma separated, e.g. dwa,teb")
+    parser.add_argument(
+        "--planner-config",
+        default=None,
+        help="parameters for every planner: key=value[,...], a .json file, or a shipped preset "
+        "(dwa_barn_challenge = the BARN Challenge's DWA configuration; teb_narrow = TEB for BARN's passages)",
+    )
+    parser.add_argument(
+        "--policy", type=Path, default=None, help="weights for bc/td3 (default: the policy shipped in the package)"
+    )
+    parser.add_argument("--set", default="paper60", help="world set: paper60, dynabarn300, or a folder with index.json")
+    parser.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
+    parser.add_argument("--trials", type=int, default=10, help="trials (seeds 0..N-1) per world")
+    add_protocol(parser)
+    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel workers")
+    parser.add_argument("--backend", choices=["local", "ray"], default="local", help="where episodes run")
+    parser.add_argument("--address", default=None, help="Ray cluster address (ray backend); default: a local Ray")
+    parser.add_argument(
+        "--record", choices=["none", "failures", "all"], default="none", help="which episodes to keep as MCAP"
+    )
+    parser.add_argument(
+        "--out", type=Path, default=None, help="output folder (results.jsonl, summary, fig5.png); required for a sweep"
+    )
+    parser.add_argument("--force", action="store_true", help="start over in an --out that holds another sweep")
+    golden = parser.add_argument_group(
+        "golden set",
+        "about 30 committed episodes that must come out the same on every machine (README Reproducibility)",
+    )
+    golden.add_argument(
+        "--verify-golden",
+        action="store_true",
+        help="re-run the golden set and print every field that differs from the committed results; exit 1 if any",
+    )
+    golden.add_argument(
+        "--update-golden", action="store_true", help="re-run the golden set and rewrite the committed results"
+    )
+    golden.add_argument(
+        "--reference",
+        type=Path,
+        default=None,
+        help="folder with the reference data the imported golden worlds need (dynabarn60.json, barn300_static.json); "
+        "default: ../shared/reference beside the repository; cases that need it are skipped without it",
+    )
+    args = parser.parse_args(argv)
+    if args.verify_golden or args.update_golden:
+        return run_command(_golden, args)
+    if args.out is None:
+        parser.error("--out is required for a sweep")
+    return run_command(_bench, args)
+
+
+def _golden(args: argparse.Namespace) -> int:
+
+    from tqdm import tqdm
+
+    from dynabarn.bench import golden
+    from dynabarn.provenance import machine
+
+    if args.jobs < 1:
+        raise DynabarnError("--jobs must be at least 1")
+    reference = args.reference or golden.DEFAULT_REFERENCE
+
+    def progress(stream, total):
+        return tqdm(stream, total=total, desc="golden episodes", unit="ep", disable=None)
+
+    if args.update_golden:
+        path = golden.update(reference, jobs=args.jobs, progress=progress)
+        print(f"wrote {len(golden.CASES)} golden episodes to {path}")
+        return 0
+    t0 = time.perf_counter()
+    report = golden.verify(reference, jobs=args.jobs, progress=progress)
+    print(f"machine: {json.dumps(machine(), sort_keys=True)}")
+    for note in report.version_notes:
+        print(f"versions differ: {note}")
+    for case in report.skipped:
+        print(f"skipped (no reference data under {reference}): {case}")
+    for m in report.mismatches:
+        print(f"MISMATCH {m}")
+    cases = len({m.case for m in report.mismatches})
+    verdict = "identical" if report.ok else f"{len(report.mismatches)} fields differ in {cases} episodes"
+    print(
+        f"golden set: {report.checked} episodes checked, {len(report.skipped)} skipped, {verdict} "
+        f"({time.perf_counter() - t0:.1f} s)"
+    )
+    return 0 if report.ok else 1
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from dynabarn import bench, worldset
+    from dynabarn.planners import get_planner
+    from dynabarn.protocol import get_protocol
+
+    if args.trials < 1 or args.jobs < 1:
+        raise DynabarnError("--trials and --jobs must be at least 1")
+    config = planner_config(args.planner_config)
+    if args.policy is not None:
+        config["policy"] = str(args.policy.resolve())
+    names = [p.strip() for p in args.planner.split(",") if p.strip()]
+    for name in names:
+        get_planner(name, **config)  # fail fast on an unknown planner or bad configuration
+    protocol = get_protocol(args.protocol)
+    worlds = worldset.world_set(args.set, worldset.parse_ids(args.worlds))
+    jobs = bench.make_jobs(
+        [(n, config) for n in names],
+        worlds,
+        protocol,
+        args.trials,
+        record=args.record,
+        recordings_dir=args.out / "recordings",
+    )
+    bench.check_or_write_metadata(args.out, bench.metadata(bench.jsonable_args(args), jobs), force=args.force)
+
+    def progress(stream, total):
+        return tqdm(stream, total=total, desc="episodes", unit="ep", disable=None, smoothing=0.05)
+
+    try:
+        report = bench.run_sweep(
+            jobs, args.out, backend=args.backend, n_workers=args.jobs, address=args.address, progress=progress
+        )
+    except KeyboardInterrupt:
+        print(f"interrupted; finished episodes are in {args.out / bench.RESULTS}; rerun to resume", file=sys.stderr)
+        raise
+    summary = bench.summarise(report.rows)
+    title = f"{args.set}, protocol {protocol.name}, {args.trials} trials"
+    paths = bench.write_summary(summary, args.out, title=title)
+    print(bench.format_table(summary))
+    print(
+        f"{report.ran} episodes run, {report.skipped} already done, {report.errors} errors, "
+        f"{report.wall_time:.1f} s; wrote {paths['csv']}, {paths['md']}, {paths['png']}"
+    )
+    return 0

@@ -1,0 +1,141 @@
+"""What every command shares: its parser, the flags several commands take, error handling.
+
+Errors a person can cause (`DynabarnError`) print one line on stderr and exit 2; a
+traceback appears only with `--debug` (accepted before or after a subcommand). Ctrl-C
+exits 130. A new command is one module in this package with a `main(argv) -> int`, plus
+its line under `[project.scripts]` (README "Extending").
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from collections.abc import Callable
+from importlib.metadata import PackageNotFoundError, version
+
+from dynabarn.errors import DynabarnError
+
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+
+def package_version() -> str:
+    try:
+        return version("dynabarn")
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree
+        return "0+unknown"
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows each option's default once: not again where the help already names it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        if "default" in text.lower() or "(none:" in text.lower() or action.required:
+            return text
+        if action.default in (None, False) or action.default is argparse.SUPPRESS:
+            return text
+        return super()._get_help_string(action)
+
+
+def prefer_offscreen_gl() -> None:
+    """The command-line tools' choice of MuJoCo's OpenGL platform (read when mujoco is first
+    imported): EGL (Mesa, no GPU needed) without a display; with one (or Xvfb), MuJoCo's
+    default GLFW. An explicit MUJOCO_GL wins. Library users choose their own."""
+    if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+        os.environ["MUJOCO_GL"] = "egl"
+
+
+def make_parser(prog: str, description: str) -> argparse.ArgumentParser:
+    prefer_offscreen_gl()  # every command builds its parser first, before mujoco is imported
+    p = argparse.ArgumentParser(prog=prog, description=description, formatter_class=HelpFormatter)
+    p.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
+    p.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
+    return p
+
+
+class _Subcommands:
+    """`add_subparsers` whose subcommands describe themselves and take `--debug` too."""
+
+    def __init__(self, parser: argparse.ArgumentParser) -> None:
+        self._sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def add_parser(self, name: str, *, help: str, **kwargs) -> argparse.ArgumentParser:
+        kwargs.pop("formatter_class", None)
+        p = self._sub.add_parser(
+            name,
+            help=help,
+            description=kwargs.pop("description", help[:1].upper() + help[1:] + "."),
+            formatter_class=HelpFormatter,
+            **kwargs,
+        )
+        # SUPPRESS: given only before the subcommand, the top-level value stays.
+        p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show full tracebacks on errors")
+        return p
+
+
+def subcommands(parser: argparse.ArgumentParser) -> _Subcommands:
+    return _Subcommands(parser)
+
+
+def add_world(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--world", required=True, help="generated world id (0-299) or path of a world .xml")
+
+
+def add_protocol(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--protocol", default="barn", help="evaluation protocol: barn, paper2022, barn-static or a .json file"
+    )
+
+
+def add_trial_seed(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--seed", type=int, default=0, help="trial seed: obstacle clock offset and laser noise")
+
+
+EXIT_EPISODE_ERROR = 1
+
+
+def planner_config(text: str | None) -> dict:
+    """--planner-config: a preset name, a JSON file, or inline `key=value,key=value` (values as JSON)."""
+
+    from dynabarn.planners import planner_presets, read_planner_config
+
+    if not text:
+        return {}
+    if text in planner_presets() or text.endswith(".json"):
+        return read_planner_config(text)
+    cfg = {}
+    for item in text.split(","):
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise DynabarnError(
+                f"bad --planner-config item {item!r}: use key=value[,key=value], a .json file or a preset ("
+                + ", ".join(planner_presets())
+                + ")"
+            )
+        try:
+            cfg[key.strip()] = json.loads(value)
+        except json.JSONDecodeError:
+            cfg[key.strip()] = value
+    return cfg
+
+
+def run_command(body: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
+    try:
+        return body(args)
+    except DynabarnError as exc:
+        if args.debug:
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def progress_bar(desc: str, total: int | None = None, unit: str = "world"):
+    from tqdm import tqdm
+
+    return lambda it: tqdm(it, desc=desc, total=total, unit=unit, disable=None, leave=False)

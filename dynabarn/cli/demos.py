@@ -1,0 +1,109 @@
+"""`dynabarn-demos`: collect synthetic demonstrations and export datasets for learning."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+from dynabarn.cli.common import (
+    add_protocol,
+    make_parser,
+    run_command,
+    subcommands,
+)
+from dynabarn.errors import DynabarnError
+
+
+def demos_main(argv: Sequence[str] | None = None) -> int:
+    from dynabarn.demos.dataset import DEFAULT_LOOKAHEAD
+
+    parser = make_parser("dynabarn-demos", "Collect synthetic demonstrations and export datasets for learning.")
+    sub = subcommands(parser)
+    ex = sub.add_parser(
+        "export",
+        help="recordings -> dataset.npz of (720 ranges, local goal) -> (v, w) rows",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    ex.add_argument("demos", nargs="+", type=Path, help="recordings or folders of recordings")
+    ex.add_argument("--out", type=Path, required=True, help="dataset file (.npz)")
+    ex.add_argument("--all", action="store_true", help="keep unsuccessful episodes too")
+    ex.add_argument("--lookahead", type=float, default=DEFAULT_LOOKAHEAD, help="local goal distance along the plan [m]")
+    co = sub.add_parser(
+        "collect",
+        help="record oracle demonstrations at scale (synthetic, marked so)",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    co.add_argument("--set", default="paper60", help="world set: paper60, dynabarn300, or a folder with index.json")
+    co.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
+    co.add_argument("--trials", type=int, default=1, help="seeds 0..N-1 per world")
+    add_protocol(co)
+    co.add_argument("--planner", default="oracle", help="demonstrator planner")
+    co.add_argument("--jobs", type=int, default=__import__("os").cpu_count() or 1, help="parallel workers")
+    co.add_argument("--out", type=Path, default=Path("demos"), help="folder of demonstrations")
+    args = parser.parse_args(argv)
+    return run_command(_demos_export if args.command == "export" else _demos_collect, args)
+
+
+def _demos_export(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from dynabarn.demos.dataset import export
+
+    if args.out.suffix != ".npz":
+        raise DynabarnError(f"--out must be a .npz file, got {args.out.name!r}")
+    meta = export(
+        args.demos,
+        args.out,
+        include_all=args.all,
+        lookahead=args.lookahead,
+        progress=lambda it: tqdm(it, desc="reading", unit="rec", disable=None, leave=False),
+    )
+    print(f"wrote {args.out}: {meta['episodes']} episodes, {meta['rows']} rows ({len(meta['skipped'])} skipped)")
+    return 0
+
+
+def _demos_collect(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from dynabarn import bench, worldset
+    from dynabarn.demos.teleop import MANIFEST, append_manifest
+    from dynabarn.planners import get_planner
+    from dynabarn.protocol import get_protocol
+
+    get_planner(args.planner)
+    protocol = get_protocol(args.protocol)
+    worlds = worldset.world_set(args.set, worldset.parse_ids(args.worlds))
+    jobs = bench.make_jobs([(args.planner, {})], worlds, protocol, args.trials, record="all", recordings_dir=args.out)
+    report = bench.run_sweep(
+        jobs,
+        args.out / ".collect",
+        n_workers=args.jobs,
+        progress=lambda stream, total: tqdm(stream, total=total, desc="demos", unit="ep", disable=None),
+    )
+    listed = set()
+    if (args.out / MANIFEST).is_file():
+        listed = {json.loads(line)["file"] for line in (args.out / MANIFEST).read_text().splitlines() if line}
+    for row in sorted(report.rows, key=lambda r: r["key"]):
+        name = Path(row.get("recording", "")).name
+        if not name or name in listed:
+            continue
+        append_manifest(
+            args.out,
+            {
+                "file": name,
+                "world": row.get("world"),
+                "world_id": row["world_id"],
+                "protocol": row["protocol"],
+                "seed": row["seed"],
+                "outcome": row["outcome"],
+                "reason": row.get("reason", ""),
+                "time": row.get("time"),
+                "operator": "",
+                "source": "oracle" if args.planner == "oracle" else "planner",
+            },
+        )
+    ok = sum(r["outcome"] == "success" for r in report.rows)
+    print(f"{len(report.rows)} demonstrations in {args.out} ({ok} successful); manifest: {args.out / MANIFEST}")
+    return 0

@@ -1,0 +1,116 @@
+"""`dynabarn-run`: one episode of a planner in a world, recorded to MCAP."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from dynabarn.cli.common import (
+    EXIT_EPISODE_ERROR,
+    add_protocol,
+    add_trial_seed,
+    add_world,
+    make_parser,
+    planner_config,
+    run_command,
+)
+from dynabarn.cli.render import render_video
+from dynabarn.errors import DynabarnError
+
+
+def run_main(argv: Sequence[str] | None = None) -> int:
+    from dynabarn.planners import available_planners
+
+    parser = make_parser(
+        "dynabarn-run",
+        "Run one episode of a planner in a DynaBARN world, print its outcome and metrics, and record it to MCAP.",
+    )
+    add_world(parser)
+    parser.add_argument(
+        "--planner", default="straight", help=f"planner name; available: {', '.join(available_planners())}"
+    )
+    parser.add_argument(
+        "--planner-config",
+        default=None,
+        help="planner parameters: key=value[,key=value], a .json file, or a shipped preset "
+        "(dwa_barn_challenge = the BARN Challenge's DWA configuration; teb_narrow = TEB for BARN's passages)",
+    )
+    parser.add_argument(
+        "--policy", type=Path, default=None, help="weights for bc/td3 (default: the policy shipped in the package)"
+    )
+    add_protocol(parser)
+    add_trial_seed(parser)
+    log = parser.add_mutually_exclusive_group()
+    log.add_argument(
+        "--log",
+        type=Path,
+        default=None,
+        help="MCAP file to record to (default: runs/<world>_<planner>_<protocol>_s<seed>.mcap)",
+    )
+    log.add_argument("--no-log", action="store_true", help="do not record")
+    parser.add_argument("--runs-dir", type=Path, default=Path("runs"), help="folder of default recordings")
+    parser.add_argument("--json", action="store_true", help="print the full result as JSON instead of one line")
+    parser.add_argument("--dt", type=float, default=0.005, help="physics step [s], at most 0.01")
+    parser.add_argument("--control-rate", type=float, default=10.0, help="planner and laser rate [Hz]")
+    parser.add_argument("--video", type=Path, default=None, help="also render the episode to this .mp4 or .gif")
+    parser.add_argument("--camera", choices=["top", "follow"], default="top", help="camera of --video")
+    args = parser.parse_args(argv)
+    return run_command(_run_episode, args)
+
+
+def _run_episode(args: argparse.Namespace) -> int:
+
+    from dynabarn.metrics import Outcome
+    from dynabarn.planners import get_planner
+    from dynabarn.protocol import get_protocol
+    from dynabarn.recording import McapRecorder, default_run_path
+    from dynabarn.sim import SimConfig, Simulation, run_episode
+    from dynabarn.worldset import resolve_world
+
+    world_path = resolve_world(args.world)
+    protocol = get_protocol(args.protocol)
+    config = planner_config(args.planner_config)
+    if args.policy is not None:
+        config["policy"] = str(args.policy)
+    planner = get_planner(args.planner, **config)
+    sim = Simulation(world_path, config=SimConfig(dt=args.dt, control_rate=args.control_rate))
+    log_path = None
+    observers = []
+    if args.video is not None and args.video.suffix.lower() not in (".mp4", ".gif"):
+        raise DynabarnError(f"--video must end in .mp4 or .gif, got {args.video.name!r}")
+    if not args.no_log:
+        log_path = args.log or default_run_path(args.runs_dir, sim.world.name, args.planner, protocol.name, args.seed)
+    elif args.video is not None:  # the video is rendered from a recording: keep a temporary one
+        import tempfile
+
+        log_path = Path(tempfile.mkdtemp()) / "episode.mcap"
+    if log_path is not None:
+        observers.append(McapRecorder(log_path))
+    try:
+        result = run_episode(sim, planner, protocol, seed=args.seed, observers=observers, planner_name=args.planner)
+    except KeyboardInterrupt:
+        if log_path:
+            print(f"interrupted; recording kept: {log_path}", file=sys.stderr)
+        raise
+    if args.json:
+        d = result.to_dict()
+        d["recording"] = str(log_path) if log_path and not args.no_log else None
+        print(json.dumps(d, indent=1, sort_keys=True))
+    else:
+        print(result.summary())
+        if log_path and not args.no_log:
+            print(f"recording: {log_path}")
+    if args.video is not None:
+        render_video(log_path, args.video, args.camera, 20.0, "640x480")
+        if args.no_log:
+            import shutil
+
+            shutil.rmtree(log_path.parent, ignore_errors=True)
+    if result.outcome is Outcome.ERROR:
+        if not args.json:
+            print(f"error: {result.reason}", file=sys.stderr)
+        return EXIT_EPISODE_ERROR
+    return 0

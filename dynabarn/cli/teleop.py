@@ -1,0 +1,89 @@
+"""`dynabarn-teleop`: drive the Jackal yourself in MuJoCo's viewer and record a demonstration."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from dynabarn.cli.common import (
+    EXIT_EPISODE_ERROR,
+    add_protocol,
+    add_trial_seed,
+    add_world,
+    make_parser,
+    run_command,
+)
+from dynabarn.errors import DynabarnError
+
+
+def teleop_main(argv: Sequence[str] | None = None) -> int:
+    parser = make_parser(
+        "dynabarn-teleop",
+        "Drive the Jackal yourself in MuJoCo's viewer and record a demonstration. Keys: Up/Down speed, "
+        "Left/Right turn, Space stop, 1 slow mode, 2 fast mode, Escape end. A gamepad works when pygame sees one.",
+    )
+    add_world(parser)
+    add_protocol(parser)
+    add_trial_seed(parser)
+    parser.add_argument("--operator", default="human", help="your name, stored with the demonstration")
+    parser.add_argument("--demos-dir", type=Path, default=Path("demos"), help="folder of demonstrations")
+    parser.add_argument(
+        "--out", type=Path, default=None, help="recording file (default: DEMOS_DIR/<world>_<operator>_<NNN>.mcap)"
+    )
+    parser.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall-clock second")
+    args = parser.parse_args(argv)
+    code = run_command(_teleop, args)
+    from dynabarn.demos import teleop
+
+    if teleop.viewer_was_opened():
+        # Everything is written and closed by now. Some Mesa GLX drivers crash (or hang) in
+        # the interpreter's teardown after MuJoCo's viewer thread has used them, which would
+        # turn a clean session into exit code 139: leave without that teardown.
+        import os
+
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
+def _teleop(args: argparse.Namespace) -> int:
+    import os
+
+    from dynabarn.demos.teleop import append_manifest, next_demo_path, run_teleop
+    from dynabarn.metrics import Outcome
+    from dynabarn.mjcf import read_world
+    from dynabarn.protocol import get_protocol
+    from dynabarn.worldset import resolve_world
+
+    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+        raise DynabarnError("dynabarn-teleop needs a display (or Xvfb); none is set")
+    if args.speed <= 0:
+        raise DynabarnError("--speed must be positive")
+    world_path = resolve_world(args.world)
+    protocol = get_protocol(args.protocol)
+    world = read_world(world_path)
+    out = args.out or next_demo_path(args.demos_dir, world.name, args.operator)
+    result, pad = run_teleop(world_path, protocol, out, operator=args.operator, seed=args.seed, speed=args.speed)
+    append_manifest(
+        out.parent,
+        {
+            "file": out.name,
+            "world": world.name,
+            "world_id": world.world_id,
+            "protocol": protocol.name,
+            "seed": args.seed,
+            "outcome": result.outcome.value,
+            "reason": result.reason,
+            "time": result.time,
+            "operator": args.operator,
+            "source": "human",
+            "gamepad": pad,
+        },
+    )
+    print(result.summary())
+    print(f"demonstration: {out} (manifest: {out.parent / 'manifest.jsonl'})")
+    operator_stop = result.outcome is Outcome.ERROR and result.reason == "ended by the operator"
+    return EXIT_EPISODE_ERROR if result.outcome is Outcome.ERROR and not operator_stop else 0

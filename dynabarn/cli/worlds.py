@@ -1,0 +1,254 @@
+"""`dynabarn-worlds`: generate, import, show and measure worlds."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from dynabarn.cli.common import (
+    make_parser,
+    progress_bar,
+    run_command,
+    subcommands,
+)
+from dynabarn.errors import DynabarnError
+
+
+def worlds_main(argv: Sequence[str] | None = None) -> int:
+    from dynabarn.provenance import GENERATED_WORLDS
+    from dynabarn.sim.behaviors import available_behaviors
+    from dynabarn.worlds.generate import DEFAULT_BASE_SEED
+    from dynabarn.worlds.profiles import PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS
+
+    parser = make_parser("dynabarn-worlds", "Generate, import and inspect DynaBARN worlds.")
+    sub = subcommands(parser)
+
+    g = sub.add_parser(
+        "generate",
+        help="generate the 300 benchmark worlds (what `make worlds` runs)",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    g.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help=f"output directory (default: {GENERATED_WORLDS.name} for the paper's worlds, "
+        "mixed_worlds when --shapes, --static or --behavior is given)",
+    )
+    g.add_argument(
+        "--seed", type=int, default=DEFAULT_BASE_SEED, help="base seed; world i uses SeedSequence([seed, i])"
+    )
+    g.add_argument(
+        "--profiles",
+        choices=sorted(PROFILE_SETS),
+        default="table1",
+        help="motion profile set: table1 = the paper's Table I; release2022 = measured from the 2022 release",
+    )
+    g.add_argument(
+        "--interpolation",
+        choices=["linear", "spline"],
+        default="linear",
+        help="playback between waypoints: linear (the paper) or spline (Gazebo's PoseAnimation)",
+    )
+    g.add_argument("--end", choices=["loop", "hold"], default="loop", help="after the last waypoint")
+    g.add_argument(
+        "--shapes",
+        choices=sorted(SHAPE_MIXES),
+        default="cylinder",
+        help="obstacle shapes (beyond the paper): cylinder = the paper's; mixed = cylinders, boxes and "
+        "capsules in equal shares, sizes drawn per obstacle",
+    )
+    g.add_argument(
+        "--static",
+        choices=["none", *sorted(STATIC_FIELDS)],
+        default="none",
+        help="static obstacles beside the moving ones (beyond the paper): barn-grid = a BARN-style "
+        "cellular-automaton field of r 0.075 m cylinders across the arena's middle, always crossable",
+    )
+    g.add_argument(
+        "--behavior",
+        choices=available_behaviors(),
+        default="scripted",
+        help="every obstacle's behaviour (beyond the paper): scripted = the paper's; yield = pauses while "
+        "the robot is within 1.5 m ahead; avoid = steers around the robot (social force) and back",
+    )
+
+    im = sub.add_parser(
+        "import", help="import worlds from another format", formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
+    im.add_argument("file", type=Path, help="file to import (e.g. ../shared/reference/dynabarn60.json)")
+    im.add_argument(
+        "--format",
+        choices=["dynabarn-release", "barn-static"],
+        default="dynabarn-release",
+        help="input format: the DynaBARN release's 60 worlds, or the 300 static BARN worlds",
+    )
+    im.add_argument("--out", type=Path, default=Path("imported_worlds"), help="output directory")
+    im.add_argument(
+        "--declared-obstacles",
+        action="store_true",
+        help="use the plugins the world files name instead of `effective_obstacles` (what Gazebo ran)",
+    )
+
+    sh = sub.add_parser(
+        "show", help="summarise a world and optionally plot it", formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
+    sh.add_argument("world", help="generated world id (0-299) or path of a world .xml")
+    sh.add_argument("--plot", type=Path, default=None, help="write a top-down PNG of the trajectories here")
+
+    st = sub.add_parser(
+        "stats",
+        help="per-difficulty means of a world set's measured difficulty and obstacle motion",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    st.add_argument("folder", nargs="?", type=Path, default=GENERATED_WORLDS, help="a folder of worlds with index.json")
+    st.add_argument("--worlds", default=None, help="only these world ids, e.g. 0-19,200-219 (None: all)")
+
+    args = parser.parse_args(argv)
+    return run_command(_WORLD_COMMANDS[args.command], args)
+
+
+def _worlds_generate(args: argparse.Namespace) -> int:
+    from dynabarn.provenance import GENERATED_WORLDS
+    from dynabarn.sim.behaviors import get_behavior
+    from dynabarn.worlds.generate import N_WORLDS
+    from dynabarn.worlds.profiles import get_profile_set, get_shape_mix, get_static_field
+    from dynabarn.worldset import generate_worlds
+
+    variant = args.shapes != "cylinder" or args.static != "none" or args.behavior != "scripted"
+    out = args.out or (Path("mixed_worlds") if variant else GENERATED_WORLDS)
+    t0 = time.perf_counter()
+    index = generate_worlds(
+        get_profile_set(args.profiles),
+        out,
+        base_seed=args.seed,
+        interpolation=args.interpolation,
+        end_behavior=args.end,
+        shapes=get_shape_mix(args.shapes),
+        static_field=None if args.static == "none" else get_static_field(args.static),
+        behavior=args.behavior,
+        behavior_params=get_behavior(args.behavior).defaults(),
+        progress=progress_bar("generating", N_WORLDS),
+    )
+    print(f"wrote {N_WORLDS} worlds and {index} in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+def _worlds_import(args: argparse.Namespace) -> int:
+    from dynabarn.worldset import write_worlds
+
+    if args.format == "barn-static":
+        from dynabarn.worlds.importers.barn import import_barn_static, load_barn_json
+
+        worlds = import_barn_static(load_barn_json(args.file))
+    else:
+        from dynabarn.worlds.importers.release import import_release, load_release_json
+
+        worlds = import_release(load_release_json(args.file), use_effective=not args.declared_obstacles)
+    sets = {
+        "all": [w.world_id for w in worlds],
+        "easy": [w.world_id for w in worlds if w.difficulty == "easy"],
+        "medium": [w.world_id for w in worlds if w.difficulty == "medium"],
+        "hard": [w.world_id for w in worlds if w.difficulty == "hard"],
+    }
+    meta = {"generator": "dynabarn import", "source_format": args.format, "source_file": args.file.name}
+    index = write_worlds(worlds, args.out, meta=meta, sets=sets, progress=progress_bar("importing", len(worlds)))
+    print(f"imported {len(worlds)} worlds into {args.out} (index {index})")
+    return 0
+
+
+def _worlds_show(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from dynabarn.mjcf import load_model, read_world
+    from dynabarn.worldset import resolve_world
+
+    path = resolve_world(args.world)
+    world = read_world(path)
+    model = load_model(path)
+    print(f"{world.name}  ({path})")
+    print(
+        f"  difficulty {world.difficulty.value}  branch {world.count_class and world.count_class.value}"
+        f"/{world.motion_class and world.motion_class.value}  profile set {world.profile_set}  seed {world.seed}"
+    )
+    print(
+        f"  playback {world.interpolation.value}/{world.end_behavior.value}  goal {world.layout.goal}  "
+        f"MuJoCo: {model.nbody} bodies, {model.nmocap} mocap, {model.nsensor} sensors"
+    )
+    if world.layout.cylinders:
+        print(f"  static cylinders: {len(world.layout.cylinders)}")
+    print(
+        f"  {'obstacle':<14}{'profile':<9}{'order':>6}{'wpts':>6}{'duration':>10}{'speed min-max':>16}"
+        f"  {'shape':<26}{'behavior'}"
+    )
+    for o in world.obstacles:
+        tr = o.trajectory
+        s = tr.segment_speeds()
+        size = {
+            "cylinder": f"cylinder r {o.radius:.2f}",
+            "box": f"box {2 * o.half_length:.2f} x {2 * o.half_width:.2f}",
+            "capsule": f"capsule r {o.radius:.2f} l {2 * o.half_length:.2f}",
+        }[o.shape]
+        print(
+            f"  {o.name:<14}{tr.profile:<9}{tr.order:>6}{len(tr.times):>6}{tr.duration:>9.1f}s"
+            f"{np.min(s):>9.2f}-{np.max(s):.2f}  {size:<26}{o.behavior}"
+        )
+    if args.plot:
+        from dynabarn.worlds.plot import plot_world
+
+        print(f"wrote {plot_world(world, args.plot)}")
+    return 0
+
+
+def _worlds_stats(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from dynabarn.mjcf import read_world
+    from dynabarn.worlds.difficulty import world_measures
+    from dynabarn.worldset import parse_ids, read_index
+
+    index = read_index(args.folder)
+    entries = index["worlds"]
+    if args.worlds:
+        wanted = set(parse_ids(args.worlds))
+        entries = [e for e in entries if e["id"] in wanted]
+    if not entries:
+        raise DynabarnError(f"{args.folder}: no worlds selected")
+    rows: dict[str, list[dict]] = {}
+    for e in progress_bar("measuring", len(entries))(entries):
+        world = read_world(Path(args.folder) / e["file"])
+        row = {"obstacles": len(world.obstacles), "static": len(world.layout.cylinders)}
+        row |= world_measures(world)
+        rows.setdefault(e["difficulty"], []).append(row)
+    columns = [
+        ("obstacles", "obst", 5, 1),
+        ("static", "static", 7, 0),
+        ("corridor_blocked", "blocked", 8, 2),
+        ("corridor_occupancy", "occup.", 7, 2),
+        ("crossings_per_minute", "cross/min", 10, 1),
+        ("time_in_corridor", "in corr.", 9, 3),
+        ("speed", "speed", 6, 2),
+        ("loop_duration", "loop s", 7, 1),
+        ("y_span", "y span", 7, 1),
+        ("y_zero_crossings", "y=0 x", 6, 1),
+    ]
+    print(f"{args.folder}: means per difficulty (difficulty from the schedules over 60 s; motion per obstacle)")
+    print(f"{'difficulty':<11}{'worlds':>7}" + "".join(f"{title:>{width}}" for _, title, width, _ in columns))
+    for difficulty in ("easy", "medium", "hard"):
+        rs = rows.get(difficulty, [])
+        if rs:
+            cells = "".join(
+                f"{np.mean([r.get(key, np.nan) for r in rs]):>{width}.{digits}f}" for key, _, width, digits in columns
+            )
+            print(f"{difficulty:<11}{len(rs):>7}" + cells)
+    return 0
+
+
+_WORLD_COMMANDS = {
+    "generate": _worlds_generate,
+    "import": _worlds_import,
+    "show": _worlds_show,
+    "stats": _worlds_stats,
+}
