@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import struct
 from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -128,6 +129,7 @@ def read_recording(path: Path | str, *, decode: bool = True) -> Recording:
     Uses mcap's NonSeekingReader in file order (no summary section needed), so files
     whose writer was killed read back up to the last complete chunk.
     """
+    from google.protobuf.message import DecodeError
     from mcap.exceptions import McapError
     from mcap.reader import NonSeekingReader
     from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
@@ -155,7 +157,7 @@ def read_recording(path: Path | str, *, decode: bool = True) -> Recording:
                     rec.messages[channel.topic].append((message.log_time / 1e9, message.data))
                     if schema is not None:
                         rec.schemas.setdefault(channel.topic, schema.name)
-        except (McapError, EOFError, ValueError, OSError, Exception) as exc:  # any cut or corruption
+        except (McapError, EOFError, ValueError, OSError, struct.error, DecodeError) as exc:  # a cut or corruption
             rec.truncated = True
             rec.error = f"{type(exc).__name__}: {exc}"
     rec.messages = dict(rec.messages)

@@ -14,7 +14,6 @@ from dynabarn.determinism import (
     snap,
 )
 from dynabarn.metrics import (
-    EpisodeResult,
     Outcome,
     footprint_clearance_at,
 )
@@ -22,9 +21,8 @@ from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL, to_robot_frame
 from dynabarn.sim.behaviors import ReactiveObstacles
 from dynabarn.sim.config import MAX_CLOCK_OFFSET
-from dynabarn.sim.events import EpisodeStart, Tick
+from dynabarn.sim.events import Tick
 from dynabarn.sim.observation import Observation, ObstacleState
-from dynabarn.sim.result import episode_result
 from dynabarn.sim.simulation import Simulation
 from dynabarn.worlds.schedule import SchedulePlayer
 
@@ -227,9 +225,6 @@ class Episode:
         if self.step % every and self.outcome is not None:
             idx = np.append(idx, self.step)
         return idx * self.dt, self.poses[idx].copy()
-
-    def result(self, start: EpisodeStart) -> EpisodeResult:
-        return episode_result(self, start)
 
 
 def _predictor(player: SchedulePlayer):

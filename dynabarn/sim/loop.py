@@ -33,6 +33,7 @@ from dynabarn.sim.config import SimConfig
 from dynabarn.sim.episode import Episode
 from dynabarn.sim.events import EpisodeObserver, EpisodeStart
 from dynabarn.sim.observation import EpisodeInfo, Observation
+from dynabarn.sim.result import episode_result
 from dynabarn.sim.simulation import Simulation
 
 
@@ -116,11 +117,11 @@ def run_episode(
                         obs_.on_poses(times, poses)
     except KeyboardInterrupt:
         episode.end(Outcome.ERROR, "interrupted")
-        result = episode.result(start)
+        result = episode_result(episode, start)
         for obs_ in observers:
             obs_.on_end(result)
         raise
-    result = episode.result(start)
+    result = episode_result(episode, start)
     for obs_ in observers:
         obs_.on_end(result)
     return result

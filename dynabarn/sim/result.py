@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,10 +19,8 @@ from dynabarn.metrics import (
 )
 from dynabarn.protocol import EvalProtocol
 from dynabarn.provenance import machine, portable_path
+from dynabarn.sim.episode import Episode
 from dynabarn.sim.events import EpisodeStart
-
-if TYPE_CHECKING:
-    from dynabarn.sim.episode import Episode
 from dynabarn.worlds.spec import WorldSpec
 
 

@@ -1,0 +1,141 @@
+"""The package's layers: every module of `dynabarn/` imports only its own layer and the
+layers below it, and no modules import each other in a circle.
+
+Read from the source (every `import`, also inside functions), so it holds for modules that
+import lazily too. The layers are DESIGN.md's "Intended shape".
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "dynabarn"
+
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("errors", "determinism", "provenance", "robot", "protocol", "metrics"),  # foundations
+    ("worlds",),
+    ("mjcf",),
+    ("worldset",),
+    ("sim",),
+    ("planners",),
+    ("recording",),
+    ("replay",),  # consumers of the layers above, each may use the ones before it
+    ("render",),
+    ("demos",),
+    ("bench",),
+    ("learn",),
+    ("cli",),
+)
+"""Bottom to top: the first dotted part below `dynabarn` names a module's layer."""
+
+
+def _layer_of(module: str) -> int:
+    parts = module.split(".")
+    if parts == ["dynabarn"]:
+        return len(LAYERS)  # the package's face: above everything
+    for i, names in enumerate(LAYERS):
+        if parts[1] in names:
+            return i
+    raise AssertionError(f"{module}: not in any declared layer; add it to LAYERS (and DESIGN.md)")
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(PACKAGE.parent).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _imports(path: Path) -> set[str]:
+    return _imports_in(path.read_text(), _module_name(path))
+
+
+def _imports_in(text: str, this: str) -> set[str]:
+    """Every dynabarn module that the source imports (`from dynabarn.x import y` counts as
+    x.y when x/y is a module, else x)."""
+    tree = ast.parse(text)
+    out: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names if a.name.startswith("dynabarn"))
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            if not node.module.startswith("dynabarn"):
+                continue
+            for a in node.names:
+                sub = f"{node.module}.{a.name}"
+                out.add(sub if _is_module(sub) else node.module)
+    out.discard(this)
+    return out
+
+
+def _is_module(name: str) -> bool:
+    base = PACKAGE.parent.joinpath(*name.split("."))
+    return base.with_suffix(".py").is_file() or (base / "__init__.py").is_file()
+
+
+MODULES = {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+GRAPH = {m: _imports(p) for m, p in MODULES.items()}
+
+
+def test_every_module_is_in_a_layer():
+    assert len(MODULES) > 60
+    for m in MODULES:
+        _layer_of(m)
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_imports_only_go_down(module):
+    own = _layer_of(module)
+    up = sorted(i for i in GRAPH[module] if _layer_of(i) > own)
+    assert not up, f"{module} (layer {LAYERS[own]}) imports from higher layers: {up}"
+
+
+def test_no_import_circles():
+    # A package's face (__init__) hands names on from its own modules; an edge into a face
+    # stands for an edge into the module that defines the name, so faces are followed
+    # through. Circles are searched among the remaining modules.
+    faces = {m for m, p in MODULES.items() if p.name == "__init__.py"}
+
+    def targets(m: str) -> set[str]:
+        seen, out, stack = set(), set(), list(GRAPH[m])
+        while stack:
+            t = stack.pop()
+            if t in seen:
+                continue
+            seen.add(t)
+            if t in faces and t != m:
+                stack.extend(GRAPH.get(t, ()))
+            elif t in MODULES:
+                out.add(t)
+        return out - {m}
+
+    edges = {m: targets(m) for m in MODULES if m not in faces}
+    state: dict[str, int] = {}
+    path: list[str] = []
+
+    def visit(m: str) -> None:
+        state[m] = 1
+        path.append(m)
+        for t in sorted(edges.get(m, ())):
+            if state.get(t) == 1:
+                raise AssertionError("import circle: " + " -> ".join([*path[path.index(t) :], t]))
+            if t not in state and t in edges:
+                visit(t)
+        path.pop()
+        state[m] = 2
+
+    for m in sorted(edges):
+        if m not in state:
+            visit(m)
+
+
+def test_the_check_catches_an_upward_import():
+    # The old circle's first step: the planner registry importing the learning layer.
+    module = "dynabarn.planners.registry"
+    text = MODULES[module].read_text() + "\n\ndef _late():\n    from dynabarn.learn.env import DynaBARNEnv\n"
+    up = [i for i in _imports_in(text, module) if _layer_of(i) > _layer_of(module)]
+    assert up == ["dynabarn.learn.env"]
