@@ -40,6 +40,8 @@ def keyframes_numeric_name(obstacle_name: str) -> str:
     return f"{obstacle_name}_keyframes"
 
 
+# Over 80 lines on purpose: one MJCF world read top to bottom in the order of the XML it
+# writes (assets, floor, walls, goal, obstacles, static field, custom data).
 def build_world_spec(world: WorldSpec) -> mujoco.MjSpec:
     """The world without the robot, as an MjSpec (compiles on its own)."""
     spec = mujoco.MjSpec()

@@ -92,6 +92,8 @@ def _add_line(scene: mujoco.MjvScene, a, b, width: float, rgba) -> None:
     scene.ngeom += 1
 
 
+# Over 80 lines on purpose: the scene set-up and the frame loop share the renderer, the
+# model and the trails; the helpers above hold the parts that stand alone.
 def render_recording(
     rec: Recording,
     out: Path,

@@ -156,6 +156,8 @@ def _log_obstacles(stream: rr.RecordingStream, run: str, world: WorldSpec, t: np
         stream.log(f"{run}/{entity}", archetype.from_fields(colors=red, fill_mode="solid"), static=True)
 
 
+# Over 80 lines on purpose: one short section per rerun entity (poses, scan, obstacles, path,
+# plan, plots), each one batched send; apart, they would pass the same ten locals around.
 def log_recording(
     rec: Recording, stream: rr.RecordingStream, *, run: str = "run", color_index: int = 0
 ) -> ReplayCounts:

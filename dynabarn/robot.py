@@ -95,6 +95,8 @@ def _beam_quat(angle: float) -> list[float]:
     return [round(float(c), 9) for c in q]
 
 
+# Over 80 lines on purpose: one MJCF model read top to bottom in the order of the XML it
+# writes (chassis, wheels, laser, sensors), like the URDF it follows.
 def build_jackal_spec(
     p: JackalParams = JACKAL, *, laser_interval: float = 0.1, beam_sensors: bool = True
 ) -> mujoco.MjSpec:

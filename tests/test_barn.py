@@ -80,7 +80,7 @@ def test_cli_import_barn_static(barn_json, tmp_path, capsys):
 def test_barn_challenge_dwa_configuration_threads_the_static_worlds(barn_json, tmp_path):
     """With the BARN Challenge's own DWA configuration (preset `dwa_barn_challenge`), DWA
     crosses most static worlds; BARN's published example reports 0.88."""
-    from dynabarn.cli import _planner_config
+    from dynabarn.cli.common import planner_config as _planner_config
 
     config = _planner_config("dwa_barn_challenge")
     worlds = import_barn_static({"worlds": barn_json["worlds"][::25]})  # 12 worlds, every difficulty

@@ -129,7 +129,7 @@ def test_help_lists_every_option_with_default(capsys):
 
 
 def test_shipped_presets_load_into_their_planners():
-    from dynabarn.cli import _planner_config
+    from dynabarn.cli.common import planner_config as _planner_config
     from dynabarn.planners import get_planner, planner_presets
 
     assert "dwa_barn_challenge" in planner_presets()

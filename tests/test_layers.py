@@ -139,3 +139,18 @@ def test_the_check_catches_an_upward_import():
     text = MODULES[module].read_text() + "\n\ndef _late():\n    from dynabarn.learn.env import DynaBARNEnv\n"
     up = [i for i in _imports_in(text, module) if _layer_of(i) > _layer_of(module)]
     assert up == ["dynabarn.learn.env"]
+
+
+def test_files_and_functions_stay_readable():
+    """No module over 400 lines; no function over 80 without its reason written above it
+    (a comment starting "Over 80 lines on purpose")."""
+    for module, path in MODULES.items():
+        lines = path.read_text().splitlines()
+        assert len(lines) <= 400, f"{module}: {len(lines)} lines; split it"
+        for node in ast.walk(ast.parse("\n".join(lines))):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.end_lineno - node.lineno >= 80:
+                first = min([node.lineno, *(d.lineno for d in node.decorator_list)])
+                above = "\n".join(lines[max(0, first - 4) : first - 1])
+                assert "Over 80 lines on purpose" in above, (
+                    f"{module}.{node.name}: {node.end_lineno - node.lineno + 1} lines"
+                )

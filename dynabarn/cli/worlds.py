@@ -16,6 +16,8 @@ from dynabarn.cli.common import (
 from dynabarn.errors import DynabarnError
 
 
+# Over 80 lines on purpose: the declarations of the four subcommands' options, one after
+# the other, as `--help` shows them.
 def worlds_main(argv: Sequence[str] | None = None) -> int:
     from dynabarn.provenance import GENERATED_WORLDS
     from dynabarn.sim.behaviors import available_behaviors

@@ -83,6 +83,8 @@ def evaluate(actor: Actor, cfg: TD3Config, n: int) -> dict:
     return {"success": successes / n, "return": float(np.mean(returns))}
 
 
+# Over 80 lines on purpose: the TD3 loop (Fujimoto et al. 2018, Alg. 1) in one piece, as
+# the algorithm box reads; the networks, buffer and plots live outside it.
 def train_td3(cfg: TD3Config, out_dir: Path, *, progress=None) -> TD3Report:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
