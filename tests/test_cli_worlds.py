@@ -86,7 +86,7 @@ def test_malformed_import_file(tmp_path, capsys):
 
 
 def test_console_script_has_no_traceback(tmp_path):
-    exe = [sys.executable, "-m", "dynabarn.cli", "show", "999"]
+    exe = [sys.executable, "-m", "dynabarn.cli", "worlds", "show", "999"]
     r = subprocess.run(exe, capture_output=True, text=True)
     assert r.returncode == 2 and "Traceback" not in r.stderr and r.stderr.startswith("error:")
 

@@ -5,7 +5,6 @@ import signal
 import subprocess
 import sys
 import textwrap
-import time
 
 import pytest
 from mcap.reader import make_reader
@@ -171,6 +170,8 @@ def test_killed_process_keeps_what_it_wrote(tmp_path):
                 time.sleep(0.004)
                 if obs.time == 1.0:
                     print("running", flush=True)
+                if abs(obs.time - 40.0) < 1e-9:
+                    print("halfway", flush=True)
                 return 0.0, 0.0
 
         run_episode(resolve_world(0), Slow(), get_protocol("barn"), observers=[McapRecorder({str(path)!r})])
@@ -178,7 +179,7 @@ def test_killed_process_keeps_what_it_wrote(tmp_path):
     )
     proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
     assert proc.stdout.readline().strip() == "running"
-    time.sleep(2.0)  # ~400 ticks of 1000
+    assert proc.stdout.readline().strip() == "halfway"  # 400 ticks of 1000 written: kill it now
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     rec = read_recording(path)
