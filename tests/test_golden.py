@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # minutes of episodes or a real window: `make test` runs them, `-m "not slow"` skips
+
 from dynabarn.bench import golden
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol

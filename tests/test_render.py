@@ -51,6 +51,7 @@ def test_gif_follow_camera(recording, tmp_path):
     assert len(frames) > 10 and frames[0].shape[:2] == (120, 160)
 
 
+@pytest.mark.slow
 def test_run_with_video(tmp_path, capsys):
     out = tmp_path / "run.gif"
     assert run_main(["--world", "0", "--no-log", "--video", str(out)]) == 0
