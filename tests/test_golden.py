@@ -12,14 +12,14 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = pytest.mark.slow  # minutes of episodes or a real window: `make test` runs them, `-m "not slow"` skips
-
 from dynabarn.bench import golden
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_METADATA, McapRecorder, read_recording
 from dynabarn.sim import run_episode
 from tests.conftest import REFERENCE
+
+pytestmark = pytest.mark.slow  # minutes of episodes: `make test` runs them, `-m "not slow"` skips them
 
 REPO = Path(__file__).resolve().parent.parent
 BENCH = Path(sys.executable).parent / "dynabarn-bench"
