@@ -65,6 +65,8 @@ class Surroundings:
     """(n, 2) left unit normal of its path (the last one while it stands)."""
     ahead: np.ndarray
     """(n,) the robot lies ahead, in its direction of travel."""
+    side: np.ndarray
+    """(n,) the robot's offset across the path [m] (+: on its left)."""
     reach: np.ndarray
     """(n,) centre distance at contact (bounding radius + the robot's) [m]."""
     lateral: np.ndarray
@@ -156,8 +158,7 @@ class Avoid(ObstacleBehavior):
         return self.members & (s.dist < self.params["avoid_distance"])
 
     def rates(self, s: Surroundings) -> np.ndarray:
-        side = (s.rel * s.normal).sum(axis=1)  # > 0: the robot is on the path's left
-        in_way = self._near(s) & s.ahead & (np.abs(side) < s.reach)
+        in_way = self._near(s) & s.ahead & (np.abs(s.side) < s.reach)
         brake = np.clip((s.dist - s.reach) / self.BRAKE_BAND, 0.0, 1.0)
         return np.where(in_way, brake, 1.0)
 
@@ -165,11 +166,10 @@ class Avoid(ObstacleBehavior):
         vel, dist = s.velocity, s.dist
         speed = np.hypot(vel[:, 0], vel[:, 1])
         along = (s.rel * vel).sum(axis=1) / np.where(speed > 1e-9, speed, 1.0)
-        side = (s.rel * s.normal).sum(axis=1)
         cos_phi = np.where(dist > 1e-9, along / np.maximum(dist, 1e-9), 1.0)
         weight = self.ANISOTROPY + (1 - self.ANISOTROPY) * (1 + cos_phi) / 2
         push = self.STRENGTH * np.exp((s.reach - dist) / self.RANGE) * weight
-        away = np.where(side > 0, -1.0, 1.0)  # step away from the side the robot is on; dead ahead, step left
+        away = np.where(s.side > 0, -1.0, 1.0)  # step away from the side the robot is on; dead ahead, step left
         force = np.where(self._near(s), away * push, 0.0)
         force -= self.STIFFNESS * s.lateral + self.DAMPING * s.lateral_speed  # back onto the path
         speed_lat = np.clip(s.lateral_speed + force * s.period, -self.MAX_SPEED, self.MAX_SPEED)
@@ -263,7 +263,8 @@ class ReactiveObstacles:
         rel = robot_xy - actual  # (n, 2) robot relative to each obstacle
         dist = np.hypot(rel[:, 0], rel[:, 1])
         ahead = (rel * vel).sum(axis=1) > 0.0
-        s = Surroundings(rel, dist, vel, normal, ahead, self.reach, self.lateral, self.lateral_speed, self.period)
+        side = (rel * normal).sum(axis=1)
+        s = Surroundings(rel, dist, vel, normal, ahead, side, self.reach, self.lateral, self.lateral_speed, self.period)
         rate = np.ones(len(dist))
         for behavior in self.behaviors:
             rate = np.minimum(rate, behavior.rates(s))
