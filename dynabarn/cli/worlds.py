@@ -20,7 +20,7 @@ from dynabarn.errors import DynabarnError
 # the other, as `--help` shows them.
 def worlds_main(argv: Sequence[str] | None = None) -> int:
     from dynabarn.provenance import GENERATED_WORLDS
-    from dynabarn.sim.behaviors import available_behaviors
+    from dynabarn.sim.behaviors import available_behaviors, get_behavior
     from dynabarn.worlds.generate import DEFAULT_BASE_SEED
     from dynabarn.worlds.profiles import PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS
 
@@ -73,8 +73,8 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
         "--behavior",
         choices=available_behaviors(),
         default="scripted",
-        help="every obstacle's behaviour (beyond the paper): scripted = the paper's; yield = pauses while "
-        "the robot is within 1.5 m ahead; avoid = steers around the robot (social force) and back",
+        help="every obstacle's behaviour (beyond the paper): "
+        + "; ".join(f"{name} = {get_behavior(name).summary()}" for name in available_behaviors()),
     )
 
     im = sub.add_parser(

@@ -102,6 +102,12 @@ class ObstacleBehavior(abc.ABC):
         return np.zeros_like(s.lateral)
 
     @classmethod
+    def summary(cls) -> str:
+        """The docstring's first line, for `--help`."""
+        lines = (cls.__doc__ or "").strip().splitlines()
+        return lines[0].rstrip(".") if lines else cls.name
+
+    @classmethod
     def defaults(cls) -> dict[str, float]:
         """The parameters a generated world writes for an obstacle of this behaviour."""
         return {k: p.default for k, p in cls.parameters.items()}
@@ -127,7 +133,9 @@ class Yield(ObstacleBehavior):
 
 
 class Avoid(ObstacleBehavior):
-    """Social force (Helbing & Molnar 1995): within `avoid_distance` the robot pushes the
+    """Steps around the robot within `avoid_distance`, then back onto its path.
+
+    Social force (Helbing & Molnar 1995): within `avoid_distance` the robot pushes the
     obstacle sideways off its path with STRENGTH * exp((reach - d) / RANGE), weighted
     towards what lies ahead (ANISOTROPY), while a critically damped spring pulls it back
     onto the path; with the robot in its way within BRAKE_BAND it also slows its schedule.
