@@ -5,11 +5,16 @@ The public surface, in the order data flows: profiles -> trajectories -> worlds 
 imports neither MuJoCo nor anything else until a name is needed (and changes no global
 state: an application that renders offscreen chooses MuJoCo's OpenGL platform itself,
 as the command-line tools do).
+
+One exception, for reinforcement-learning users: when Gymnasium is already imported,
+`import dynabarn` registers `dynabarn/DynaBARN-v0` (what `import dynabarn.learn` does), so
+`import gymnasium as gym; import dynabarn; gym.make("dynabarn/DynaBARN-v0")` works.
 """
 
 from __future__ import annotations
 
 import importlib
+import sys
 from typing import TYPE_CHECKING
 
 _WHERE = {
@@ -110,6 +115,10 @@ def __getattr__(name: str):
     value = getattr(importlib.import_module(module), name)
     globals()[name] = value
     return value
+
+
+if "gymnasium" in sys.modules:
+    importlib.import_module("dynabarn.learn")  # registers the environment ids
 
 
 def __dir__() -> list[str]:

@@ -6,7 +6,8 @@ per obstacle, the obstacles' schedules as `<custom><numeric name="obstacle_NNN_k
 `<custom><text name="dynabarn_world">`. The Jackal is not copied in: the file names
 `assets/jackal/jackal.xml` with `<asset><model>` and places it with
 `<attach model="jackal" prefix="jackal/">`, so MuJoCo itself loads the file
-(`python -m mujoco.viewer --mjcf generated_worlds/world_137.xml`).
+(`python -m mujoco.viewer --mjcf generated_worlds/world_137.xml`, from a checkout or a wheel).
+A world folder outside the checkout carries its own copy (`DIR/assets/jackal/jackal.xml`).
 
 MjSpec builds everything it can express; it inlines attached models when it writes XML,
 so the two robot-reference elements are added to its output as the only text edit.
@@ -27,7 +28,8 @@ import mujoco
 import numpy as np
 
 from dynabarn.errors import WorldError
-from dynabarn.robot import JACKAL_XML, GeomGroup, build_jackal_spec
+from dynabarn.provenance import DATA_ROOT
+from dynabarn.robot import JACKAL_REL, JACKAL_XML, GeomGroup, build_jackal_spec
 from dynabarn.worlds.spec import WorldSpec
 
 METADATA_TEXT = "dynabarn_world"
@@ -158,18 +160,48 @@ def _yaw_quat(yaw: float) -> list[float]:
     return [1.0, 0.0, 0.0, 0.0] if yaw == 0 else [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
 
 
-def robot_reference(world_dir: Path, robot_xml: Path = JACKAL_XML) -> str:
-    """The robot file's path as written in a world in `world_dir` (relative when possible)."""
-    try:
-        return Path(os.path.relpath(robot_xml, world_dir)).as_posix()
-    except ValueError:  # different drive on Windows
-        return robot_xml.as_posix()
+def asset_root_for(world_dir: Path) -> Path:
+    """The folder whose `assets/jackal/jackal.xml` the worlds in `world_dir` name.
+
+    Folders inside the data root (the checkout's `generated_worlds/`, `mixed_worlds/`, ...)
+    share its robot (`../assets/jackal/jackal.xml`); any other folder carries its own copy
+    (`assets/jackal/jackal.xml` inside it), so it opens in MuJoCo's viewer wherever it is
+    moved and nothing is written outside it."""
+    world_dir = Path(world_dir).resolve()
+    data = DATA_ROOT.resolve()
+    return data if world_dir.is_relative_to(data) else world_dir
 
 
-def world_to_xml(world: WorldSpec, *, world_dir: Path, robot_xml: Path = JACKAL_XML) -> str:
+def place_robot(asset_root: Path) -> Path:
+    """Make sure `asset_root/assets/jackal/jackal.xml` is the package's robot (written
+    atomically when missing); returns its path. An existing different file is not replaced."""
+    target = Path(asset_root) / JACKAL_REL
+    if target.resolve() == JACKAL_XML.resolve():
+        return target
+    data = JACKAL_XML.read_bytes()
+    if target.is_file():
+        if target.read_bytes() != data:
+            raise WorldError(f"{target} exists and is not this package's robot; move it or write the worlds elsewhere")
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    part = target.with_name(target.name + ".part")
+    with open(part, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(part, target)
+    return target
+
+
+def robot_reference(world_dir: Path, asset_root: Path) -> str:
+    """The robot file's path as written in a world in `world_dir` (relative to it)."""
+    return Path(os.path.relpath(Path(asset_root).resolve() / JACKAL_REL, Path(world_dir).resolve())).as_posix()
+
+
+def world_to_xml(world: WorldSpec, *, world_dir: Path, asset_root: Path | None = None) -> str:
     """The world's MJCF text for a file in `world_dir`, with the Jackal attached."""
     xml = build_world_spec(world).to_xml()
-    ref = robot_reference(world_dir, robot_xml)
+    ref = robot_reference(world_dir, asset_root if asset_root is not None else asset_root_for(world_dir))
     model = f'    <model name="jackal" file="{ref}"/>\n'
     attach = f'    <attach model="jackal" body="base_link" prefix="{ROBOT_PREFIX}"/>\n'
     for anchor in ("  <asset>\n", "  </worldbody>\n"):
@@ -179,11 +211,14 @@ def world_to_xml(world: WorldSpec, *, world_dir: Path, robot_xml: Path = JACKAL_
     return xml.replace("  </worldbody>\n", attach + "  </worldbody>\n", 1)
 
 
-def write_world(world: WorldSpec, path: Path, *, robot_xml: Path = JACKAL_XML) -> str:
-    """Write the world's MJCF to `path`; returns the file's sha256."""
+def write_world(world: WorldSpec, path: Path, *, asset_root: Path | None = None) -> str:
+    """Write the world's MJCF to `path` (and the robot it names, when missing); returns the
+    file's sha256. `asset_root` defaults to `asset_root_for(path.parent)`."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    xml = world_to_xml(world, world_dir=path.parent.resolve(), robot_xml=robot_xml)
+    root = asset_root if asset_root is not None else asset_root_for(path.parent)
+    place_robot(root)
+    xml = world_to_xml(world, world_dir=path.parent, asset_root=root)
     data = xml.encode()
     path.write_bytes(data)
     return hashlib.sha256(data).hexdigest()

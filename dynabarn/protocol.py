@@ -83,6 +83,12 @@ class EvalProtocol:
         """OT of the BARN score [s]."""
         return self.reference_path_length / self.max_speed
 
+    @property
+    def longest_episode(self) -> float:
+        """The most simulated time an episode can last [s]: the clock may start as late as
+        one time limit (the robot leaves its spawn just before the limit), then runs one."""
+        return 2.0 * self.time_limit
+
     def timer_started(self, x: float, y: float) -> bool:
         """The robot at (x, y) has left its spawn far enough for the clock to run."""
         dx, dy = x - self.spawn[0], y - self.spawn[1]

@@ -17,18 +17,48 @@ import sys
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+PACKAGE_DIR = Path(__file__).resolve().parent
+REPO_ROOT = PACKAGE_DIR.parent
 """The checkout (or the site-packages folder of an installed wheel) holding the package."""
-GENERATED_WORLDS = REPO_ROOT / "generated_worlds"
-"""Where `make worlds` writes the 300 generated worlds and their index."""
+IS_CHECKOUT = (REPO_ROOT / "pyproject.toml").is_file() and (REPO_ROOT / "generated_worlds").is_dir()
+"""Running from a source checkout (an editable install included), not an installed wheel."""
+_WHEEL_DATA = PACKAGE_DIR / "data"
+DATA_ROOT = REPO_ROOT if IS_CHECKOUT or not (_WHEEL_DATA / "generated_worlds").is_dir() else _WHEEL_DATA
+"""The folder holding `generated_worlds/` beside `assets/jackal/`: the checkout's root, or
+`dynabarn/data` in an installed wheel (the same two folders, copied there by setup.py)."""
+SHIPPED_WORLDS = DATA_ROOT / "generated_worlds"
+"""The 300 generated worlds and their index, as committed (and shipped in the wheel)."""
+ASSETS_DIR = DATA_ROOT / "assets"
+WORLDS_ENV = "DYNABARN_WORLDS"
+"""Environment variable naming another folder of worlds with an index.json (default: the shipped set)."""
+
+
+def worlds_dir() -> Path:
+    """The world set that ids (`--world 137`) and the paper sets refer to: `$DYNABARN_WORLDS`,
+    else the shipped worlds. Read on every call, so a test or a notebook can switch sets."""
+    other = os.environ.get(WORLDS_ENV, "").strip()
+    return Path(other).expanduser() if other else SHIPPED_WORLDS
+
+
+def work_root() -> Path:
+    """Where the package builds worlds it needs on the spot (the golden set's): the checkout,
+    or the user's cache folder for an installed wheel (which may be read-only)."""
+    if IS_CHECKOUT:
+        return REPO_ROOT
+    cache = os.environ.get("XDG_CACHE_HOME", "").strip() or str(Path.home() / ".cache")
+    return Path(cache) / "dynabarn"
 
 
 def portable_path(path: Path) -> str:
-    """A path that reads the same on every checkout (relative to the repository)."""
-    try:
-        return Path(path).resolve().relative_to(REPO_ROOT).as_posix()
-    except ValueError:
-        return str(path)
+    """A path that reads the same on every checkout and install: relative to the data root
+    (`generated_worlds/world_137.xml`) or to the work root, else as given."""
+    resolved = Path(path).resolve()
+    for root in (DATA_ROOT, work_root()):
+        try:
+            return resolved.relative_to(root.resolve()).as_posix()
+        except ValueError:
+            continue
+    return str(path)
 
 
 ENVIRONMENT_KNOBS = (

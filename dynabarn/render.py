@@ -94,6 +94,22 @@ def _add_line(scene: mujoco.MjvScene, a, b, width: float, rgba) -> None:
 
 # Over 80 lines on purpose: the scene set-up and the frame loop share the renderer, the
 # model and the trails; the helpers above hold the parts that stand alone.
+CAMERAS = ("top", "follow")
+"""top: the whole arena from above; follow: behind and above the robot."""
+
+
+def place_camera(cam: mujoco.MjvCamera, camera: str, pose) -> None:
+    """Point the free camera `cam` for `camera` (one of CAMERAS) at robot pose (x, y, yaw)."""
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    x, y, yaw = (float(v) for v in pose[:3])
+    if camera == "top":
+        cam.lookat[:] = [0.5, 0.0, 0.0]
+        cam.distance, cam.elevation, cam.azimuth = 27.0, -90.0, 90.0
+    else:
+        cam.lookat[:] = [x, y, 0.3]
+        cam.distance, cam.elevation, cam.azimuth = 7.0, -35.0, math.degrees(yaw)
+
+
 def render_recording(
     rec: Recording,
     out: Path,
@@ -110,8 +126,8 @@ def render_recording(
     out = Path(out)
     if out.suffix.lower() not in (".mp4", ".gif"):
         raise DynabarnError(f"video must end in .mp4 or .gif, got {out.name!r}")
-    if camera not in ("top", "follow"):
-        raise DynabarnError(f"unknown camera {camera!r}; available: follow, top")
+    if camera not in CAMERAS:
+        raise DynabarnError(f"unknown camera {camera!r}; available: {', '.join(CAMERAS)}")
     world = recorded_world(rec)
     meta = rec.metadata
     t_pose, track = _pose_track(rec)
@@ -143,7 +159,6 @@ def render_recording(
     tol = meta.get("protocol", {}).get("goal_tolerance", 1.0)
 
     cam = mujoco.MjvCamera()
-    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
     opt = mujoco.MjvOption()
     opt.sitegroup[:] = 0  # the laser sites would clutter the picture
     writer = (
@@ -158,13 +173,7 @@ def render_recording(
                 data.qpos[:3] = robot[k]
                 data.mocap_pos[:n_obs, :2] = obstacle_xy[k]
                 mujoco.mj_kinematics(model, data)
-                x, y, yaw = robot[k]
-                if camera == "top":
-                    cam.lookat[:] = [0.5, 0.0, 0.0]
-                    cam.distance, cam.elevation, cam.azimuth = 27.0, -90.0, 90.0
-                else:
-                    cam.lookat[:] = [x, y, 0.3]
-                    cam.distance, cam.elevation, cam.azimuth = 7.0, -35.0, math.degrees(yaw)
+                place_camera(cam, camera, robot[k])
                 renderer.update_scene(data, cam, opt)
                 scene = renderer.scene
                 _add_geom(

@@ -21,8 +21,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-ASSETS_DIR = Path(__file__).resolve().parent.parent / "assets"
+from dynabarn.provenance import ASSETS_DIR
+
 JACKAL_XML = ASSETS_DIR / "jackal" / "jackal.xml"
+"""The committed robot file (in a wheel: the copy under `dynabarn/data/assets`)."""
+JACKAL_REL = Path("assets") / "jackal" / "jackal.xml"
+"""Where a world set's root keeps the robot: world files name it relative to their folder."""
 
 
 class GeomGroup(enum.IntEnum):

@@ -9,12 +9,13 @@ reproduces the committed files byte for byte.
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 from dynabarn.errors import WorldError
 from dynabarn.mjcf import write_world
-from dynabarn.provenance import GENERATED_WORLDS
+from dynabarn.provenance import WORLDS_ENV, worlds_dir
 from dynabarn.worlds.difficulty import difficulty_scores
 from dynabarn.worlds.generate import DEFAULT_BASE_SEED, N_WORLDS, PAPER60, branch_of, generate_world
 from dynabarn.worlds.profiles import Difficulty, ProfileSet, ShapeMix, StaticField, difficulty_of
@@ -77,7 +78,7 @@ def write_worlds(
 
 def generate_worlds(
     profile_set: ProfileSet,
-    out_dir: Path = GENERATED_WORLDS,
+    out_dir: Path,
     *,
     base_seed: int = DEFAULT_BASE_SEED,
     world_ids: Iterable[int] = range(N_WORLDS),
@@ -124,8 +125,9 @@ def generate_worlds(
     return write_worlds(worlds, out_dir, meta=meta, sets=sets, progress=progress)
 
 
-def read_index(path_or_dir: Path | str = GENERATED_WORLDS) -> dict:
-    p = Path(path_or_dir)
+def read_index(path_or_dir: Path | str | None = None) -> dict:
+    """A folder's (or a file's) world index; default: the current world set (`worlds_dir`)."""
+    p = Path(path_or_dir) if path_or_dir is not None else worlds_dir()
     if p.is_dir():
         p = p / INDEX_NAME
     if not p.is_file():
@@ -139,19 +141,27 @@ def read_index(path_or_dir: Path | str = GENERATED_WORLDS) -> dict:
     return index
 
 
+_WORLD_NAME = re.compile(r"(?:world_)?(\d{1,6})(?:\.xml)?")
+
+
 def resolve_world(id_or_path: str | int | Path) -> Path:
-    """A generated world id ("137") or a path, to an existing world file."""
-    s = str(id_or_path)
-    if s.isdigit():
-        n = int(s)
-        path = GENERATED_WORLDS / f"world_{n:03d}.xml"
-        if not path.is_file():
-            raise WorldError(f"unknown world id {s}: generated worlds are 0-299 (no {path.name} in {GENERATED_WORLDS})")
-        return path
+    """A world of the current set by id or name ("137", "world_137", "world_137.xml"), or
+    the path of a world file, to an existing world file. A path that exists wins."""
+    s = str(id_or_path).strip()
     path = Path(s)
-    if not path.is_file():
-        raise WorldError(f"world not found: {s} (give a world id 0-299 or the path of a world .xml)")
-    return path
+    if path.is_file():
+        return path
+    match = _WORLD_NAME.fullmatch(s)
+    if match:
+        folder = worlds_dir()
+        path = folder / f"world_{int(match[1]):03d}.xml"
+        if not path.is_file():
+            raise WorldError(
+                f"unknown world id {s}: no {path.name} in {folder} (ids of the paper's set are 0-299; "
+                f"${WORLDS_ENV} names another set)"
+            )
+        return path
+    raise WorldError(f"world not found: {s} (give a world id 0-299, a name like world_137, or a world .xml path)")
 
 
 def parse_ids(text: str | None) -> list[int] | None:
@@ -175,7 +185,7 @@ def parse_ids(text: str | None) -> list[int] | None:
 def world_set(name: str, ids: list[int] | None = None) -> list[tuple[int, str, str]]:
     """(world id, file, difficulty) for `paper60`, `dynabarn300`, or a folder/index.json."""
     if name in ("paper60", "dynabarn300"):
-        index_dir = GENERATED_WORLDS
+        index_dir = worlds_dir()
         chosen = list(PAPER60) if name == "paper60" else list(range(300))
     else:
         p = Path(name)

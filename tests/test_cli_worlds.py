@@ -41,7 +41,7 @@ def test_show_lists_shapes_and_static_cylinders_of_a_mixed_world(tmp_path, capsy
 
 
 def test_generate_subset_is_byte_identical(tmp_path):
-    from dynabarn.provenance import GENERATED_WORLDS
+    from dynabarn.provenance import SHIPPED_WORLDS
     from dynabarn.worlds.profiles import get_profile_set
     from dynabarn.worldset import generate_worlds
 
@@ -52,7 +52,7 @@ def test_generate_subset_is_byte_identical(tmp_path):
         return [line for line in text.splitlines() if '<model name="jackal"' not in line]
 
     for name in ("world_000.xml", "world_137.xml", "world_299.xml"):
-        ours, committed = (tmp_path / name).read_text(), (GENERATED_WORLDS / name).read_text()
+        ours, committed = (tmp_path / name).read_text(), (SHIPPED_WORLDS / name).read_text()
         assert without_robot_path(ours) == without_robot_path(committed)
         assert len(ours.splitlines()) == len(committed.splitlines())
 

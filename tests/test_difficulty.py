@@ -5,7 +5,7 @@ import json
 import pytest
 
 from dynabarn.mjcf import read_world
-from dynabarn.provenance import GENERATED_WORLDS
+from dynabarn.provenance import SHIPPED_WORLDS
 from dynabarn.worlds.difficulty import difficulty_scores
 from dynabarn.worlds.spec import EndBehavior, Interpolation, WorldSpec
 from tests.helpers import obstacle
@@ -37,14 +37,14 @@ def test_known_answers():
 
 
 def test_deterministic_and_stored_in_the_index():
-    index = json.loads((GENERATED_WORLDS / "index.json").read_text())
+    index = json.loads((SHIPPED_WORLDS / "index.json").read_text())
     for entry in index["worlds"][::60]:
-        world = read_world(GENERATED_WORLDS / entry["file"])
+        world = read_world(SHIPPED_WORLDS / entry["file"])
         assert difficulty_scores(world) == entry["measured"] == difficulty_scores(world)
 
 
 def test_harder_branches_score_higher_on_average():
-    index = json.loads((GENERATED_WORLDS / "index.json").read_text())
+    index = json.loads((SHIPPED_WORLDS / "index.json").read_text())
     mean = {
         d: sum(w["measured"]["corridor_blocked"] for w in index["worlds"] if w["difficulty"] == d) / 100
         for d in ("easy", "hard")

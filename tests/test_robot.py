@@ -2,7 +2,7 @@ import mujoco
 import numpy as np
 
 from dynabarn.mjcf import load_model
-from dynabarn.provenance import GENERATED_WORLDS
+from dynabarn.provenance import SHIPPED_WORLDS
 from dynabarn.robot import JACKAL, JACKAL_XML, LASER_GEOM_GROUPS, build_jackal_spec
 
 ASSET_DIR = JACKAL_XML.parent
@@ -23,7 +23,7 @@ def test_scene_loads():
 
 
 def _world_with_robot_at(x, y, yaw):
-    m = load_model(GENERATED_WORLDS / "world_000.xml")
+    m = load_model(SHIPPED_WORLDS / "world_000.xml")
     d = mujoco.MjData(m)
     d.qpos[:3] = [x, y, yaw]
     d.mocap_pos[:, :2] = 100.0  # obstacles far away

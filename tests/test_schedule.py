@@ -1,7 +1,7 @@
 import numpy as np
 
 from dynabarn.mjcf import read_world
-from dynabarn.provenance import GENERATED_WORLDS
+from dynabarn.provenance import SHIPPED_WORLDS
 from dynabarn.worlds.schedule import SchedulePlayer
 from dynabarn.worlds.spec import EndBehavior, Interpolation, Obstacle, WorldSpec
 from dynabarn.worlds.trajectory import Trajectory
@@ -38,7 +38,7 @@ def test_loop_wraps_at_duration_and_offset_shifts_clock():
 
 
 def test_spline_passes_keyframes_and_velocity_is_derivative():
-    w = read_world(GENERATED_WORLDS / "world_250.xml")
+    w = read_world(SHIPPED_WORLDS / "world_250.xml")
     w = WorldSpec.from_dict({**w.to_dict(), "interpolation": "spline"})
     p = SchedulePlayer(w)
     for i, o in enumerate(w.obstacles):
@@ -51,7 +51,7 @@ def test_spline_passes_keyframes_and_velocity_is_derivative():
 
 
 def test_linear_velocity_matches_numerical_derivative():
-    w = read_world(GENERATED_WORLDS / "world_210.xml")
+    w = read_world(SHIPPED_WORLDS / "world_210.xml")
     p = SchedulePlayer(w)
     for t in np.linspace(0.37, 40, 30):
         h = 1e-6
@@ -60,7 +60,7 @@ def test_linear_velocity_matches_numerical_derivative():
 
 
 def test_positions_into_reuses_buffers():
-    w = read_world(GENERATED_WORLDS / "world_210.xml")
+    w = read_world(SHIPPED_WORLDS / "world_210.xml")
     p = SchedulePlayer(w)
     pos = np.zeros((p.n_obstacles, 2))
     vel = np.zeros((p.n_obstacles, 2))

@@ -6,13 +6,13 @@ import pytest
 
 from dynabarn.errors import WorldError
 from dynabarn.mjcf import load_model, read_world
-from dynabarn.provenance import GENERATED_WORLDS
+from dynabarn.provenance import SHIPPED_WORLDS
 from dynabarn.worlds.generate import PAPER60, branch_of, generate_world
 from dynabarn.worlds.profiles import PROFILE_SETS
 from dynabarn.worlds.spec import WorldSpec
 from dynabarn.worldset import read_index
 
-INDEX = read_index(GENERATED_WORLDS)
+INDEX = read_index(SHIPPED_WORLDS)
 TABLE1 = PROFILE_SETS["table1"]
 
 
@@ -27,7 +27,7 @@ def test_index_lists_300_worlds_with_paper60():
 
 @pytest.mark.parametrize("entry", INDEX["worlds"][::1], ids=lambda e: e["name"])
 def test_generated_world_obeys_the_tree(entry):
-    world = read_world(GENERATED_WORLDS / entry["file"])
+    world = read_world(SHIPPED_WORLDS / entry["file"])
     count_class, motion_class = branch_of(entry["id"])
     assert world.difficulty.value == entry["difficulty"]
     assert (world.count_class, world.motion_class) == (count_class, motion_class)
@@ -46,7 +46,7 @@ def test_generated_world_obeys_the_tree(entry):
 
 def test_every_generated_world_compiles_and_steps_without_warnings():
     for entry in INDEX["worlds"]:
-        m = load_model(GENERATED_WORLDS / entry["file"])
+        m = load_model(SHIPPED_WORLDS / entry["file"])
         assert m.nmocap == entry["n_obstacles"]
         assert m.nsensor == 720 and m.nu == 3
         if entry["id"] % 50 == 0:  # a sample steps for 1 s with the robot parked
@@ -60,7 +60,7 @@ def test_file_hash_in_index_matches():
     import hashlib
 
     for entry in INDEX["worlds"][:20]:
-        data = (GENERATED_WORLDS / entry["file"]).read_bytes()
+        data = (SHIPPED_WORLDS / entry["file"]).read_bytes()
         assert hashlib.sha256(data).hexdigest() == entry["sha256"]
 
 
@@ -70,7 +70,7 @@ def test_generation_is_deterministic_and_independent_of_order():
     b = generate_world(137, TABLE1)
     assert a == b
     assert generate_world(137, TABLE1, base_seed=1) != a
-    assert read_world(GENERATED_WORLDS / "world_137.xml") == a
+    assert read_world(SHIPPED_WORLDS / "world_137.xml") == a
 
 
 def test_worldspec_json_round_trip():

@@ -5,7 +5,8 @@ episodes as the machine that wrote them (README "Reproducibility").
 Every planner (straight, dwa, teb, oracle, bc, td3), the three difficulties, both
 protocols, imported release worlds, static BARN worlds, mixed shapes with a static field
 and reactive (`avoid`, `yield`) worlds. Worlds that are not committed are built on the
-spot, deterministically, into `.golden_worlds/` beside `generated_worlds/` (so their files,
+spot, deterministically, into `.golden_worlds/` beside `generated_worlds/` (the user's cache
+folder for an installed wheel) naming the robot at `../../assets` (so their files,
 hashes and recordings read the same on every checkout); imported worlds need the
 reference data (`--reference`, default `../shared/reference`) and are skipped without it.
 
@@ -27,13 +28,13 @@ from pathlib import Path
 
 from dynabarn.errors import DynabarnError
 from dynabarn.mjcf import write_world
-from dynabarn.provenance import GENERATED_WORLDS
+from dynabarn.provenance import REPO_ROOT, SHIPPED_WORLDS, work_root
 from dynabarn.recording import MACHINE_FIELDS
-from dynabarn.worldset import resolve_world
 
 GOLDEN_FILE = Path(__file__).resolve().parent / "golden_set.json"
-GOLDEN_WORLDS = GENERATED_WORLDS.parent / ".golden_worlds"
-DEFAULT_REFERENCE = GENERATED_WORLDS.parent.parent / "shared" / "reference"
+GOLDEN_WORLDS = work_root() / ".golden_worlds"
+"""Beside generated_worlds/ in a checkout; in the user's cache for an installed wheel."""
+DEFAULT_REFERENCE = REPO_ROOT.parent / "shared" / "reference"
 FORMAT = "dynabarn-golden"
 IGNORED_FIELDS = frozenset({*MACHINE_FIELDS, "versions"})
 """Result fields not compared (machine speed, machine block; versions are reported apart)."""
@@ -141,8 +142,8 @@ def _generated(source: str, world_id: int):
 def world_file(case: GoldenCase, reference: Path, worlds_dir: Path = GOLDEN_WORLDS) -> Path | None:
     """The case's world file (built into `worlds_dir` when not committed); None when it
     needs reference data that is absent."""
-    if case.source == "generated":
-        return resolve_world(case.world_id)
+    if case.source == "generated":  # the shipped set, whatever $DYNABARN_WORLDS says
+        return SHIPPED_WORLDS / f"world_{case.world_id:03d}.xml"
     path = worlds_dir / case.source / f"world_{case.world_id:03d}.xml"
     if case.source in ("release", "barn-static"):
         worlds = _imported_cached(case.source, str(reference))
@@ -154,7 +155,9 @@ def world_file(case: GoldenCase, reference: Path, worlds_dir: Path = GOLDEN_WORL
     else:
         raise DynabarnError(f"golden case {case.key}: unknown world source {case.source!r}")
     try:
-        write_world(world, path)
+        # The robot at worlds_dir/../assets (the repository's layout) in a checkout and in a
+        # wheel's cache folder alike: the same bytes, so world_sha256 compares.
+        write_world(world, path, asset_root=worlds_dir.parent)
     except OSError as exc:
         raise DynabarnError(f"cannot write the golden set's worlds into {worlds_dir} ({exc.strerror})") from None
     return path

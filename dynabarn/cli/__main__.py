@@ -1,14 +1,8 @@
-"""`python -m dynabarn.cli COMMAND ...`: any command without its installed script
-(e.g. `python -m dynabarn.cli run --world 137 --planner dwa`)."""
+"""`python -m dynabarn.cli COMMAND ...`: the same as `python -m dynabarn COMMAND ...`."""
 
 import sys
 
-from dynabarn import cli
-
-COMMANDS = {name.removesuffix("_main"): getattr(cli, name) for name in cli.__all__}
+from dynabarn.cli.dispatch import main
 
 if __name__ == "__main__":
-    if len(sys.argv) < 2 or sys.argv[1] not in COMMANDS:
-        print(f"usage: python -m dynabarn.cli {{{','.join(COMMANDS)}}} ...", file=sys.stderr)
-        sys.exit(2)
-    sys.exit(COMMANDS[sys.argv[1]](sys.argv[2:]))
+    sys.exit(main(prog="python -m dynabarn.cli"))

@@ -158,4 +158,19 @@ def _bench(args: argparse.Namespace) -> int:
         f"{report.ran} episodes run, {report.skipped} already done, {report.errors} errors, "
         f"{report.wall_time:.1f} s; wrote {paths['csv']}, {paths['md']}, {paths['png']}"
     )
-    return 0
+    return _report_errors(report.rows, args.out)
+
+
+def _report_errors(rows: list[dict], out: Path) -> int:
+    """Episodes that ended in `error` did not measure the planner: say so loudly (stderr) and
+    exit 1, so a script or CI cannot take the table for a result."""
+    errors = [r for r in rows if r.get("outcome") == "error"]
+    if not errors:
+        return 0
+    print(f"ERROR: {len(errors)} of {len(rows)} episodes ended in an error, not an outcome:", file=sys.stderr)
+    for r in errors[:5]:
+        print(f"  {r.get('planner')} {r.get('world')} seed {r.get('seed')}: {r.get('reason')}", file=sys.stderr)
+    if len(errors) > 5:
+        print(f'  ... and {len(errors) - 5} more (outcome "error" in {out / "results.jsonl"})', file=sys.stderr)
+    print("their rows count as failures in the table above; fix the cause and rerun with --force", file=sys.stderr)
+    return 1

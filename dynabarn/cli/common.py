@@ -133,6 +133,9 @@ def run_command(body: Callable[[argparse.Namespace], int], args: argparse.Namesp
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `dynabarn-worlds show 137 | head`: the reader left, as for cat
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+        return 0
 
 
 def progress_bar(desc: str, total: int | None = None, unit: str = "world"):

@@ -19,7 +19,7 @@ from dynabarn.errors import DynabarnError
 # Over 80 lines on purpose: the declarations of the four subcommands' options, one after
 # the other, as `--help` shows them.
 def worlds_main(argv: Sequence[str] | None = None) -> int:
-    from dynabarn.provenance import GENERATED_WORLDS
+    from dynabarn.provenance import WORLDS_ENV
     from dynabarn.sim.behaviors import available_behaviors, get_behavior
     from dynabarn.worlds.generate import DEFAULT_BASE_SEED
     from dynabarn.worlds.profiles import PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS
@@ -36,8 +36,9 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
         "--out",
         type=Path,
         default=None,
-        help=f"output directory (default: {GENERATED_WORLDS.name} for the paper's worlds, "
-        "mixed_worlds when --shapes, --static or --behavior is given)",
+        help="output directory (default: ./generated_worlds for the paper's worlds, ./mixed_worlds when "
+        "--shapes, --static or --behavior is given; never into an installed package); outside the "
+        "repository the folder carries the robot the worlds name, in DIR/assets/jackal/",
     )
     g.add_argument(
         "--seed", type=int, default=DEFAULT_BASE_SEED, help="base seed; world i uses SeedSequence([seed, i])"
@@ -105,7 +106,13 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
         help="per-difficulty means of a world set's measured difficulty and obstacle motion",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    st.add_argument("folder", nargs="?", type=Path, default=GENERATED_WORLDS, help="a folder of worlds with index.json")
+    st.add_argument(
+        "folder",
+        nargs="?",
+        type=Path,
+        default=None,
+        help=f"a folder of worlds with index.json (default: ${WORLDS_ENV}, else the shipped 300 worlds)",
+    )
     st.add_argument("--worlds", default=None, help="only these world ids, e.g. 0-19,200-219 (None: all)")
 
     args = parser.parse_args(argv)
@@ -113,14 +120,14 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
 
 
 def _worlds_generate(args: argparse.Namespace) -> int:
-    from dynabarn.provenance import GENERATED_WORLDS
+    from dynabarn.provenance import WORLDS_ENV, worlds_dir
     from dynabarn.sim.behaviors import get_behavior
     from dynabarn.worlds.generate import N_WORLDS
     from dynabarn.worlds.profiles import get_profile_set, get_shape_mix, get_static_field
     from dynabarn.worldset import generate_worlds
 
     variant = args.shapes != "cylinder" or args.static != "none" or args.behavior != "scripted"
-    out = args.out or (Path("mixed_worlds") if variant else GENERATED_WORLDS)
+    out = args.out or Path("mixed_worlds" if variant else "generated_worlds")
     t0 = time.perf_counter()
     index = generate_worlds(
         get_profile_set(args.profiles),
@@ -135,6 +142,8 @@ def _worlds_generate(args: argparse.Namespace) -> int:
         progress=progress_bar("generating", N_WORLDS),
     )
     print(f"wrote {N_WORLDS} worlds and {index} in {time.perf_counter() - t0:.1f} s")
+    if Path(out).resolve() != worlds_dir().resolve():
+        print(f"ids (--world 137, --set paper60) refer to them with {WORLDS_ENV}={Path(out).resolve()}")
     return 0
 
 
@@ -208,9 +217,11 @@ def _worlds_stats(args: argparse.Namespace) -> int:
     import numpy as np
 
     from dynabarn.mjcf import read_world
+    from dynabarn.provenance import worlds_dir
     from dynabarn.worlds.difficulty import world_measures
     from dynabarn.worldset import parse_ids, read_index
 
+    args.folder = args.folder if args.folder is not None else worlds_dir()
     index = read_index(args.folder)
     entries = index["worlds"]
     if args.worlds:

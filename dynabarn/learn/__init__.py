@@ -1,7 +1,8 @@
 """Learning: the Gymnasium environment `DynaBARN-v0`, behaviour cloning and TD3.
 
 Needs the optional extra: `pip install -e '.[learn]'` (PyTorch, CPU, and Gymnasium).
-Importing this package registers the environment.
+Importing this package registers the environment as `dynabarn/DynaBARN-v0` (and, as
+before, `DynaBARN-v0`), with the protocol's longest episode as `max_episode_steps`.
 """
 
 from __future__ import annotations
@@ -11,7 +12,20 @@ try:
 except ImportError as exc:  # pragma: no cover - the extra is not installed
     raise ImportError("dynabarn.learn needs the learn extra: pip install -e '.[learn]'") from exc
 
-ENV_ID = "DynaBARN-v0"
+ENV_ID = "dynabarn/DynaBARN-v0"
+ENV_IDS = (ENV_ID, "DynaBARN-v0")
+"""The namespaced id, and the one of the first releases."""
 
-if ENV_ID not in gymnasium.registry:
-    gymnasium.register(id=ENV_ID, entry_point="dynabarn.learn.env:DynaBARNEnv")
+
+def register_envs() -> None:
+    """Register the environment ids with Gymnasium (idempotent)."""
+    from dynabarn.learn.env import episode_step_limit
+
+    for env_id in ENV_IDS:
+        if env_id not in gymnasium.registry:
+            gymnasium.register(
+                id=env_id, entry_point="dynabarn.learn.env:DynaBARNEnv", max_episode_steps=episode_step_limit("barn")
+            )
+
+
+register_envs()

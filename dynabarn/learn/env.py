@@ -34,7 +34,17 @@ the protocol's spawn ((11, 0, yaw pi) for `barn`).
 
 ## Episode end
 Terminated on success or collision; truncated on the protocol's time limit (100 s of
-simulated time, 1,000 steps) or an error.
+simulated time once the robot has moved 0.1 m, about 1,000 steps) or an error.
+`info["is_success"]` says whether the goal was reached (Stable-Baselines3 logs it as the
+success rate). The registered `spec.max_episode_steps` (2,000 for `barn`) is the longest an
+episode can last under the protocol (its clock may start up to one time limit late), so
+the protocol always truncates first and Gymnasium's `TimeLimit` is only a safety net.
+
+## Rendering
+`render_mode="rgb_array"`: `render()` returns an (height, width, 3) uint8 frame from
+MuJoCo's renderer (headless machines: set `MUJOCO_GL=egl` before importing mujoco), so
+`gymnasium.wrappers.RecordVideo` works. `render_mode="human"`: MuJoCo's viewer window,
+paced to real time (needs a display). `camera`: `top` (the arena) or `follow`.
 
 ## Arguments
 | parameter | type | default | description |
@@ -44,39 +54,68 @@ simulated time, 1,000 steps) or an error.
 | worlds | list[int] or None | None | explicit world ids (overrides difficulty) |
 | protocol | str | "barn" | barn, paper2022 or a .json file |
 | lookahead | float | 2.0 | local goal distance along the plan [m] |
+| render_mode | str or None | None | None, "rgb_array" or "human" |
+| camera | str | "top" | top or follow (rendering) |
+| width, height | int | 640, 480 | frame size [px] (rendering) |
+
+`worlds` picks ids from the whole folder of `world_set` (with `paper60`, any of the 300).
+Registered as `dynabarn/DynaBARN-v0` (and `DynaBARN-v0`) when `dynabarn.learn` is
+imported, or by `import dynabarn` once gymnasium is imported; from a fresh interpreter
+`gymnasium.make("dynabarn.learn:dynabarn/DynaBARN-v0")` imports it.
 
 ## Version history
-- v0: first version.
+- v0: first version (rendering, `is_success` and the time-limit spec added without
+  changing dynamics, observations or rewards).
 """
 
 from __future__ import annotations
 
 import math
+import os
+import threading
 from typing import Any, ClassVar
 
 import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+from dynabarn.errors import DynabarnError
 from dynabarn.metrics import Outcome
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.learned.spaces import action_to_command, policy_input
 from dynabarn.protocol import get_protocol
+from dynabarn.render import CAMERAS, place_camera
 from dynabarn.robot import JACKAL
-from dynabarn.sim import Episode, Simulation
+from dynabarn.sim import Episode, SimConfig, Simulation
+from dynabarn.worlds.profiles import Difficulty
 from dynabarn.worldset import world_set as resolve_world_set
 
 REWARD_PROGRESS = 1.0
 REWARD_TIME = -0.01
 REWARD_COLLISION = -10.0
 REWARD_SUCCESS = 20.0
+PAPER_SETS = ("paper60", "dynabarn300")
+
+
+def _has_display() -> bool:
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def episode_step_limit(protocol: str = "barn") -> int:
+    """The most control steps an episode can take under `protocol` (`longest_episode`)."""
+    return math.ceil(get_protocol(protocol).longest_episode / SimConfig().control_period - 1e-9)
 
 
 class DynaBARNEnv(gymnasium.Env):
     """DynaBARN navigation among moving obstacles (see the module docstring)."""
 
-    metadata: ClassVar[dict] = {"render_modes": []}
+    # "human" only where a window can open: MuJoCo's viewer ends the process without one.
+    metadata: ClassVar[dict] = {
+        "render_modes": ["rgb_array", "human"] if _has_display() else ["rgb_array"],
+        "render_fps": 10,
+    }
 
+    # Over 80 lines on purpose: every argument checked at the edge, each with its own line.
     def __init__(
         self,
         world_set: str = "paper60",
@@ -84,15 +123,47 @@ class DynaBARNEnv(gymnasium.Env):
         worlds: list[int] | None = None,
         protocol: str = "barn",
         lookahead: float = 2.0,
+        render_mode: str | None = None,
+        camera: str = "top",
+        width: int = 640,
+        height: int = 480,
     ) -> None:
-        entries = resolve_world_set(world_set, list(worlds) if worlds is not None else None)
+        if render_mode == "human" and not _has_display():
+            raise ValueError("render_mode 'human' needs a display (DISPLAY is not set); use 'rgb_array'")
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode {render_mode!r}: use None, 'rgb_array' or 'human'")
+        if camera not in CAMERAS:
+            raise ValueError(f"camera {camera!r}: use one of {', '.join(CAMERAS)}")
+        if not (isinstance(width, int) and isinstance(height, int) and 16 <= width <= 4096 and 16 <= height <= 4096):
+            raise ValueError(f"width and height must be whole numbers of pixels in [16, 4096], got {width}x{height}")
+        if not (isinstance(lookahead, int | float) and math.isfinite(lookahead) and 0.1 <= lookahead <= 30.0):
+            raise ValueError(f"lookahead must be a number of metres in [0.1, 30], got {lookahead!r}")
+        difficulties = [d.value for d in Difficulty]
+        if difficulty not in (None, "all", *difficulties):
+            raise ValueError(f"difficulty {difficulty!r}: use None, 'all' or one of {', '.join(difficulties)}")
+        if worlds is not None:
+            if difficulty not in (None, "all"):
+                raise ValueError("give worlds or difficulty, not both (worlds picks the exact ids)")
+            if isinstance(worlds, str | bytes) or not all(isinstance(i, int | np.integer) for i in worlds):
+                raise ValueError(f"worlds must be a list of world ids, got {worlds!r}")
+            worlds = [int(i) for i in worlds]
+            if not worlds:
+                raise ValueError("worlds is empty")
+        # Explicit ids choose from the whole folder: paper60's ids are a subset of the 300.
+        set_name = "dynabarn300" if worlds is not None and world_set in PAPER_SETS else world_set
+        try:
+            entries = resolve_world_set(set_name, worlds)
+            self.protocol = get_protocol(protocol)
+        except DynabarnError as exc:
+            raise ValueError(str(exc)) from None
         if difficulty not in (None, "all"):
             entries = [e for e in entries if e[2] == difficulty]
         if not entries:
-            raise ValueError(f"no worlds in set {world_set!r} with difficulty {difficulty!r}")
+            raise ValueError(f"no {difficulty} worlds in set {world_set!r}")
         self.entries = entries
-        self.protocol = get_protocol(protocol)
         self.lookahead = float(lookahead)
+        self.render_mode = render_mode
+        self.camera, self.width, self.height = camera, width, height
         n = len(JACKAL.laser_angles())
         low = np.concatenate([np.full(n, JACKAL.laser_range_min), [-self.lookahead, -self.lookahead]])
         high = np.concatenate([np.full(n, JACKAL.laser_range_max), [self.lookahead, self.lookahead]])
@@ -101,6 +172,12 @@ class DynaBARNEnv(gymnasium.Env):
         self._sims: dict[str, Simulation] = {}
         self._planners: dict[str, GlobalPlanner] = {}
         self.episode: Episode | None = None
+        self._file: str | None = None
+        self._renderers: dict[str, Any] = {}
+        self._viewer = None
+        self._viewer_thread: threading.Thread | None = None
+        self._viewer_file: str | None = None
+        self._wall_next = 0.0
 
     def _observe(self) -> np.ndarray:
         obs = self.episode.observe()
@@ -122,12 +199,15 @@ class DynaBARNEnv(gymnasium.Env):
                 sim.walls, sim.goal, (JACKAL.length, JACKAL.width), np.array(sim.world.layout.cylinders).reshape(-1, 3)
             )
         sim = self._sims[file]
+        self._file = file
         self._planner = self._planners[file]
         self.episode = Episode(sim, self.protocol, seed=trial)
         observation = self._observe()
         self._cost_to_go = self._planner.cost_to_go(float(self._pose[0]), float(self._pose[1]))
         self._info = {"world": sim.world.name, "world_id": wid, "difficulty": difficulty, "trial_seed": trial}
-        return observation, dict(self._info)
+        if self.render_mode == "human":
+            self._show()
+        return observation, {**self._info, "is_success": False}
 
     def step(self, action):
         if self.episode is None:
@@ -146,7 +226,15 @@ class DynaBARNEnv(gymnasium.Env):
         }
         terminated = outcome in (Outcome.SUCCESS, Outcome.COLLISION)
         truncated = outcome in (Outcome.TIMEOUT, Outcome.ERROR)
-        info = {**self._info, **terms, "outcome": outcome.value if outcome else None, "time": self.episode.time}
+        info = {
+            **self._info,
+            **terms,
+            "outcome": outcome.value if outcome else None,
+            "time": self.episode.time,
+            "is_success": outcome is Outcome.SUCCESS,
+        }
+        if self.render_mode == "human":
+            self._show()
         return observation, float(sum(terms.values())), terminated, truncated, info
 
     def _last_observation(self) -> np.ndarray:
@@ -156,3 +244,66 @@ class DynaBARNEnv(gymnasium.Env):
         g = self._planner.local_goal_in_robot(self._pose, self.lookahead)
         scan = np.clip(ep._obs.scan, JACKAL.laser_range_min, JACKAL.laser_range_max)
         return policy_input(scan, g, np.float32)
+
+    # -- rendering ------------------------------------------------------------------------
+    def render(self) -> np.ndarray | None:
+        """The current frame (rgb_array), or None (human mode draws in `step` and `reset`)."""
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() without a render_mode: pass render_mode='rgb_array' to make()")
+            return None
+        if self.episode is None:
+            raise gymnasium.error.ResetNeeded("call reset() before render()")
+        if self.render_mode == "human":
+            self._show()
+            return None
+        import mujoco
+
+        sim = self.episode.sim
+        renderer = self._renderers.get(self._file)
+        if renderer is None:
+            sim.model.vis.global_.offwidth = max(sim.model.vis.global_.offwidth, self.width)
+            sim.model.vis.global_.offheight = max(sim.model.vis.global_.offheight, self.height)
+            renderer = self._renderers[self._file] = mujoco.Renderer(sim.model, self.height, self.width)
+            self._camera_view = mujoco.MjvCamera()
+            self._scene_option = mujoco.MjvOption()
+            self._scene_option.sitegroup[:] = 0  # laser sites would clutter the picture
+        place_camera(self._camera_view, self.camera, self._pose)
+        renderer.update_scene(sim.data, self._camera_view, self._scene_option)
+        return renderer.render()
+
+    def _show(self) -> None:
+        """Human mode: MuJoCo's passive viewer on the current world, paced to real time."""
+        import time
+
+        import mujoco.viewer
+
+        if self._viewer is not None and (self._viewer_file != self._file or not self._viewer.is_running()):
+            self._close_viewer()
+        if self._viewer is None:
+            sim = self.episode.sim
+            before = set(threading.enumerate())
+            self._viewer = mujoco.viewer.launch_passive(sim.model, sim.data, show_left_ui=False, show_right_ui=False)
+            # The viewer's render thread (launch_passive keeps it to itself): joined on close,
+            # or the interpreter's exit tears GLFW down under it (a segmentation fault).
+            self._viewer_thread = next((t for t in threading.enumerate() if t not in before), None)
+            self._viewer_file = self._file
+            place_camera(self._viewer.cam, self.camera, self._pose)
+            self._wall_next = time.perf_counter()
+        self._viewer.sync()
+        self._wall_next += 1.0 / self.metadata["render_fps"]
+        time.sleep(max(0.0, self._wall_next - time.perf_counter()))
+
+    def close(self) -> None:
+        for renderer in self._renderers.values():
+            renderer.close()
+        self._renderers.clear()
+        self._close_viewer()
+        super().close()
+
+    def _close_viewer(self) -> None:
+        if self._viewer is None:
+            return
+        self._viewer.close()
+        if self._viewer_thread is not None:
+            self._viewer_thread.join(timeout=10.0)
+        self._viewer = self._viewer_thread = None

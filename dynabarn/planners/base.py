@@ -9,6 +9,8 @@ their schedules.
 from __future__ import annotations
 
 import abc
+import math
+import typing
 from dataclasses import fields
 from typing import ClassVar
 
@@ -19,12 +21,56 @@ __all__ = ["EndEpisode", "EpisodeInfo", "Observation", "ObstacleState", "Planner
 
 
 def config_from_kwargs(cls, kwargs: dict, what: str):
-    """Build the planner configuration dataclass `cls`, naming unknown keys and the known ones."""
+    """Build the planner configuration dataclass `cls` from keyword values, checked before
+    anything runs: unknown keys (naming the known ones), each value against its field's type
+    (numbers finite, counts whole), and against the class's `LIMITS` {field: (low, high)}
+    where it declares them (so `vx_samples=100000000` is refused instead of exhausting memory).
+    Raises TypeError with one line (`get_planner` makes it a DynabarnError)."""
     known = {f.name for f in fields(cls)}
     unknown = set(kwargs) - known
     if unknown:
         raise TypeError(f"unknown {what} parameter(s) {sorted(unknown)}; known: {sorted(known)}")
-    return cls(**kwargs)
+    hints = typing.get_type_hints(cls)
+    limits: dict[str, tuple[float, float]] = getattr(cls, "LIMITS", {})
+    checked = {key: _checked(f"{what} {key}", value, hints.get(key), limits.get(key)) for key, value in kwargs.items()}
+    return cls(**checked)
+
+
+def _checked(name: str, value, kind, limits: tuple[float, float] | None):
+    """`value` as the field's type (float, int, bool, str, or a tuple of floats), in range."""
+    if kind is bool:
+        if not isinstance(value, bool):
+            raise TypeError(f"{name}={value!r}: expected true or false")
+        return value
+    if kind is str:
+        if not isinstance(value, str):
+            raise TypeError(f"{name}={value!r}: expected a string")
+        return value
+    if kind in (float, int):
+        number = _number(name, value, whole=kind is int)
+        if limits is not None and not limits[0] <= number <= limits[1]:
+            raise TypeError(f"{name}={value!r}: out of range [{limits[0]:g}, {limits[1]:g}]")
+        return number
+    if kind is tuple:
+        if not isinstance(value, list | tuple) or not value:
+            raise TypeError(f"{name}={value!r}: expected a non-empty list of numbers")
+        numbers = tuple(_number(name, v, whole=False) for v in value)
+        if limits is not None and not all(limits[0] <= v <= limits[1] for v in numbers):
+            raise TypeError(f"{name}={value!r}: values out of range [{limits[0]:g}, {limits[1]:g}]")
+        return numbers
+    return value  # nested configurations check themselves
+
+
+def _number(name: str, value, *, whole: bool) -> float | int:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TypeError(f"{name}={value!r}: expected {'a whole number' if whole else 'a number'}")
+    if not math.isfinite(value):
+        raise TypeError(f"{name}={value!r}: expected a finite number")
+    if whole:
+        if float(value) != int(value):
+            raise TypeError(f"{name}={value!r}: expected a whole number")
+        return int(value)
+    return value  # as given: an int stays an int in the recorded configuration
 
 
 class Planner(abc.ABC):

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from scipy.ndimage import distance_transform_edt
@@ -39,6 +40,16 @@ class CostmapConfig:
     """Costs fall to 0 beyond this distance from an obstacle [m]."""
     cost_scaling: float = 6.0
     """Exponential decay rate of inflated costs [1/m]."""
+
+    LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        "size": (1.0, 40.0),
+        "resolution": (0.02, 1.0),
+        "obstacle_range": (0.0, 30.0),
+        "raytrace_range": (0.0, 30.0),
+        "inscribed_radius": (0.0, 2.0),
+        "inflation_radius": (0.0, 5.0),
+        "cost_scaling": (0.0, 100.0),
+    }
 
 
 class LocalCostmap:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
@@ -69,15 +70,33 @@ class DWAConfig:
     """Backing-up speed when nothing is admissible [m/s]."""
     costmap: CostmapConfig = field(default_factory=CostmapConfig)
 
+    LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        "max_vel_x": (0.0, 5.0),
+        "min_vel_x": (-2.0, 5.0),
+        "max_vel_theta": (0.0, 10.0),
+        "acc_lim_x": (1e-3, 100.0),
+        "acc_lim_theta": (1e-3, 100.0),
+        "sim_time": (1e-3, 10.0),
+        "sim_dt": (1e-3, 1.0),
+        "vx_samples": (1, 200),
+        "vth_samples": (1, 400),
+        "path_distance_bias": (0.0, 1e6),
+        "goal_distance_bias": (0.0, 1e6),
+        "occdist_scale": (0.0, 1e6),
+        "forward_point_distance": (0.0, 5.0),
+        "lookahead": (0.1, 30.0),
+        "collision_radius": (0.0, 2.0),
+        "escape_vel": (-2.0, 0.0),
+    }
+    """Accepted ranges (checked before a run: a typo cannot exhaust memory or time)."""
+
     @classmethod
     def from_kwargs(cls, **kwargs) -> DWAConfig:
         cm = dict(kwargs.pop("costmap", {}) or {})
         for key in [k for k in kwargs if k.startswith("costmap.")]:
             cm[key.split(".", 1)[1]] = kwargs.pop(key)
-        cfg = config_from_kwargs(cls, {**kwargs, "costmap": CostmapConfig(**cm)}, "DWA")
-        if cfg.vx_samples < 1 or cfg.vth_samples < 1 or cfg.sim_time <= 0 or cfg.sim_dt <= 0:
-            raise TypeError("vx_samples, vth_samples, sim_time and sim_dt must be positive")
-        return cfg
+        costmap = config_from_kwargs(CostmapConfig, cm, "DWA costmap")
+        return config_from_kwargs(cls, {**kwargs, "costmap": costmap}, "DWA")
 
 
 def rollout(pose: np.ndarray, v: np.ndarray, w: np.ndarray, times: np.ndarray) -> np.ndarray:

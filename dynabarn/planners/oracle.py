@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -53,9 +54,28 @@ class OracleConfig:
     move, and a mixed world's field only guarantees passages this much wider than the
     robot's circumscribed circle."""
 
+    LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        "v_samples": (-2.0, 5.0),
+        "w_samples": (-10.0, 10.0),
+        "t1": (0.05, 10.0),
+        "t2": (0.0, 10.0),
+        "dt": (0.01, 1.0),
+        "safety": (0.0, 2.0),
+        "comfort": (0.0, 5.0),
+        "clearance_weight": (0.0, 1e6),
+        "first_segment_weight": (0.0, 1e6),
+        "static_safety": (0.0, 2.0),
+    }
+    """Accepted ranges (checked before a run)."""
+    MAX_CANDIDATES: ClassVar[int] = 10_000
+    """(v, w) pairs squared: two segments of every pair are rolled out each tick."""
+
     @classmethod
     def from_kwargs(cls, **kwargs) -> OracleConfig:
-        return config_from_kwargs(cls, kwargs, "oracle")
+        cfg = config_from_kwargs(cls, kwargs, "oracle")
+        if (len(cfg.v_samples) * len(cfg.w_samples)) ** 2 > cls.MAX_CANDIDATES:
+            raise TypeError(f"oracle: too many candidates ((v samples x w samples)^2 > {cls.MAX_CANDIDATES})")
+        return cfg
 
 
 class OraclePlanner(Planner):

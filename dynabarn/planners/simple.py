@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import ClassVar
 
-from dynabarn.planners.base import EpisodeInfo, Observation, Planner
+from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
 
 
 @dataclass
@@ -15,6 +16,8 @@ class StraightConfig:
     heading_gain: float = 2.0
     """Yaw-rate command per radian of heading error [1/s]."""
 
+    LIMITS: ClassVar[dict[str, tuple[float, float]]] = {"speed": (0.0, 5.0), "heading_gain": (0.0, 100.0)}
+
 
 class StraightPlanner(Planner):
     """Drive at the goal at full speed, turning towards it; no obstacle avoidance."""
@@ -22,7 +25,7 @@ class StraightPlanner(Planner):
     name = "straight"
 
     def __init__(self, **config: float) -> None:
-        self.cfg = StraightConfig(**config)
+        self.cfg = config_from_kwargs(StraightConfig, config, "straight")
         self._w_max = math.pi
 
     def reset(self, info: EpisodeInfo) -> None:

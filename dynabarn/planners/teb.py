@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import ClassVar
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -72,6 +73,36 @@ class TEBConfig:
     weight_inflation: float = 0.5
     max_iterations: int = 12
     """Residual evaluations allowed per tick (least_squares `max_nfev`)."""
+
+    LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        "n_poses": (3, 100),
+        "lookahead": (0.1, 30.0),
+        "max_vel_x": (0.0, 5.0),
+        "max_vel_x_backwards": (0.0, 5.0),
+        "max_vel_theta": (0.0, 10.0),
+        "acc_lim_x": (1e-3, 100.0),
+        "acc_lim_theta": (1e-3, 100.0),
+        "min_obstacle_dist": (0.0, 3.0),
+        "inflation_dist": (0.0, 5.0),
+        "obstacle_range": (0.0, 30.0),
+        "obstacle_stride": (1, 720),
+        "max_iterations": (1, 1000),
+        **{
+            w: (0.0, 1e6)
+            for w in (
+                "weight_optimaltime",
+                "weight_kinematics_nh",
+                "weight_kinematics_forward_drive",
+                "weight_max_vel_x",
+                "weight_max_vel_theta",
+                "weight_acc_lim_x",
+                "weight_acc_lim_theta",
+                "weight_obstacle",
+                "weight_inflation",
+            )
+        },
+    }
+    """Accepted ranges (checked before a run)."""
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> TEBConfig:

@@ -55,8 +55,7 @@ class Episode:
         self.dt = config.dt
         self.k = config.steps_per_tick
         self.period = config.control_period
-        # Longest possible episode: the clock may start as late as `limit`, then run `limit`.
-        max_steps = math.ceil(2 * protocol.time_limit / self.dt) + 2 * self.k
+        max_steps = math.ceil(protocol.longest_episode / self.dt) + 2 * self.k
         self.poses = np.zeros((max_steps + 1, 3))  # robot pose after every physics step
         n_ticks_max = max_steps // self.k + 2
         self.tick_v = np.zeros(n_ticks_max)

@@ -1,0 +1,36 @@
+"""One entry point for every command: `python -m dynabarn COMMAND ...` (also
+`python -m dynabarn.cli`), for environments where the installed scripts are not on PATH."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Sequence
+
+from dynabarn import cli
+from dynabarn.cli.common import EXIT_USAGE
+
+COMMANDS: dict[str, Callable[[Sequence[str] | None], int]] = {
+    name.removesuffix("_main"): getattr(cli, name) for name in cli.__all__
+}
+"""Command name (`run` for `dynabarn-run`) -> its main."""
+
+
+def _summary(command: Callable) -> str:
+    """The first line of the command module's docstring, without its "`dynabarn-x`: " head."""
+    doc = (sys.modules[command.__module__].__doc__ or "").strip()
+    first = doc.splitlines()[0] if doc else ""
+    return first.split(": ", 1)[-1]
+
+
+def main(argv: Sequence[str] | None = None, prog: str = "python -m dynabarn") -> int:
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args or args[0] in ("-h", "--help"):
+        print(f"usage: {prog} COMMAND [options]   (the same as dynabarn-COMMAND)\n\ncommands:")
+        for name, command in COMMANDS.items():
+            print(f"  {name:<8} {_summary(command)}")
+        print(f"\n{prog} COMMAND --help explains a command's options.")
+        return 0 if args else EXIT_USAGE
+    if args[0] not in COMMANDS:
+        print(f"{prog}: unknown command {args[0]!r}; choose from {', '.join(COMMANDS)}", file=sys.stderr)
+        return EXIT_USAGE
+    return COMMANDS[args[0]](args[1:])
