@@ -350,12 +350,18 @@ def save_rrd(recs: list[Recording], path: Path) -> list[ReplayCounts]:
     return counts
 
 
-def open_viewer(recs: list[Recording], *, web: bool = False) -> list[ReplayCounts]:
-    """Spawn the native viewer (or serve the web viewer on loopback) and stream the recordings."""
+def spawn_viewer(recs: list[Recording]) -> list[ReplayCounts]:
+    """Start rerun's native viewer and stream the recordings to it."""
     stream = rr.RecordingStream(APP_ID, make_default=False, make_thread_default=False)
-    if web:
-        server_uri = stream.serve_grpc()
-        rr.serve_web_viewer(connect_to=server_uri, open_browser=False)
-    else:
-        stream.spawn()
+    stream.spawn()
     return build_stream(recs, stream)
+
+
+def send_to(recs: list[Recording], url: str) -> list[ReplayCounts]:
+    """Stream the recordings to a viewer that is already running (`rerun+http://...`)."""
+    stream = rr.RecordingStream(APP_ID, make_default=False, make_thread_default=False)
+    stream.connect_grpc(url)
+    counts = build_stream(recs, stream)
+    stream.flush()
+    stream.disconnect()
+    return counts

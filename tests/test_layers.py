@@ -22,7 +22,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("sim",),
     ("planners",),
     ("recording",),
-    ("replay",),  # consumers of the layers above, each may use the ones before it
+    ("replay", "web_viewer"),  # consumers of the layers above, each may use the ones before it
     ("render",),
     ("demos",),
     ("bench",),
