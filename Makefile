@@ -36,7 +36,7 @@ lock:
 	.venv-lock/bin/python -m pip install --quiet -e '.[$(EXTRAS)]'
 	{ echo "# Exact versions for make install / make test (x86_64 Linux, CPython 3.11), from \`make lock\`."; \
 	  echo "# pyproject.toml keeps the ranges; every result records the versions that decide it."; \
-	  .venv-lock/bin/python -m pip freeze --exclude-editable | grep -v '^dynabarn'; } > $(LOCK).tmp
+	  .venv-lock/bin/python -m pip freeze --all --exclude-editable | grep -v -E '^(dynabarn|pip)=='; } > $(LOCK).tmp
 	mv $(LOCK).tmp $(LOCK)
 	rm -rf .venv-lock
 

@@ -92,8 +92,6 @@ def _add_line(scene: mujoco.MjvScene, a, b, width: float, rgba) -> None:
     scene.ngeom += 1
 
 
-# Over 80 lines on purpose: the scene set-up and the frame loop share the renderer, the
-# model and the trails; the helpers above hold the parts that stand alone.
 CAMERAS = ("top", "follow")
 """top: the whole arena from above; follow: behind and above the robot."""
 
@@ -110,6 +108,8 @@ def place_camera(cam: mujoco.MjvCamera, camera: str, pose) -> None:
         cam.distance, cam.elevation, cam.azimuth = 7.0, -35.0, math.degrees(yaw)
 
 
+# Over 80 lines on purpose: the scene set-up and the frame loop share the renderer, the
+# model and the trails; the helpers above hold the parts that stand alone.
 def render_recording(
     rec: Recording,
     out: Path,

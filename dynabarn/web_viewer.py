@@ -11,6 +11,7 @@ from __future__ import annotations
 import ipaddress
 import socket
 import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -94,6 +95,17 @@ def rerun_binary() -> str:
     return found
 
 
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
+    """Linux: the server gets SIGTERM when the replay process dies, even by SIGKILL."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 def _listening(host: str, port: int) -> bool:
     try:
         with socket.create_connection((host.strip("[]"), port), timeout=0.5):
@@ -120,7 +132,13 @@ def serve_web(
     cmd = [rerun_binary(), "--serve-web", "--bind", bind, "--port", str(grpc_port)]
     cmd += ["--web-viewer-port", str(port), str(rrd)]
     with open(log, "wb") as sink:
-        process = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=sink, stderr=subprocess.STDOUT)
+        process = subprocess.Popen(
+            cmd,
+            stdin=subprocess.DEVNULL,
+            stdout=sink,
+            stderr=subprocess.STDOUT,
+            preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None,
+        )
     viewer = WebViewer(process, viewer_url(bind, port, grpc_port), bind, log)
     deadline = time.monotonic() + timeout
     while not (_listening(host, port) and _listening(host, grpc_port)):

@@ -17,6 +17,10 @@ from importlib.metadata import PackageNotFoundError, version
 
 from dynabarn.errors import DynabarnError
 
+WORLD_HELP = (
+    "a world by id or name (137, world_137, world_137.xml; from $DYNABARN_WORLDS, else the shipped 300) "
+    "or the path of a world .xml"
+)
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 
@@ -81,7 +85,7 @@ def subcommands(parser: argparse.ArgumentParser) -> _Subcommands:
 
 
 def add_world(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--world", required=True, help="generated world id (0-299) or path of a world .xml")
+    p.add_argument("--world", required=True, help=WORLD_HELP)
 
 
 def add_protocol(p: argparse.ArgumentParser) -> None:

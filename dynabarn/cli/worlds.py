@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
+    WORLD_HELP,
     make_parser,
     progress_bar,
     run_command,
@@ -98,7 +99,7 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
     sh = sub.add_parser(
         "show", help="summarise a world and optionally plot it", formatter_class=argparse.ArgumentDefaultsHelpFormatter
     )
-    sh.add_argument("world", help="generated world id (0-299) or path of a world .xml")
+    sh.add_argument("world", help=WORLD_HELP)
     sh.add_argument("--plot", type=Path, default=None, help="write a top-down PNG of the trajectories here")
 
     st = sub.add_parser(
