@@ -30,3 +30,7 @@ class EndEpisode(Exception):
 def unknown_choice(kind: str, name: str, available: list[str] | tuple[str, ...]) -> str:
     """The message for a name not in a registry, listing what is available."""
     return f"unknown {kind} {name!r}; available: {', '.join(sorted(available))}"
+
+
+LEARN_EXTRA = "the learn extra: pip install 'dynabarn[learn]' (in a checkout: pip install -e '.[learn]')"
+"""What to install for PyTorch and Gymnasium, said the same way everywhere."""

@@ -12,12 +12,13 @@ from dynabarn.cli.common import (
     run_command,
     subcommands,
 )
-from dynabarn.errors import DynabarnError
+from dynabarn.errors import LEARN_EXTRA, DynabarnError
 
 
 def train_main(argv: Sequence[str] | None = None) -> int:
     parser = make_parser(
-        "dynabarn-train", "Train the learned baselines (needs the learn extra: pip install -e '.[learn]')."
+        "dynabarn-train",
+        f"Train the learned baselines (needs {LEARN_EXTRA}).",
     )
     sub = subcommands(parser)
     bc = sub.add_parser(
@@ -52,7 +53,7 @@ def _train(args: argparse.Namespace) -> int:
     try:
         import torch  # noqa: F401
     except ImportError:
-        raise DynabarnError("dynabarn-train needs the learn extra: pip install -e '.[learn]'") from None
+        raise DynabarnError(f"dynabarn-train needs {LEARN_EXTRA}") from None
     if args.command == "bc":
         from dynabarn.learn.bc import train_bc
 

@@ -1,16 +1,19 @@
 """Learning: the Gymnasium environment `DynaBARN-v0`, behaviour cloning and TD3.
 
-Needs the optional extra: `pip install -e '.[learn]'` (PyTorch, CPU, and Gymnasium).
+Needs the optional extra (PyTorch and Gymnasium): `pip install 'dynabarn[learn]'`, or
+`pip install -e '.[learn]'` in a checkout.
 Importing this package registers the environment as `dynabarn/DynaBARN-v0` (and, as
 before, `DynaBARN-v0`), with the protocol's longest episode as `max_episode_steps`.
 """
 
 from __future__ import annotations
 
+from dynabarn.errors import LEARN_EXTRA
+
 try:
     import gymnasium
 except ImportError as exc:  # pragma: no cover - the extra is not installed
-    raise ImportError("dynabarn.learn needs the learn extra: pip install -e '.[learn]'") from exc
+    raise ImportError(f"dynabarn.learn needs {LEARN_EXTRA}") from exc
 
 ENV_ID = "dynabarn/DynaBARN-v0"
 ENV_IDS = (ENV_ID, "DynaBARN-v0")

@@ -12,7 +12,7 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-from dynabarn.errors import DynabarnError
+from dynabarn.errors import LEARN_EXTRA, DynabarnError
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.learned.spaces import action_to_command, policy_input
@@ -29,7 +29,7 @@ class LearnedPlanner(Planner):
 
             from dynabarn.planners.learned.models import load_policy
         except ImportError:
-            raise DynabarnError(f"planner {self.kind!r} needs the learn extra: pip install -e '.[learn]'") from None
+            raise DynabarnError(f"planner {self.kind!r} needs {LEARN_EXTRA}") from None
         self._torch = torch
         path = Path(policy) if policy else SHIPPED / f"{self.kind}.pt"
         self.actor, self.header = load_policy(path)
