@@ -224,27 +224,79 @@ def write_world(world: WorldSpec, path: Path, *, asset_root: Path | None = None)
     return hashlib.sha256(data).hexdigest()
 
 
-def read_world(path: Path | str) -> WorldSpec:
-    """The WorldSpec stored in a world MJCF file (no compilation needed)."""
+MAX_WORLD_BYTES = 64 * 1024 * 1024
+"""Largest world file read (the 300 generated worlds are 3-25 kB; a 3,000-obstacle world is
+about 5 MB)."""
+_REFUSED_ELEMENTS = {"include", "plugin", "extension", "instance"}
+"""MJCF elements that make MuJoCo read other files or run other code."""
+
+
+def world_bytes(path: Path | str) -> bytes:
+    """A world file's bytes, read once (what is hashed is what is parsed and compiled)."""
     path = Path(path)
     if not path.is_file():
         raise WorldError(f"world file not found: {path}")
     try:
-        root = ET.parse(path).getroot()
+        size = path.stat().st_size
+        if size > MAX_WORLD_BYTES:
+            raise WorldError(f"{path}: {size / 1e6:.0f} MB is larger than a world file can be (64 MB)")
+        return path.read_bytes()
+    except OSError as exc:
+        raise WorldError(f"{path}: cannot read ({exc.strerror})") from None
+
+
+def _parse(path: Path, data: bytes) -> ET.Element:
+    try:
+        root = ET.fromstring(data)
     except ET.ParseError as exc:
         raise WorldError(f"{path}: not valid XML ({exc})") from None
     if root.tag != "mujoco":
         raise WorldError(f"{path}: not an MJCF file (root element <{root.tag}>)")
+    return root
+
+
+def check_self_contained(path: Path, root: ET.Element) -> None:
+    """A world file is data: it may name the project's Jackal (`<model name="jackal">`, which
+    is always taken from this package) and nothing else outside itself. `<include>`, plugins,
+    and every file reference (meshes, textures, height fields, skins, compiler folders) are
+    refused with one line naming the element."""
+    robots = 0
+    for element in root.iter():
+        tag = element.tag if isinstance(element.tag, str) else "?"
+        if tag in _REFUSED_ELEMENTS:
+            raise WorldError(f"{path}: <{tag}> is not allowed: a world file loads nothing but itself and the Jackal")
+        for attribute, value in element.attrib.items():
+            if not (attribute.startswith("file") or (tag == "compiler" and attribute.endswith("dir"))):
+                continue
+            if tag == "model" and attribute == "file" and element.get("name") == "jackal":
+                robots += 1
+                continue
+            raise WorldError(
+                f"{path}: <{tag} {attribute}={value!r}> refers to another file; world files must be self-contained"
+            )
+    if robots > 1:
+        raise WorldError(f"{path}: more than one <model name='jackal'>")
+
+
+def read_world(path: Path | str, data: bytes | None = None) -> WorldSpec:
+    """The WorldSpec stored in a world MJCF file (no compilation needed); `data`: the file's
+    bytes when already read."""
+    path = Path(path)
+    root = _parse(path, world_bytes(path) if data is None else data)
+    check_self_contained(path, root)
     text = root.find(f"./custom/text[@name='{METADATA_TEXT}']")
     if text is None or (text.get("data") is None and not (text.text or "").strip()):
         raise WorldError(f"{path}: not a DynaBARN world (no <text name='{METADATA_TEXT}'>)")
     try:
         meta = json.loads(text.get("data") or text.text or "")
-    except json.JSONDecodeError as exc:
-        raise WorldError(f"{path}: world metadata is not valid JSON ({exc})") from None
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise WorldError(f"{path}: world metadata is not valid JSON ({type(exc).__name__})") from None
     numerics = {n.get("name"): n.get("data", "") for n in root.findall("./custom/numeric")}
     keyframes = []
-    for od in meta.get("obstacles", []) if isinstance(meta, dict) else []:
+    obstacles = meta.get("obstacles") if isinstance(meta, dict) else None
+    for od in obstacles if isinstance(obstacles, list) else []:
+        if not isinstance(od, dict):
+            raise WorldError(f"{path}: an obstacle's description is not an object")
         raw = numerics.get(keyframes_numeric_name(str(od.get("name"))))
         if raw is None:
             raise WorldError(f"{path}: obstacle {od.get('name')!r} has no keyframes numeric")
@@ -261,32 +313,33 @@ def read_world(path: Path | str) -> WorldSpec:
         raise WorldError(f"{path}: {exc}") from None
 
 
-_RUNTIME_ROBOT = "jackal_runtime.xml"
+_ROBOT_ASSET = "jackal.xml"
 
 
 @functools.cache
-def _runtime_robot_xml() -> bytes:
-    return build_jackal_spec(beam_sensors=False).to_xml().encode()
+def _robot_xml(beam_sensors: bool) -> bytes:
+    """The package's Jackal: the committed file, or the runner's variant without the 720
+    beam sites and rangefinders (it casts the scan with mj_multiRay), built in memory."""
+    return JACKAL_XML.read_bytes() if beam_sensors else build_jackal_spec(beam_sensors=False).to_xml().encode()
 
 
 _MODEL_REFERENCE = re.compile(r'<model name="jackal" file="[^"]*"/>')
 
 
-def load_model(path: Path | str, *, beam_sensors: bool = True) -> mujoco.MjModel:
+def load_model(path: Path | str, *, beam_sensors: bool = True, data: bytes | None = None) -> mujoco.MjModel:
     """Compile a world file with MuJoCo, turning its errors into one clear line.
 
-    With `beam_sensors=False` the world is compiled with the runner's variant of the
-    Jackal (no per-beam sites and rangefinders; the runner casts the scan with
-    mj_multiRay), built in memory and handed to MuJoCo through its asset dictionary.
-    """
+    The world is checked to be self-contained (`check_self_contained`) and compiled from its
+    bytes (`data` when already read) with the package's Jackal handed to MuJoCo through its
+    asset dictionary, so nothing else is read and the current directory does not matter.
+    `beam_sensors=False` gives the runner's variant of the robot."""
+    path = Path(path)
+    data = world_bytes(path) if data is None else data
+    check_self_contained(path, _parse(path, data))
     try:
-        if not beam_sensors:
-            xml = Path(path).read_text()
-            if _MODEL_REFERENCE.search(xml):
-                robot = _runtime_robot_xml()
-                xml = _MODEL_REFERENCE.sub(f'<model name="jackal" file="{_RUNTIME_ROBOT}"/>', xml, count=1)
-                return mujoco.MjModel.from_xml_string(xml, assets={_RUNTIME_ROBOT: robot})
-        return mujoco.MjModel.from_xml_path(str(path))
+        xml = data.decode()
+        xml = _MODEL_REFERENCE.sub(f'<model name="jackal" file="{_ROBOT_ASSET}"/>', xml, count=1)
+        return mujoco.MjModel.from_xml_string(xml, assets={_ROBOT_ASSET: _robot_xml(beam_sensors)})
     except (ValueError, UnicodeDecodeError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else "unknown error"
         raise WorldError(f"{path}: MuJoCo cannot load this world: {first}") from None

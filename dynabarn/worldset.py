@@ -136,9 +136,29 @@ def read_index(path_or_dir: Path | str | None = None) -> dict:
         index = json.loads(p.read_text())
     except json.JSONDecodeError as exc:
         raise WorldError(f"{p}: index is not valid JSON ({exc})") from None
-    if index.get("format") != "dynabarn-index":
+    if not isinstance(index, dict) or index.get("format") != "dynabarn-index":
         raise WorldError(f"{p}: not a dynabarn world index")
+    worlds = index.get("worlds")
+    if not isinstance(worlds, list):
+        raise WorldError(f"{p}: index has no list of worlds")
+    seen: set[int] = set()
+    for e in worlds:
+        if not (isinstance(e, dict) and type(e.get("id")) is int and isinstance(e.get("difficulty"), str | None)):
+            raise WorldError(f"{p}: every world entry needs an integer id, a file and a difficulty")
+        if e["id"] in seen:
+            raise WorldError(f"{p}: world id {e['id']} appears twice")
+        seen.add(e["id"])
+        entry_path(p.parent, e)  # a file name inside the folder, nothing else
     return index
+
+
+def entry_path(index_dir: Path, entry: dict) -> Path:
+    """An index entry's world file: a plain file name inside the index's folder (an entry
+    cannot point elsewhere, e.g. "../../etc/passwd")."""
+    file = entry.get("file")
+    if not isinstance(file, str) or not file or file in (".", "..") or Path(file).name != file or "\\" in file:
+        raise WorldError(f"{index_dir / INDEX_NAME}: world file {file!r} must be a file name inside the folder")
+    return Path(index_dir) / file
 
 
 _WORLD_NAME = re.compile(r"(?:world_)?(\d{1,6})(?:\.xml)?")
@@ -164,22 +184,25 @@ def resolve_world(id_or_path: str | int | Path) -> Path:
     raise WorldError(f"world not found: {s} (give a world id 0-299, a name like world_137, or a world .xml path)")
 
 
+MAX_WORLD_ID = 999_999
+
+
 def parse_ids(text: str | None) -> list[int] | None:
-    """'0,5,100-119' -> [0, 5, 100, ..., 119]."""
+    """'0,5,100-119' -> [0, 5, 100, ..., 119], each id once, in the order first given."""
     if not text:
         return None
-    ids: list[int] = []
+    ids: dict[int, None] = {}
     for part in text.split(","):
         part = part.strip()
         lo, sep, hi = part.partition("-")
         try:
-            if sep:
-                ids.extend(range(int(lo), int(hi) + 1))
-            else:
-                ids.append(int(part))
+            first, last = (int(lo), int(hi)) if sep else (int(part), int(part))
         except ValueError:
             raise WorldError(f"bad --worlds item {part!r}: use ids and ranges like 0,5,100-119") from None
-    return ids
+        if not 0 <= first <= last <= MAX_WORLD_ID:
+            raise WorldError(f"bad --worlds item {part!r}: ids are 0-{MAX_WORLD_ID}, ranges go upwards")
+        ids.update(dict.fromkeys(range(first, last + 1)))
+    return list(ids)
 
 
 def world_set(name: str, ids: list[int] | None = None) -> list[tuple[int, str, str]]:
@@ -201,4 +224,4 @@ def world_set(name: str, ids: list[int] | None = None) -> list[tuple[int, str, s
         if missing:
             raise WorldError(f"world id(s) {missing[:5]} not in set {name!r}")
         chosen = [i for i in chosen if i in set(ids)] if name == "paper60" else ids
-    return [(i, str(index_dir / entries[i]["file"]), entries[i]["difficulty"]) for i in chosen]
+    return [(i, str(entry_path(index_dir, entries[i])), entries[i]["difficulty"]) for i in chosen]

@@ -220,7 +220,7 @@ def _worlds_stats(args: argparse.Namespace) -> int:
     from dynabarn.mjcf import read_world
     from dynabarn.provenance import worlds_dir
     from dynabarn.worlds.difficulty import world_measures
-    from dynabarn.worldset import parse_ids, read_index
+    from dynabarn.worldset import entry_path, parse_ids, read_index
 
     args.folder = args.folder if args.folder is not None else worlds_dir()
     index = read_index(args.folder)
@@ -232,7 +232,7 @@ def _worlds_stats(args: argparse.Namespace) -> int:
         raise DynabarnError(f"{args.folder}: no worlds selected")
     rows: dict[str, list[dict]] = {}
     for e in progress_bar("measuring", len(entries))(entries):
-        world = read_world(Path(args.folder) / e["file"])
+        world = read_world(entry_path(Path(args.folder), e))
         row = {"obstacles": len(world.obstacles), "static": len(world.layout.cylinders)}
         row |= world_measures(world)
         rows.setdefault(e["difficulty"], []).append(row)

@@ -13,7 +13,7 @@ from dynabarn.metrics import (
     footprint_clearance,
     shape_clearance,
 )
-from dynabarn.mjcf import load_model, read_world
+from dynabarn.mjcf import ROBOT_PREFIX, load_model, read_world, world_bytes
 from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL, JackalParams
 from dynabarn.sim.behaviors import check_behaviors
@@ -30,16 +30,21 @@ class Simulation:
 
     def __init__(self, world_path: Path | str, *, config: SimConfig = SimConfig()) -> None:
         self.world_path = Path(world_path)
-        self.world = read_world(self.world_path)
+        data = world_bytes(self.world_path)  # read once: the hash covers what is compiled
+        self.world = read_world(self.world_path, data)
         check_behaviors(self.world.obstacles)
-        self.world_sha256 = hashlib.sha256(self.world_path.read_bytes()).hexdigest()
+        self.world_sha256 = hashlib.sha256(data).hexdigest()
         self.config = config
         # The runner casts its own scans with mj_multiRay, so it compiles the world with the
         # Jackal's variant without the 720 beam sites and rangefinders (same geometry).
-        self.model = load_model(self.world_path, beam_sensors=False)
+        self.model = load_model(self.world_path, beam_sensors=False, data=data)
         self.model.opt.timestep = config.dt
         self.data = mujoco.MjData(self.model)
-        mocap_ids = [self.model.body(o.name).mocapid[0] for o in self.world.obstacles]
+        try:
+            mocap_ids = [self.model.body(o.name).mocapid[0] for o in self.world.obstacles]
+            self.model.body(f"{ROBOT_PREFIX}base_link")
+        except KeyError as exc:
+            raise DynabarnError(f"{self.world_path}: the model has no body {exc}") from None
         if mocap_ids != list(range(len(mocap_ids))):
             raise DynabarnError(f"{self.world_path}: obstacle bodies are not the first mocap bodies in order")
         self.static_cylinders = np.array(self.world.layout.cylinders, dtype=np.float64).reshape(-1, 3)
