@@ -80,7 +80,9 @@ class EpisodeResult:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["outcome"] = self.outcome.value
-        return {k: (round(v, 6) if isinstance(v, float) and np.isfinite(v) else v) for k, v in d.items()}
+        # Strict JSON: a value with no finite number (min_clearance in a world without
+        # obstacles, rtf of an instant episode) is null, never NaN or Infinity.
+        return {k: ((round(v, 6) if np.isfinite(v) else None) if isinstance(v, float) else v) for k, v in d.items()}
 
     def summary(self) -> str:
         """The one-line human summary."""

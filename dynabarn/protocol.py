@@ -23,6 +23,7 @@ import json
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import ClassVar
 
 from dynabarn.errors import DynabarnError, unknown_choice
 
@@ -66,11 +67,30 @@ class EvalProtocol:
     """Use the world's own reference path length (`provenance['reference_path_length']`,
     e.g. a static BARN world's planned path) instead of `reference_path_length`."""
 
+    LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        "goal_tolerance": (1e-3, 20.0),
+        "time_limit": (0.1, 3600.0),
+        "timer_start_distance": (0.0, 20.0),
+        "reference_path_length": (1e-3, 1000.0),
+        "max_speed": (1e-3, 10.0),
+    }
+    """Physical ranges of the numbers (a protocol file is untrusted input; one hour of
+    simulated time bounds an episode's memory)."""
+
     def __post_init__(self) -> None:
-        if self.goal_tolerance <= 0 or self.time_limit <= 0 or self.max_speed <= 0:
-            raise DynabarnError(f"protocol {self.name!r}: tolerance, time limit and max speed must be positive")
-        if self.timer_start_distance < 0 or self.reference_path_length <= 0:
-            raise DynabarnError(f"protocol {self.name!r}: invalid timer start distance or reference length")
+        if not isinstance(self.name, str) or not self.name:
+            raise DynabarnError("protocol: name must be a non-empty string")
+        for key, (low, high) in self.LIMITS.items():
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not low <= value <= high:
+                raise DynabarnError(f"protocol {self.name!r}: {key} {value!r} is not in [{low:g}, {high:g}]")
+        spawn, clip = self.spawn, self.score_clip
+        if len(spawn) != 3 or not all(math.isfinite(v) for v in spawn) or max(abs(spawn[0]), abs(spawn[1])) > 1000:
+            raise DynabarnError(f"protocol {self.name!r}: spawn {spawn!r} must be finite (x, y, yaw) within 1000 m")
+        if len(clip) != 2 or not (math.isfinite(clip[0]) and math.isfinite(clip[1]) and 0 < clip[0] < clip[1]):
+            raise DynabarnError(f"protocol {self.name!r}: score_clip {clip!r} must be (low, high) with 0 < low < high")
+        if type(self.version) is not int or self.version < 1:
+            raise DynabarnError(f"protocol {self.name!r}: version must be a positive integer")
         try:
             GoalRegion(self.goal_region)
         except ValueError:

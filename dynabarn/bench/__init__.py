@@ -13,6 +13,7 @@ from dynabarn.bench.results import (
     append_row,
     check_or_write_metadata,
     jsonable_args,
+    locked,
     metadata,
     read_results,
 )
@@ -38,6 +39,7 @@ __all__ = [
     "check_or_write_metadata",
     "format_table",
     "jsonable_args",
+    "locked",
     "make_jobs",
     "metadata",
     "plot_fig5",

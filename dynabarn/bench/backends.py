@@ -10,21 +10,62 @@ from collections.abc import Iterator
 from dynabarn.bench.jobs import Job, run_job
 from dynabarn.errors import DynabarnError
 
+MAX_ATTEMPTS = 3
+"""Times an episode is started when its worker process dies under it (killed, out of
+memory, a crash in native code); then it is recorded as an infrastructure failure."""
+
 
 def _local_backend(jobs: list[Job], n_workers: int) -> Iterator[dict]:
-    if n_workers <= 1:
+    if n_workers <= 1 or len(jobs) <= 1:
         for job in jobs:
             yield run_job(job)
         return
     import multiprocessing as mp
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
 
     ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
-    with ctx.Pool(n_workers) as pool:
+    attempts: dict[str, int] = {}
+    remaining = list(jobs)
+    while remaining:
+        # A dead worker breaks the whole pool (concurrent.futures notices, unlike
+        # multiprocessing.Pool, which waits forever): start a new pool for what is left.
+        pool = ProcessPoolExecutor(min(n_workers, len(remaining)), mp_context=ctx)
+        pending = {pool.submit(run_job, job): job for job in remaining}
+        remaining = []
         try:
-            yield from pool.imap_unordered(run_job, jobs, chunksize=1)
-        except KeyboardInterrupt:
-            pool.terminate()
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    job = pending.pop(future)
+                    try:
+                        yield future.result()
+                    except BrokenProcessPool:
+                        attempts[job.key] = attempts.get(job.key, 0) + 1
+                        if attempts[job.key] < MAX_ATTEMPTS:
+                            remaining.append(job)
+                        else:
+                            yield _dead_worker_row(job)
+        except BaseException:
+            for process in list(getattr(pool, "_processes", {}).values()):
+                process.kill()
             raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _dead_worker_row(job: Job) -> dict:
+    return {
+        "key": job.key,
+        "planner": job.planner,
+        "world_id": job.world_id,
+        "difficulty": job.difficulty,
+        "seed": job.seed,
+        "protocol": job.protocol["name"],
+        "outcome": "error",
+        "reason": f"infrastructure: the worker process died {MAX_ATTEMPTS} times running this episode",
+        "retry": True,
+    }
 
 
 def run_jobs(jobs: list[Job], *, backend: str = "local", n_workers: int = 1, address: str | None = None):
@@ -40,6 +81,8 @@ def _ray_backend(jobs: list[Job], n_workers: int, address: str | None) -> Iterat
     except ImportError:
         raise DynabarnError("the ray backend needs Ray: pip install 'dynabarn[ray]'") from None
     started_here = not ray.is_initialized()
+    if started_here and address:
+        _check_ray_address(address)
     if started_here:
         kwargs = {"address": address} if address else {"num_cpus": n_workers, "include_dashboard": False}
         ray.init(ignore_reinit_error=True, log_to_driver=False, **kwargs)
@@ -54,3 +97,22 @@ def _ray_backend(jobs: list[Job], n_workers: int, address: str | None) -> Iterat
             ray.cancel(ref, force=True)
         if started_here:
             ray.shutdown()
+
+
+def _check_ray_address(address: str, timeout: float = 5.0) -> None:
+    """Fail within seconds on an address nothing answers at (Ray itself retries for minutes)."""
+    import socket
+
+    if address == "auto":
+        return
+    text = address.split("://", 1)[-1]
+    host, sep, port = text.rpartition(":")
+    if not sep or not port.isdigit() or not 1 <= int(port) <= 65535 or not host:
+        raise DynabarnError(f"--address {address!r}: give HOST:PORT (e.g. 10.0.0.1:6379), ray://HOST:PORT or auto")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise DynabarnError(
+            f"no Ray cluster answers at {address} ({exc.strerror or exc}); start one with `ray start --head`"
+        ) from None

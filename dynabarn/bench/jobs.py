@@ -99,6 +99,8 @@ def run_job(job: Job) -> dict:
             planner_name=job.planner,
         )
         row.update(result.to_dict())
+        if observers and observers[0].stopped:  # disk nearly full: the result stands, run it again
+            row.update({"retry": True, "recording_error": observers[0].stopped})
         if rec_path is not None:
             part = rec_path.with_suffix(".mcap.part")
             if job.record == "all" or result.outcome is not Outcome.SUCCESS:
@@ -106,6 +108,16 @@ def run_job(job: Job) -> dict:
                 row["recording"] = str(rec_path)
             else:
                 part.unlink(missing_ok=True)
+    except (OSError, MemoryError) as exc:  # the machine failed, not the planner: run it again later
+        row.update(
+            {
+                "outcome": Outcome.ERROR.value,
+                "reason": f"infrastructure: {type(exc).__name__}: {exc}",
+                "retry": True,
+            }
+        )
+        if rec_path is not None:
+            rec_path.with_suffix(".mcap.part").unlink(missing_ok=True)
     except Exception as exc:  # foreign planner code, a broken world...: record and go on
         row.update(
             {

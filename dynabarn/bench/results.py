@@ -3,6 +3,7 @@ full metrics, versions, world hash) and `metadata.json` (what the sweep was)."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -15,29 +16,111 @@ from dynabarn.errors import DynabarnError
 
 RESULTS = "results.jsonl"
 METADATA = "metadata.json"
+LOCK = ".lock"
 
 
 def read_results(path: Path) -> list[dict]:
-    """Rows of a results.jsonl; a last line cut by a crash is ignored."""
-    rows = []
+    """Rows of a results.jsonl; a line cut by a crash, or anything that is not a row, is ignored."""
+    return _read(path)[0]
+
+
+def _read(path: Path) -> tuple[list[dict], bool]:
+    """(rows, clean): clean is False when some line was not a row (torn or foreign)."""
+    rows: list[dict] = []
+    clean = True
     if not path.is_file():
-        return rows
-    with path.open() as f:
+        return rows, clean
+    with path.open(encoding="utf-8", errors="replace") as f:
         for line in f:
-            line = line.strip()
-            if not line:
+            if not line.strip():
                 continue
             try:
-                rows.append(json.loads(line))
-            except json.JSONDecodeError:
-                continue  # a line half-written when the process died
-    return rows
+                row = json.loads(line)
+            except (json.JSONDecodeError, RecursionError):
+                clean = False  # a line half-written when the process died
+                continue
+            if isinstance(row, dict) and isinstance(row.get("key"), str):
+                rows.append(row)
+            else:
+                clean = False
+    return rows, clean
 
 
 def append_row(f, row: dict) -> None:
-    f.write(json.dumps(row, sort_keys=True) + "\n")
+    f.write(json.dumps(row, sort_keys=True, allow_nan=False) + "\n")
     f.flush()
     os.fsync(f.fileno())
+
+
+def write_atomically(path: Path, text: str) -> None:
+    """Replace `path` with `text` so that a crash at any moment leaves the old file or the
+    new one, never a cut one: write a temporary file beside it, fsync, rename, fsync the folder."""
+    part = path.with_name(path.name + ".part")
+    with part.open("w", encoding="utf-8") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(part, path)
+    fd = os.open(path.parent, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def prepare_resume(path: Path) -> list[dict]:
+    """The finished rows to keep, before a sweep (re)starts: torn lines dropped, rows of
+    infrastructure failures (`retry`: disk full, a killed worker) left out so they run again,
+    and a row per key. The file is rewritten (atomically) only when something was dropped."""
+    rows, clean = _read(path)
+    keep: dict[str, dict] = {}
+    for row in rows:
+        if not row.get("retry"):
+            keep.setdefault(row["key"], row)
+    if not clean or len(keep) != len(rows):
+        write_atomically(path, "".join(json.dumps(r, sort_keys=True) + "\n" for r in keep.values()))
+    return list(keep.values())
+
+
+_held: dict[Path, tuple[int, int]] = {}
+"""Results folders this process holds the lock of: folder -> (file descriptor, depth)."""
+
+
+@contextlib.contextmanager
+def locked(out_dir: Path):
+    """Hold `out_dir/.lock` (flock) while writing there, so a second sweep into the same
+    folder stops with one line instead of writing every row twice. Re-entrant in a process."""
+    out_dir = Path(out_dir).resolve()
+    if out_dir in _held:
+        fd, depth = _held[out_dir]
+        _held[out_dir] = (fd, depth + 1)
+        try:
+            yield
+        finally:
+            fd, depth = _held[out_dir]
+            _held[out_dir] = (fd, depth - 1)
+        return
+    import fcntl
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fd = os.open(out_dir / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+        os.close(fd)
+        raise DynabarnError(
+            f"{out_dir} is being written by another dynabarn-bench (pid {holder}); wait for it or use another --out"
+        ) from None
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    _held[out_dir] = (fd, 1)
+    try:
+        yield
+    finally:
+        _held.pop(out_dir, None)
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
 
 
 def metadata(args_dict: dict, jobs: list[Job]) -> dict:
@@ -62,7 +145,12 @@ def check_or_write_metadata(out_dir: Path, meta: dict, *, force: bool) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     meta = json.loads(json.dumps(meta))  # compare as stored (tuples become lists)
     if path.is_file() and not force:
-        old = json.loads(path.read_text())
+        try:
+            old = json.loads(path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError):
+            old = None
+        if not isinstance(old, dict):
+            raise DynabarnError(f"{path} is not a sweep's metadata; use another --out, or --force to start over")
         for key in ("protocol", "worlds_digest"):
             if old.get(key) != meta.get(key):
                 raise DynabarnError(f"{out_dir} holds a different sweep ({key} differs); use another --out or --force")
@@ -70,7 +158,7 @@ def check_or_write_metadata(out_dir: Path, meta: dict, *, force: bool) -> None:
         for name in (RESULTS, "summary.csv", "summary.md", "fig5.png"):
             (out_dir / name).unlink(missing_ok=True)
         shutil.rmtree(out_dir / "recordings", ignore_errors=True)
-    path.write_text(json.dumps(meta, indent=1, sort_keys=True) + "\n")
+    write_atomically(path, json.dumps(meta, indent=1, sort_keys=True) + "\n")
 
 
 def jsonable_args(args) -> dict:

@@ -18,7 +18,6 @@ clearance; printed, and written as `summary.csv`, `summary.md` and a Fig. 5-styl
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -26,7 +25,8 @@ from pathlib import Path
 
 from dynabarn.bench.backends import run_jobs
 from dynabarn.bench.jobs import Job
-from dynabarn.bench.results import RESULTS, append_row, read_results
+from dynabarn.bench.results import RESULTS, append_row, locked, prepare_resume, read_results
+from dynabarn.errors import DynabarnError
 from dynabarn.metrics import Outcome
 
 
@@ -48,30 +48,39 @@ def run_sweep(
     address: str | None = None,
     progress: Callable[[Iterable, int], Iterable] | None = None,
 ) -> SweepReport:
-    """Run the jobs not already in OUT/results.jsonl, appending each result as it arrives."""
-    out_dir.mkdir(parents=True, exist_ok=True)
+    """Run the jobs not already in OUT/results.jsonl, appending each result as it arrives.
+
+    Holds the folder's lock throughout; jobs are de-duplicated by key; rows of
+    infrastructure failures from an earlier run are run again. A results file that cannot
+    be written (disk full) stops the sweep with one line; every row written stays."""
+    out_dir = Path(out_dir)
+    jobs = list({j.key: j for j in jobs}.values())  # the same episode once
     results_path = out_dir / RESULTS
-    # Drop a torn last line (a crash mid-write) so appends start on a fresh line.
-    done_rows = read_results(results_path)
-    if results_path.is_file():
-        with results_path.open("w") as f:
-            for row in done_rows:
-                f.write(json.dumps(row, sort_keys=True) + "\n")
-    done = {r["key"] for r in done_rows}
-    todo = [j for j in jobs if j.key not in done]
-    report = SweepReport(skipped=len(jobs) - len(todo))
-    if any(j.record != "none" for j in todo):
-        Path(todo[0].recordings_dir).mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    stream = run_jobs(todo, backend=backend, n_workers=n_workers, address=address)
-    if progress is not None:
-        stream = progress(stream, len(todo))
-    with results_path.open("a") as f:
-        for row in stream:
-            append_row(f, row)
-            report.ran += 1
-            report.errors += row.get("outcome") == Outcome.ERROR.value
-    report.wall_time = time.perf_counter() - t0
-    wanted = {j.key for j in jobs}
-    report.rows = [r for r in read_results(results_path) if r["key"] in wanted]
+    with locked(out_dir):
+        try:
+            done = {r["key"] for r in prepare_resume(results_path)}
+        except OSError as exc:
+            raise DynabarnError(f"cannot prepare {results_path} for resuming: {exc.strerror}") from None
+        todo = [j for j in jobs if j.key not in done]
+        report = SweepReport(skipped=len(jobs) - len(todo))
+        t0 = time.perf_counter()
+        try:
+            if any(j.record != "none" for j in todo):
+                Path(todo[0].recordings_dir).mkdir(parents=True, exist_ok=True)
+            stream = run_jobs(todo, backend=backend, n_workers=n_workers, address=address)
+            if progress is not None:
+                stream = progress(stream, len(todo))
+            with results_path.open("a") as f:
+                for row in stream:
+                    append_row(f, row)
+                    report.ran += 1
+                    report.errors += row.get("outcome") == Outcome.ERROR.value
+        except OSError as exc:
+            raise DynabarnError(
+                f"cannot write to {out_dir}: {exc.strerror}; the {report.ran} episodes finished in this run are kept "
+                f"in {results_path}; free the space (or fix the folder) and run the same command again to go on"
+            ) from None
+        report.wall_time = time.perf_counter() - t0
+        wanted = {j.key for j in jobs}
+        report.rows = [r for r in read_results(results_path) if r["key"] in wanted]
     return report

@@ -10,16 +10,17 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
+    add_jobs,
     add_protocol,
     make_parser,
     planner_config,
+    ranged,
     run_command,
 )
 from dynabarn.errors import DynabarnError
 
 
 def bench_main(argv: Sequence[str] | None = None) -> int:
-    import os
 
     parser = make_parser(
         "dynabarn-bench",
@@ -38,9 +39,9 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--set", default="paper60", help="world set: paper60, dynabarn300, or a folder with index.json")
     parser.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
-    parser.add_argument("--trials", type=int, default=10, help="trials (seeds 0..N-1) per world")
+    parser.add_argument("--trials", type=ranged(int, 1, 10_000), default=10, help="trials (seeds 0..N-1) per world")
     add_protocol(parser)
-    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel workers")
+    add_jobs(parser)
     parser.add_argument("--backend", choices=["local", "ray"], default="local", help="where episodes run")
     parser.add_argument("--address", default=None, help="Ray cluster address (ray backend); default: a local Ray")
     parser.add_argument(
@@ -125,7 +126,9 @@ def _bench(args: argparse.Namespace) -> int:
     config = planner_config(args.planner_config)
     if args.policy is not None:
         config["policy"] = str(args.policy.resolve())
-    names = [p.strip() for p in args.planner.split(",") if p.strip()]
+    names = list(dict.fromkeys(p.strip() for p in args.planner.split(",") if p.strip()))  # each once
+    if not names:
+        raise DynabarnError(f"--planner {args.planner!r}: name at least one planner, e.g. dwa or dwa,teb")
     for name in names:
         get_planner(name, **config)  # fail fast on an unknown planner or bad configuration
     protocol = get_protocol(args.protocol)
@@ -138,18 +141,25 @@ def _bench(args: argparse.Namespace) -> int:
         record=args.record,
         recordings_dir=args.out / "recordings",
     )
-    bench.check_or_write_metadata(args.out, bench.metadata(bench.jsonable_args(args), jobs), force=args.force)
+    if args.out.exists() and not args.out.is_dir():
+        raise DynabarnError(f"--out {args.out}: exists and is not a folder")
 
     def progress(stream, total):
         return tqdm(stream, total=total, desc="episodes", unit="ep", disable=None, smoothing=0.05)
 
-    try:
-        report = bench.run_sweep(
-            jobs, args.out, backend=args.backend, n_workers=args.jobs, address=args.address, progress=progress
-        )
-    except KeyboardInterrupt:
-        print(f"interrupted; finished episodes are in {args.out / bench.RESULTS}; rerun to resume", file=sys.stderr)
-        raise
+    # One writer per folder: the lock covers the metadata check (and --force's clean-up) too.
+    with bench.locked(args.out):
+        try:
+            bench.check_or_write_metadata(args.out, bench.metadata(bench.jsonable_args(args), jobs), force=args.force)
+        except OSError as exc:
+            raise DynabarnError(f"cannot write to {args.out}: {exc.strerror}") from None
+        try:
+            report = bench.run_sweep(
+                jobs, args.out, backend=args.backend, n_workers=args.jobs, address=args.address, progress=progress
+            )
+        except KeyboardInterrupt:
+            print(f"interrupted; finished episodes are in {args.out / bench.RESULTS}; rerun to resume", file=sys.stderr)
+            raise
     summary = bench.summarise(report.rows)
     title = f"{args.set}, protocol {protocol.name}, {args.trials} trials"
     paths = bench.write_summary(summary, args.out, title=title)
@@ -172,5 +182,9 @@ def _report_errors(rows: list[dict], out: Path) -> int:
         print(f"  {r.get('planner')} {r.get('world')} seed {r.get('seed')}: {r.get('reason')}", file=sys.stderr)
     if len(errors) > 5:
         print(f'  ... and {len(errors) - 5} more (outcome "error" in {out / "results.jsonl"})', file=sys.stderr)
-    print("their rows count as failures in the table above; fix the cause and rerun with --force", file=sys.stderr)
+    print(
+        "their rows count as failures in the table above; infrastructure failures (disk full, a killed worker) "
+        "run again when you rerun the command; for planner errors fix the cause and rerun with --force",
+        file=sys.stderr,
+    )
     return 1

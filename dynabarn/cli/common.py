@@ -52,9 +52,43 @@ def prefer_offscreen_gl() -> None:
         os.environ["MUJOCO_GL"] = "egl"
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse with one line per usage error (`prog: error: ...`, then exit 2); `--help`
+    still shows the whole usage."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def ranged(kind: type, low: float, high: float) -> Callable[[str], float]:
+    """An argparse type: a number of `kind` (int or float) in [low, high]; NaN, infinities
+    and runaway values are refused before anything runs."""
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} is not {'a whole number' if kind is int else 'a number'}"
+            ) from None
+        if not low <= value <= high:  # also False for NaN
+            raise argparse.ArgumentTypeError(
+                f"{text} is not in [{low:{'g' if kind is float else 'd'}}, {high:{'g' if kind is float else 'd'}}]"
+            )
+        return value
+
+    parse.__name__ = kind.__name__  # argparse names the type in its messages
+    return parse
+
+
+MAX_JOBS = 256
+"""Parallel workers a command starts at most (each holds a MuJoCo model and a planner)."""
+MAX_SEED = 2**32 - 1
+
+
 def make_parser(prog: str, description: str) -> argparse.ArgumentParser:
     prefer_offscreen_gl()  # every command builds its parser first, before mujoco is imported
-    p = argparse.ArgumentParser(prog=prog, description=description, formatter_class=HelpFormatter)
+    p = Parser(prog=prog, description=description, formatter_class=HelpFormatter)
     p.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
     p.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
     return p
@@ -95,7 +129,20 @@ def add_protocol(p: argparse.ArgumentParser) -> None:
 
 
 def add_trial_seed(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--seed", type=int, default=0, help="trial seed: obstacle clock offset and laser noise")
+    p.add_argument(
+        "--seed", type=ranged(int, 0, MAX_SEED), default=0, help="trial seed: obstacle clock offset and laser noise"
+    )
+
+
+def add_jobs(p: argparse.ArgumentParser) -> None:
+    import os
+
+    p.add_argument(
+        "--jobs",
+        type=ranged(int, 1, MAX_JOBS),
+        default=min(os.cpu_count() or 1, MAX_JOBS),
+        help=f"parallel workers (at most {MAX_JOBS})",
+    )
 
 
 EXIT_EPISODE_ERROR = 1

@@ -8,8 +8,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
+    add_jobs,
     add_protocol,
     make_parser,
+    ranged,
     run_command,
     subcommands,
 )
@@ -29,7 +31,12 @@ def demos_main(argv: Sequence[str] | None = None) -> int:
     ex.add_argument("demos", nargs="+", type=Path, help="recordings or folders of recordings")
     ex.add_argument("--out", type=Path, required=True, help="dataset file (.npz)")
     ex.add_argument("--all", action="store_true", help="keep unsuccessful episodes too")
-    ex.add_argument("--lookahead", type=float, default=DEFAULT_LOOKAHEAD, help="local goal distance along the plan [m]")
+    ex.add_argument(
+        "--lookahead",
+        type=ranged(float, 0.1, 30.0),
+        default=DEFAULT_LOOKAHEAD,
+        help="local goal distance along the plan [m]",
+    )
     co = sub.add_parser(
         "collect",
         help="record oracle demonstrations at scale (synthetic, marked so)",
@@ -37,10 +44,10 @@ def demos_main(argv: Sequence[str] | None = None) -> int:
     )
     co.add_argument("--set", default="paper60", help="world set: paper60, dynabarn300, or a folder with index.json")
     co.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
-    co.add_argument("--trials", type=int, default=1, help="seeds 0..N-1 per world")
+    co.add_argument("--trials", type=ranged(int, 1, 10_000), default=1, help="seeds 0..N-1 per world")
     add_protocol(co)
     co.add_argument("--planner", default="oracle", help="demonstrator planner")
-    co.add_argument("--jobs", type=int, default=__import__("os").cpu_count() or 1, help="parallel workers")
+    add_jobs(co)
     co.add_argument("--out", type=Path, default=Path("demos"), help="folder of demonstrations")
     args = parser.parse_args(argv)
     return run_command(_demos_export if args.command == "export" else _demos_collect, args)

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from dynabarn.cli.common import (
     make_parser,
+    ranged,
     run_command,
 )
 from dynabarn.errors import DynabarnError
@@ -22,7 +23,7 @@ def render_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("recording", type=Path, help="MCAP recording (from dynabarn-run)")
     parser.add_argument("--out", type=Path, required=True, help="video file, .mp4 or .gif")
     parser.add_argument("--camera", choices=["top", "follow"], default="top", help="whole arena or behind the robot")
-    parser.add_argument("--fps", type=float, default=20.0, help="frames per second of the video")
+    parser.add_argument("--fps", type=ranged(float, 1.0, 120.0), default=20.0, help="frames per second of the video")
     parser.add_argument("--size", default="640x480", help="frame size WIDTHxHEIGHT")
     args = parser.parse_args(argv)
     return run_command(_render, args)

@@ -15,6 +15,7 @@ from dynabarn.cli.common import (
     add_world,
     make_parser,
     planner_config,
+    ranged,
     run_command,
 )
 from dynabarn.cli.render import render_video
@@ -53,8 +54,10 @@ def run_main(argv: Sequence[str] | None = None) -> int:
     log.add_argument("--no-log", action="store_true", help="do not record")
     parser.add_argument("--runs-dir", type=Path, default=Path("runs"), help="folder of default recordings")
     parser.add_argument("--json", action="store_true", help="print the full result as JSON instead of one line")
-    parser.add_argument("--dt", type=float, default=0.005, help="physics step [s], at most 0.01")
-    parser.add_argument("--control-rate", type=float, default=10.0, help="planner and laser rate [Hz]")
+    parser.add_argument("--dt", type=ranged(float, 1e-4, 0.01), default=0.005, help="physics step [s]")
+    parser.add_argument(
+        "--control-rate", type=ranged(float, 0.1, 1000.0), default=10.0, help="planner and laser rate [Hz]"
+    )
     parser.add_argument("--video", type=Path, default=None, help="also render the episode to this .mp4 or .gif")
     parser.add_argument("--camera", choices=["top", "follow"], default="top", help="camera of --video")
     args = parser.parse_args(argv)
@@ -87,18 +90,23 @@ def _run_episode(args: argparse.Namespace) -> int:
         import tempfile
 
         log_path = Path(tempfile.mkdtemp()) / "episode.mcap"
-    if log_path is not None:
-        observers.append(McapRecorder(log_path))
+    recorder = McapRecorder(log_path) if log_path is not None else None
+    if recorder is not None:
+        observers.append(recorder)
     try:
         result = run_episode(sim, planner, protocol, seed=args.seed, observers=observers, planner_name=args.planner)
     except KeyboardInterrupt:
         if log_path:
             print(f"interrupted; recording kept: {log_path}", file=sys.stderr)
         raise
+    except OSError as exc:  # the recording could not be started: a full disk, a folder...
+        raise DynabarnError(f"cannot record to {log_path}: {exc.strerror or exc}") from None
+    if recorder is not None and recorder.stopped:
+        print(f"warning: {log_path}: {recorder.stopped}", file=sys.stderr)
     if args.json:
         d = result.to_dict()
         d["recording"] = str(log_path) if log_path and not args.no_log else None
-        print(json.dumps(d, indent=1, sort_keys=True))
+        print(json.dumps(d, indent=1, sort_keys=True, allow_nan=False))
     else:
         print(result.summary())
         if log_path and not args.no_log:

@@ -13,6 +13,7 @@ from dynabarn.cli.common import (
     add_trial_seed,
     add_world,
     make_parser,
+    ranged,
     run_command,
 )
 from dynabarn.errors import DynabarnError
@@ -32,7 +33,9 @@ def teleop_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--out", type=Path, default=None, help="recording file (default: DEMOS_DIR/<world>_<operator>_<NNN>.mcap)"
     )
-    parser.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall-clock second")
+    parser.add_argument(
+        "--speed", type=ranged(float, 0.1, 10.0), default=1.0, help="simulated seconds per wall-clock second"
+    )
     args = parser.parse_args(argv)
     code = run_command(_teleop, args)
     from dynabarn.demos import teleop

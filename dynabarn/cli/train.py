@@ -7,8 +7,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
+    MAX_JOBS,
+    MAX_SEED,
     add_protocol,
     make_parser,
+    ranged,
     run_command,
     subcommands,
 )
@@ -26,22 +29,33 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     )
     bc.add_argument("--data", type=Path, required=True, help="dataset from `dynabarn-demos export`")
     bc.add_argument("--out", type=Path, required=True, help="policy file to write (.pt)")
-    bc.add_argument("--epochs", type=int, default=30, help="passes over the data")
-    bc.add_argument("--batch-size", type=int, default=256, help="rows per gradient step")
-    bc.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate")
-    bc.add_argument("--seed", type=int, default=0, help="torch seed")
+    bc.add_argument("--epochs", type=ranged(int, 1, 100_000), default=30, help="passes over the data")
+    bc.add_argument("--batch-size", type=ranged(int, 1, 1_000_000), default=256, help="rows per gradient step")
+    bc.add_argument("--lr", type=ranged(float, 1e-8, 1.0), default=1e-3, help="Adam learning rate")
+    bc.add_argument("--seed", type=ranged(int, 0, MAX_SEED), default=0, help="torch seed")
     td = sub.add_parser(
         "td3", help="TD3 reinforcement learning", formatter_class=argparse.ArgumentDefaultsHelpFormatter
     )
     td.add_argument("--set", default="paper60", help="world set to train in")
     td.add_argument("--difficulty", default="easy", help="easy, medium, hard or all")
     add_protocol(td)
-    td.add_argument("--steps", type=int, default=20_000, help="environment steps in total")
-    td.add_argument("--envs", type=int, default=1, help="parallel environments (one process each when > 1)")
-    td.add_argument("--eval-every", type=int, default=5_000, help="steps between evaluations and checkpoints")
-    td.add_argument("--eval-episodes", type=int, default=10, help="episodes per evaluation")
-    td.add_argument("--start-steps", type=int, default=2_000, help="uniformly random actions first")
-    td.add_argument("--seed", type=int, default=0, help="seed of torch, the buffer and the environments")
+    td.add_argument("--steps", type=ranged(int, 1, 100_000_000), default=20_000, help="environment steps in total")
+    td.add_argument(
+        "--envs", type=ranged(int, 1, MAX_JOBS), default=1, help="parallel environments (one process each when > 1)"
+    )
+    td.add_argument(
+        "--eval-every",
+        type=ranged(int, 1, 100_000_000),
+        default=5_000,
+        help="steps between evaluations and checkpoints",
+    )
+    td.add_argument("--eval-episodes", type=ranged(int, 1, 10_000), default=10, help="episodes per evaluation")
+    td.add_argument(
+        "--start-steps", type=ranged(int, 0, 100_000_000), default=2_000, help="uniformly random actions first"
+    )
+    td.add_argument(
+        "--seed", type=ranged(int, 0, MAX_SEED), default=0, help="seed of torch, the buffer and the environments"
+    )
     td.add_argument("--out", type=Path, required=True, help="folder for checkpoints, policy.pt and the learning curve")
     args = parser.parse_args(argv)
     return run_command(_train, args)

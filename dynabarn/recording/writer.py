@@ -11,8 +11,10 @@ last moments; `reader.read_recording` recovers everything before a cut.
 
 from __future__ import annotations
 
+import errno
 import json
 import math
+import os
 from dataclasses import asdict
 from pathlib import Path
 
@@ -39,6 +41,9 @@ from dynabarn.sim.events import EpisodeStart, Tick
 from dynabarn.worlds.spec import Obstacle
 
 CHUNK_SIZE = 64 * 1024
+SPACE_RESERVE = 4 * 1024 * 1024
+"""Free bytes below which a recording stops cleanly (MCAP's writer cannot recover from a
+failed write: it would print one error per message and abort on close)."""
 WALL_CLOCK_FIELDS = ("rtf", "wall_time", "planner_ms_mean", "planner_ms_p95")
 """Result fields that depend on the machine's speed, kept out of recordings."""
 MACHINE_FIELDS = (*WALL_CLOCK_FIELDS, "machine")
@@ -106,10 +111,23 @@ class McapRecorder:
         self.extra_metadata = dict(extra_metadata or {})
         self._writer = None
         self._json: dict[str, foxglove.Channel] = {}
+        self.stopped: str | None = None
+        """Why the recording ended before the episode (a nearly full disk), or None."""
 
     # -- EpisodeObserver --------------------------------------------------------------
+    def _space_left(self) -> int:
+        st = os.statvfs(self.path.parent)
+        return st.f_bavail * st.f_frsize
+
+    def _room(self) -> bool:
+        return self._space_left() >= SPACE_RESERVE + 2 * self.chunk_size
+
     def on_start(self, start: EpisodeStart) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        if self.path.is_dir():
+            raise IsADirectoryError(errno.EISDIR, f"{self.path} is a folder, not a recording file")
+        if not self._room():
+            raise OSError(errno.ENOSPC, f"no space left for a recording in {self.path.parent}")
         self._ctx = foxglove.Context()
         self._writer = foxglove.open_mcap(
             self.path,
@@ -161,6 +179,12 @@ class McapRecorder:
         self._log_static(start)
 
     def on_tick(self, tick: Tick) -> None:
+        if self._writer is None:
+            return
+        if not self._room():  # stop while the file can still be closed whole
+            self.stopped = f"the disk was nearly full at {tick.time:.1f} s; the recording ends there"
+            self.close()
+            return
         t = tick.time
         ns = _ns(t)
         lx, ly, lyaw = tick.laser_pose.tolist()
@@ -177,6 +201,8 @@ class McapRecorder:
                 self.log_json(topic.name, t, message)
 
     def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
+        if self._writer is None:
+            return
         ns = np.round(times * 1e9).astype(np.int64).tolist()
         log = self._pose.log
         sin, cos = math.sin, math.cos  # libm, not numpy's CPU-dependent SIMD paths
@@ -197,6 +223,8 @@ class McapRecorder:
     # -- helpers ------------------------------------------------------------------------
     def log_json(self, topic: str, t: float, payload: dict) -> None:
         """Log a JSON message on one of the recorder's JSON topics at simulated time t [s]."""
+        if self._writer is None:
+            return
         body = json.dumps(_jsonable(payload), sort_keys=True, separators=(",", ":"), allow_nan=False)
         self._json[topic].log(body.encode(), log_time=_ns(t))
 

@@ -31,10 +31,14 @@ class SimConfig:
     max_angular_accel: float = 25.0
 
     def __post_init__(self) -> None:
-        if not 0 < self.dt <= 0.01:
-            raise DynabarnError(f"physics step dt must be in (0, 0.01] s, got {self.dt}")
-        if self.control_rate <= 0 or self.pose_rate <= 0:
-            raise DynabarnError("control and pose rates must be positive")
+        if not 1e-4 <= self.dt <= 0.01:  # also False for NaN
+            raise DynabarnError(f"physics step dt must be in [0.0001, 0.01] s, got {self.dt}")
+        for name in ("control_rate", "pose_rate"):
+            if not 0.1 <= getattr(self, name) <= 1000.0:
+                raise DynabarnError(f"{name} must be in [0.1, 1000] Hz, got {getattr(self, name)}")
+        for name in ("max_linear_accel", "max_angular_accel"):
+            if not 0 < getattr(self, name) <= 1e4:
+                raise DynabarnError(f"{name} must be in (0, 10000], got {getattr(self, name)}")
         k = 1.0 / (self.control_rate * self.dt)
         if abs(k - round(k)) > 1e-6 or round(k) < 1:
             raise DynabarnError(
