@@ -28,6 +28,7 @@ import mujoco
 import numpy as np
 
 from dynabarn.errors import WorldError
+from dynabarn.files import write_atomically
 from dynabarn.provenance import DATA_ROOT
 from dynabarn.robot import JACKAL_REL, JACKAL_XML, GeomGroup, build_jackal_spec
 from dynabarn.worlds.spec import WorldSpec
@@ -184,12 +185,7 @@ def place_robot(asset_root: Path) -> Path:
             raise WorldError(f"{target} exists and is not this package's robot; move it or write the worlds elsewhere")
         return target
     target.parent.mkdir(parents=True, exist_ok=True)
-    part = target.with_name(target.name + ".part")
-    with open(part, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(part, target)
+    write_atomically(target, data)
     return target
 
 
@@ -220,7 +216,7 @@ def write_world(world: WorldSpec, path: Path, *, asset_root: Path | None = None)
     place_robot(root)
     xml = world_to_xml(world, world_dir=path.parent, asset_root=root)
     data = xml.encode()
-    path.write_bytes(data)
+    write_atomically(path, data)
     return hashlib.sha256(data).hexdigest()
 
 

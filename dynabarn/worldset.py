@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 from dynabarn.errors import WorldError
+from dynabarn.files import write_atomically
 from dynabarn.mjcf import write_world
 from dynabarn.provenance import WORLDS_ENV, worlds_dir
 from dynabarn.worlds.difficulty import difficulty_scores
@@ -53,7 +54,7 @@ def write_index(out_dir: Path, entries: list[dict], *, meta: dict, sets: dict[st
     # The format tag goes last: `meta` must not override it.
     index = {**meta, "format": "dynabarn-index", "format_version": 1, "sets": sets, "worlds": entries}
     path = Path(out_dir) / INDEX_NAME
-    path.write_text(json.dumps(index, indent=1, sort_keys=True) + "\n")
+    write_atomically(path, json.dumps(index, indent=1, sort_keys=True) + "\n")
     return path
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from dynabarn.bench.jobs import Job
 from dynabarn.errors import DynabarnError
+from dynabarn.files import write_atomically
 
 RESULTS = "results.jsonl"
 METADATA = "metadata.json"
@@ -50,22 +51,6 @@ def append_row(f, row: dict) -> None:
     f.write(json.dumps(row, sort_keys=True, allow_nan=False) + "\n")
     f.flush()
     os.fsync(f.fileno())
-
-
-def write_atomically(path: Path, text: str) -> None:
-    """Replace `path` with `text` so that a crash at any moment leaves the old file or the
-    new one, never a cut one: write a temporary file beside it, fsync, rename, fsync the folder."""
-    part = path.with_name(path.name + ".part")
-    with part.open("w", encoding="utf-8") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(part, path)
-    fd = os.open(path.parent, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
 
 
 def prepare_resume(path: Path) -> list[dict]:

@@ -6,10 +6,12 @@ clearance; printed, and written as `summary.csv`, `summary.md` and a Fig. 5-styl
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections import defaultdict
 from pathlib import Path
 
+from dynabarn.files import save_atomically, write_atomically
 from dynabarn.worlds.profiles import Difficulty
 
 PAPER_FIG5 = {
@@ -100,10 +102,11 @@ def format_table(summary: list[dict]) -> str:
 
 def write_summary(summary: list[dict], out_dir: Path, *, title: str = "") -> dict[str, Path]:
     paths = {"csv": out_dir / "summary.csv", "md": out_dir / "summary.md", "png": out_dir / "fig5.png"}
-    with paths["csv"].open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(summary[0].keys()))
-        w.writeheader()
-        w.writerows(summary)
+    table = io.StringIO(newline="")
+    w = csv.DictWriter(table, fieldnames=list(summary[0].keys()))
+    w.writeheader()
+    w.writerows(summary)
+    write_atomically(paths["csv"], table.getvalue())
     md = [
         "| planner | difficulty | episodes | success [95% CI] | collision | timeout | mean time of successes [s] "
         "| score | SPL | min clearance [m] | paper |",
@@ -116,7 +119,7 @@ def write_summary(summary: list[dict], out_dir: Path, *, title: str = "") -> dic
             f"[{s['success_lo']:.2f}, {s['success_hi']:.2f}] | {s['collision']:.2f} | {s['timeout']:.2f} | "
             f"{s['time_success']:.1f} | {s['score']:.3f} | {s['spl']:.2f} | {s['min_clearance']:.2f} | {paper} |"
         )
-    paths["md"].write_text((f"# {title}\n\n" if title else "") + "\n".join(md) + "\n")
+    write_atomically(paths["md"], (f"# {title}\n\n" if title else "") + "\n".join(md) + "\n")
     plot_fig5(summary, paths["png"], title=title)
     return paths
 
@@ -159,5 +162,5 @@ def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
     ax.legend(fontsize=8, ncol=2)
     ax.set_title(title or "success rate per difficulty (95% Wilson intervals)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path)
+    save_atomically(path, lambda f: fig.savefig(f, format="png"))
     return path

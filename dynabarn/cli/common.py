@@ -187,6 +187,12 @@ def run_command(body: Callable[[argparse.Namespace], int], args: argparse.Namesp
     except BrokenPipeError:  # `dynabarn-worlds show 137 | head`: the reader left, as for cat
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
         return 0
+    except OSError as exc:  # the machine said no: a full disk, a read-only folder, a path under a file
+        if args.debug:
+            raise
+        where = f" ({exc.filename})" if exc.filename else ""
+        print(f"error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return EXIT_USAGE
 
 
 def progress_bar(desc: str, total: int | None = None, unit: str = "world"):

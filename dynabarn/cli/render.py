@@ -31,8 +31,8 @@ def render_main(argv: Sequence[str] | None = None) -> int:
 
 def _parse_size(text: str) -> tuple[int, int]:
     w, sep, h = text.lower().partition("x")
-    if not sep or not w.isdigit() or not h.isdigit() or int(w) < 16 or int(h) < 16:
-        raise DynabarnError(f"bad --size {text!r}: use WIDTHxHEIGHT, e.g. 640x480")
+    if not sep or not w.isdigit() or not h.isdigit() or not (16 <= int(w) <= 4096 and 16 <= int(h) <= 4096):
+        raise DynabarnError(f"bad --size {text!r}: use WIDTHxHEIGHT between 16 and 4096 pixels, e.g. 640x480")
     return int(w), int(h)
 
 
@@ -61,5 +61,10 @@ def render_video(recording: Path, out: Path, camera: str, fps: float, size: str)
 
 
 def _render(args: argparse.Namespace) -> int:
-    render_video(args.recording, args.out, args.camera, args.fps, args.size)
+    if not args.out.parent.is_dir():
+        raise DynabarnError(f"--out {args.out}: the folder {args.out.parent} does not exist")
+    try:
+        render_video(args.recording, args.out, args.camera, args.fps, args.size)
+    except OSError as exc:
+        raise DynabarnError(f"cannot write {args.out}: {exc.strerror or exc}") from None
     return 0

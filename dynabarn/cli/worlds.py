@@ -210,6 +210,9 @@ def _worlds_show(args: argparse.Namespace) -> int:
     if args.plot:
         from dynabarn.worlds.plot import plot_world
 
+        if args.plot.suffix.lower() not in (".png", ".pdf", ".svg"):
+            raise DynabarnError(f"--plot {args.plot}: use a .png, .pdf or .svg file name")
+
         print(f"wrote {plot_world(world, args.plot)}")
     return 0
 

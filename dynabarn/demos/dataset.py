@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dynabarn.files import save_atomically
 from dynabarn.errors import DynabarnError
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.recording import TOPIC_CMD, TOPIC_SCAN, Recording, read_recording
@@ -144,8 +145,7 @@ def export(
         "action": "(v [m/s], w [rad/s]) sent to the robot",
     }
     out.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(
-        out,
+    arrays = dict(
         scans=np.concatenate([e.scans for e in episodes]),
         local_goal=np.concatenate([e.local_goal for e in episodes]),
         actions=np.concatenate([e.actions for e in episodes]),
@@ -160,6 +160,7 @@ def export(
         episode_file=np.array([Path(e.file).name for e in episodes]),
         metadata=np.array(json.dumps(meta)),
     )
+    save_atomically(out, lambda f: np.savez_compressed(f, **arrays))
     return meta
 
 

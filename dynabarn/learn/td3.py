@@ -20,6 +20,7 @@ import gymnasium
 import numpy as np
 import torch
 
+from dynabarn.files import save_atomically, write_atomically
 from dynabarn.learn import ENV_ID
 from dynabarn.planners.learned.models import Actor, Critic, save_policy
 
@@ -182,7 +183,7 @@ def train_td3(cfg: TD3Config, out_dir: Path, *, progress=None) -> TD3Report:
         lookahead=cfg.lookahead,
         notes={"steps": step, "config": asdict(cfg), "final_eval": report.evaluations[-1]},
     )
-    (out_dir / "training.json").write_text(json.dumps({"config": asdict(cfg), **asdict(report)}, indent=1))
+    write_atomically(out_dir / "training.json", json.dumps({"config": asdict(cfg), **asdict(report)}, indent=1))
     plot_learning_curve(report, out_dir / "learning_curve.png")
     return report
 
@@ -204,5 +205,5 @@ def plot_learning_curve(report: TD3Report, path: Path) -> Path:
     ax.grid(alpha=0.3)
     ax.set_title("TD3 on DynaBARN-v0 (deterministic evaluation)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path)
+    save_atomically(path, lambda f: fig.savefig(f, format="png"))
     return path

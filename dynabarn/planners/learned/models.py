@@ -19,6 +19,8 @@ from pathlib import Path
 import torch
 from torch import nn
 
+from dynabarn.files import save_atomically
+
 OBS_DIM = 722
 ACT_DIM = 2
 FEATURES = (512, 256, 128)
@@ -73,16 +75,14 @@ class Critic(nn.Module):
 def save_policy(actor: Actor, path: Path, *, kind: str, lookahead: float, notes: dict | None = None) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    torch.save(
-        {
-            "format": POLICY_FORMAT,
-            "kind": kind,
-            "lookahead": float(lookahead),
-            "notes": dict(notes or {}),
-            "state_dict": actor.state_dict(),
-        },
-        path,
-    )
+    blob = {
+        "format": POLICY_FORMAT,
+        "kind": kind,
+        "lookahead": float(lookahead),
+        "notes": dict(notes or {}),
+        "state_dict": actor.state_dict(),
+    }
+    save_atomically(path, lambda f: torch.save(blob, f))
     return path
 
 
@@ -99,7 +99,14 @@ def load_policy(path: Path) -> tuple[Actor, dict]:
         raise DynabarnError(f"{path}: not a loadable policy ({type(exc).__name__}: {exc})") from None
     if not isinstance(blob, dict) or blob.get("format") != POLICY_FORMAT:
         raise DynabarnError(f"{path}: not a {POLICY_FORMAT} file")
-    actor = Actor(blob.get("lookahead", 2.0))
-    actor.load_state_dict(blob["state_dict"])
+    lookahead = blob.get("lookahead", 2.0)
+    if isinstance(lookahead, bool) or not isinstance(lookahead, int | float) or not 0.1 <= lookahead <= 30.0:
+        raise DynabarnError(f"{path}: lookahead {lookahead!r} is not in [0.1, 30] m")
+    actor = Actor(lookahead)
+    try:
+        actor.load_state_dict(blob["state_dict"])
+    except (KeyError, TypeError, RuntimeError, AttributeError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise DynabarnError(f"{path}: its weights do not fit the policy network ({first})") from None
     actor.eval()
     return actor, {k: v for k, v in blob.items() if k != "state_dict"}
