@@ -195,6 +195,6 @@ def get_protocol(name_or_path: str) -> EvalProtocol:
             raise DynabarnError(f"protocol file not found: {path}")
         try:
             return EvalProtocol.from_dict(json.loads(path.read_text()))
-        except json.JSONDecodeError as exc:
-            raise DynabarnError(f"{path}: protocol is not valid JSON ({exc})") from None
+        except (json.JSONDecodeError, RecursionError, UnicodeDecodeError) as exc:
+            raise DynabarnError(f"{path}: protocol is not valid JSON ({type(exc).__name__})") from None
     raise DynabarnError(unknown_choice("protocol", name_or_path, list(PROTOCOLS)) + " (or a .json file)")

@@ -225,4 +225,6 @@ def world_set(name: str, ids: list[int] | None = None) -> list[tuple[int, str, s
         if missing:
             raise WorldError(f"world id(s) {missing[:5]} not in set {name!r}")
         chosen = [i for i in chosen if i in set(ids)] if name == "paper60" else ids
+        if not chosen:
+            raise WorldError(f"none of the world ids {ids[:5]} is in set {name!r} (dynabarn300 has all 300)")
     return [(i, str(entry_path(index_dir, entries[i])), entries[i]["difficulty"]) for i in chosen]

@@ -29,10 +29,14 @@ def _local_backend(jobs: list[Job], n_workers: int) -> Iterator[dict]:
     remaining = list(jobs)
     while remaining:
         # A dead worker breaks the whole pool (concurrent.futures notices, unlike
-        # multiprocessing.Pool, which waits forever): start a new pool for what is left.
-        pool = ProcessPoolExecutor(min(n_workers, len(remaining)), mp_context=ctx)
-        pending = {pool.submit(run_job, job): job for job in remaining}
-        remaining = []
+        # multiprocessing.Pool, which waits forever) and every unfinished episode in it. They
+        # run again in a new pool; one caught in two breaks runs alone, so the episode that
+        # kills its worker is found without blaming the others.
+        suspect = next((j for j in remaining if attempts.get(j.key, 0) >= MAX_ATTEMPTS - 1), None)
+        batch = [suspect] if suspect is not None else remaining
+        remaining = [j for j in remaining if j is not suspect] if suspect is not None else []
+        pool = ProcessPoolExecutor(min(n_workers, len(batch)), mp_context=ctx)
+        pending = {pool.submit(run_job, job): job for job in batch}
         try:
             while pending:
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)

@@ -174,9 +174,16 @@ def _bench(args: argparse.Namespace) -> int:
 def _report_errors(rows: list[dict], out: Path) -> int:
     """Episodes that ended in `error` did not measure the planner: say so loudly (stderr) and
     exit 1, so a script or CI cannot take the table for a result."""
+    cut = [r for r in rows if r.get("recording_error")]
+    if cut:
+        print(
+            f"WARNING: {len(cut)} recordings were cut short ({cut[0]['recording_error']}); their results stand; "
+            "free space and run the same command again to record them whole",
+            file=sys.stderr,
+        )
     errors = [r for r in rows if r.get("outcome") == "error"]
     if not errors:
-        return 0
+        return 1 if cut else 0
     print(f"ERROR: {len(errors)} of {len(rows)} episodes ended in an error, not an outcome:", file=sys.stderr)
     for r in errors[:5]:
         print(f"  {r.get('planner')} {r.get('world')} seed {r.get('seed')}: {r.get('reason')}", file=sys.stderr)

@@ -1,0 +1,559 @@
+"""Bad inputs and faults against every command: one clear line and exit 2 (or the documented
+status), never a traceback, never a silent acceptance, nothing finished lost.
+
+`BAD_INPUTS` is the table: (command, arguments, text the one error line must hold). Files
+the arguments name are made by `bad_files`. The fault scenarios below the table kill a
+worker, run two writers on one folder, crash a resume mid-rewrite and fill a disk. The
+README's "Untrusted input" counts come from this table (a test keeps them equal).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from dynabarn import cli
+from dynabarn.provenance import SHIPPED_WORLDS
+
+REPO = Path(__file__).resolve().parent.parent
+WORLD = SHIPPED_WORLDS / "world_000.xml"
+MAINS = {name.removesuffix("_main"): getattr(cli, name) for name in cli.__all__}
+
+
+def _with_metadata(edit) -> bytes:
+    """World 0 with its JSON metadata changed by `edit(dict) -> object`."""
+    tree = ET.parse(WORLD)
+    text = tree.getroot().find("./custom/text[@name='dynabarn_world']")
+    text.text = json.dumps(edit(json.loads(text.text)))
+    return ET.tostring(tree.getroot())
+
+
+def _with_keyframes(edit) -> bytes:
+    """World 0 with obstacle_000's keyframe numbers changed by `edit(list[str]) -> list[str]`."""
+    tree = ET.parse(WORLD)
+    numeric = tree.getroot().find("./custom/numeric[@name='obstacle_000_keyframes']")
+    numeric.set("data", " ".join(edit(numeric.get("data").split())))
+    return ET.tostring(tree.getroot())
+
+
+def _many_obstacles(n: int) -> bytes:
+    tree = ET.parse(WORLD)
+    root = tree.getroot()
+    text = root.find("./custom/text[@name='dynabarn_world']")
+    meta = json.loads(text.text)
+    first = meta["obstacles"][0]
+    kf = root.find("./custom/numeric[@name='obstacle_000_keyframes']").get("data")
+    custom = root.find("./custom")
+    meta["obstacles"] = []
+    for i in range(n):
+        meta["obstacles"].append({**first, "name": f"many_{i}"})
+        ET.SubElement(custom, "numeric", name=f"many_{i}_keyframes", data=kf)
+    text.text = json.dumps(meta)
+    return ET.tostring(root)
+
+
+def _without_obstacle_bodies() -> bytes:
+    text = WORLD.read_text()
+    stripped = re.sub(r'<body name="obstacle_\d+".*?</body>\n', "", text, flags=re.S)
+    assert stripped != text
+    return stripped.encode()
+
+
+def _xml(replace: str, by: str) -> bytes:
+    text = WORLD.read_text()
+    assert replace in text
+    return text.replace(replace, by, 1).encode()
+
+
+WORLD_FILES: dict[str, bytes] = {
+    "include.xml": _xml("<worldbody>", '<worldbody><include file="/etc/passwd"/>'),
+    "include_rel.xml": _xml("<worldbody>", '<worldbody><include file="frag.xml"/>'),
+    "mesh.xml": _xml("<asset>", '<asset><mesh name="m" file="../../x.stl"/>'),
+    "texture.xml": _xml("<asset>", '<asset><texture name="t" type="2d" file="/etc/hostname"/>'),
+    "hfield.xml": _xml("<asset>", '<asset><hfield name="h" file="h.png"/>'),
+    "plugin.xml": _xml("<worldbody>", '<extension><plugin plugin="mujoco.elasticity.cable"/></extension><worldbody>'),
+    "meshdir.xml": _xml('<compiler angle="radian"/>', '<compiler angle="radian" meshdir="/etc"/>'),
+    "second_robot.xml": _xml("<asset>", '<asset><model name="other" file="other.xml"/>'),
+    "not_xml.xml": b"this is not xml <",
+    "not_mjcf.xml": b"<html><body/></html>",
+    "empty.xml": b"",
+    "no_metadata.xml": b"<mujoco><worldbody/></mujoco>",
+    "nested_json.xml": b'<mujoco><custom><text name="dynabarn_world" data="'
+    + b"[" * 100_000
+    + b'"/></custom></mujoco>',
+    "obstacles_null.xml": _with_metadata(lambda m: {**m, "obstacles": None}),
+    "metadata_list.xml": _with_metadata(lambda m: [m]),
+    "radius_nan.xml": _with_metadata(lambda m: {**m, "obstacles": [{**m["obstacles"][0], "radius": float("nan")}]}),
+    "radius_huge.xml": _with_metadata(lambda m: {**m, "obstacles": [{**m["obstacles"][0], "radius": 1e300}]}),
+    "goal_inf.xml": _with_metadata(lambda m: {**m, "layout": {**m["layout"], "goal": [float("inf"), 0]}}),
+    "wall_negative.xml": _with_metadata(
+        lambda m: {**m, "layout": {**m["layout"], "walls": [{**m["layout"]["walls"][0], "size": [-1, 1, 1]}]}}
+    ),
+    "keyframes_nan.xml": _with_keyframes(lambda v: ["nan", *v[1:]]),
+    "keyframes_inf_xy.xml": _with_keyframes(lambda v: [v[0], "inf", *v[2:]]),
+    "keyframes_far.xml": _with_keyframes(lambda v: [v[0], "1e300", *v[2:]]),
+    "keyframes_unsorted.xml": _with_keyframes(lambda v: [v[3], v[1], v[2], v[0], *v[4:]]),
+    "keyframes_duplicate_time.xml": _with_keyframes(lambda v: [v[0], v[1], v[2], v[0], *v[4:]]),
+    "keyframes_negative_time.xml": _with_keyframes(lambda v: ["-5", *v[1:]]),
+    "keyframes_text.xml": _with_keyframes(lambda v: ["abc", *v[1:]]),
+    "keyframes_pairs.xml": _with_keyframes(lambda v: v[:-1]),
+    "many_obstacles.xml": _many_obstacles(501),
+    "no_obstacle_bodies.xml": _without_obstacle_bodies(),
+}
+
+PROTOCOLS: dict[str, str] = {
+    "p_time_nan.json": '{"name": "x", "time_limit": NaN}',
+    "p_time_inf.json": '{"name": "x", "time_limit": Infinity}',
+    "p_time_huge.json": '{"name": "x", "time_limit": 1e9}',
+    "p_spawn_nan.json": '{"name": "x", "spawn": [NaN, 0, 3.14]}',
+    "p_spawn_far.json": '{"name": "x", "spawn": [1e6, 0, 3.14]}',
+    "p_tolerance_zero.json": '{"name": "x", "goal_tolerance": 0}',
+    "p_clip_reversed.json": '{"name": "x", "score_clip": [8, 2]}',
+    "p_unknown_key.json": '{"name": "x", "speed_of_light": 1}',
+    "p_not_object.json": "[1, 2]",
+    "p_not_json.json": "{nope",
+    "p_nested.json": "[" * 100_000,
+}
+
+
+@pytest.fixture(scope="module")
+def bad_files(tmp_path_factory) -> Path:
+    d = tmp_path_factory.mktemp("bad")
+    for name, data in WORLD_FILES.items():
+        (d / name).write_bytes(data)
+    (d / "frag.xml").write_text(
+        '<mujoco><worldbody><geom name="HIDDEN_WALL" type="box" size="1 1 1"/></worldbody></mujoco>'
+    )
+    for name, text in PROTOCOLS.items():
+        (d / name).write_text(text)
+    # World sets whose index points outside, or is malformed.
+    for folder, index in {
+        "set_escape": {
+            "format": "dynabarn-index",
+            "worlds": [{"id": 0, "file": "../../../../etc/passwd", "difficulty": "easy"}],
+        },
+        "set_abs": {"format": "dynabarn-index", "worlds": [{"id": 0, "file": "/etc/passwd", "difficulty": "easy"}]},
+        "set_no_worlds": {"format": "dynabarn-index"},
+        "set_bad_entry": {"format": "dynabarn-index", "worlds": [{"file": "w.xml"}]},
+        "set_twice": {
+            "format": "dynabarn-index",
+            "worlds": [
+                {"id": 0, "file": "a.xml", "difficulty": "easy"},
+                {"id": 0, "file": "b.xml", "difficulty": "easy"},
+            ],
+        },
+        "set_foreign": {"format": "something-else"},
+    }.items():
+        (d / folder).mkdir()
+        (d / folder / "index.json").write_text(json.dumps(index))
+    (d / "set_not_json").mkdir()
+    (d / "set_not_json" / "index.json").write_text("{")
+    # Results folders.
+    (d / "a_file").write_text("not a folder")
+    (d / "out_empty_meta").mkdir()
+    (d / "out_empty_meta" / "metadata.json").write_text("")
+    (d / "a_folder").mkdir()
+    # Files that are not what they claim.
+    (d / "not_a_recording.mcap").write_text("hello")
+    (d / "not_a_policy.pt").write_bytes(b"\x80\x04K\x01.")
+    (d / "bad_config.json").write_text('{"max_vel_x": "fast"}')
+    (d / "config_list.json").write_text("[1, 2]")
+    return d
+
+
+WORLD_CASES = [
+    ("include.xml", "<include> is not allowed"),
+    ("include_rel.xml", "<include> is not allowed"),
+    ("mesh.xml", "<mesh file='../../x.stl'> refers to another file"),
+    ("texture.xml", "refers to another file"),
+    ("hfield.xml", "refers to another file"),
+    ("plugin.xml", "is not allowed"),
+    ("meshdir.xml", "<compiler meshdir='/etc'> refers to another file"),
+    ("second_robot.xml", "<model file='other.xml'> refers to another file"),
+    ("not_xml.xml", "not valid XML"),
+    ("not_mjcf.xml", "not an MJCF file"),
+    ("empty.xml", "not valid XML"),
+    ("no_metadata.xml", "not a DynaBARN world"),
+    ("nested_json.xml", "not valid JSON"),
+    ("obstacles_null.xml", "malformed world description"),
+    ("metadata_list.xml", "not a DynaBARN world"),
+    ("radius_nan.xml", "radius nan is not in"),
+    ("radius_huge.xml", "radius 1e+300 is not in"),
+    ("goal_inf.xml", "goal"),
+    ("wall_negative.xml", "positive finite sizes"),
+    ("keyframes_nan.xml", "NaN or infinite"),
+    ("keyframes_inf_xy.xml", "NaN or infinite"),
+    ("keyframes_far.xml", "more than 1000 m from the origin"),
+    ("keyframes_unsorted.xml", "rise strictly"),
+    ("keyframes_duplicate_time.xml", "rise strictly"),
+    ("keyframes_negative_time.xml", "start at >= 0 s"),
+    ("keyframes_text.xml", "keyframes are not numbers"),
+    ("keyframes_pairs.xml", "not [t, x, y] triples"),
+    ("many_obstacles.xml", "501 obstacles (at most 500)"),
+    ("no_obstacle_bodies.xml", "has no body"),
+    ("does_not_exist.xml", "world not found"),
+]
+
+PROTOCOL_CASES = [
+    ("p_time_nan.json", "time_limit nan is not in"),
+    ("p_time_inf.json", "time_limit inf is not in"),
+    ("p_time_huge.json", "time_limit 1000000000.0 is not in"),
+    ("p_spawn_nan.json", "spawn"),
+    ("p_spawn_far.json", "within 1000 m"),
+    ("p_tolerance_zero.json", "goal_tolerance 0 is not in"),
+    ("p_clip_reversed.json", "0 < low < high"),
+    ("p_unknown_key.json", "malformed protocol"),
+    ("p_not_object.json", "malformed protocol"),
+    ("p_not_json.json", "not valid JSON"),
+    ("p_nested.json", "not valid JSON"),
+    ("missing.json", "protocol file not found"),
+]
+
+CONFIG_CASES = [
+    ("dwa", "max_vel_x=abc", "max_vel_x='abc': expected a number"),
+    ("dwa", "max_vel_x=-1", "max_vel_x=-1: out of range"),
+    ("dwa", "max_vel_x=Infinity", "expected a finite number"),
+    ("dwa", "sim_time=NaN", "expected a finite number"),
+    ("dwa", "vx_samples=100000000", "vx_samples=100000000: out of range"),
+    ("dwa", "vx_samples=2.5", "expected a whole number"),
+    ("dwa", "vx_samples=true", "expected a whole number"),
+    ("dwa", "costmap.resolution=0", "resolution=0: out of range"),
+    ("dwa", "costmap.size=1e9", "size=1000000000.0: out of range"),
+    ("dwa", "bogus=1", "unknown DWA parameter"),
+    ("dwa", "novalue", "bad --planner-config item"),
+    ("dwa", "{bad}/bad_config.json", "max_vel_x='fast'"),
+    ("dwa", "{bad}/config_list.json", "must be a JSON object"),
+    ("dwa", "{bad}/missing.json", "planner config file not found"),
+    ("teb", "n_poses=100000", "n_poses=100000: out of range"),
+    ("teb", "max_iterations=0", "max_iterations=0: out of range"),
+    ("oracle", "dt=0", "dt=0: out of range"),
+    ("straight", "speed=1e9", "speed=1000000000.0: out of range"),
+]
+
+# (command, arguments, what the one error line must hold); exit status 2 for all.
+BAD_INPUTS: list[tuple[str, list[str], str]] = [
+    # Worlds are data.
+    *[("run", ["--world", "{bad}/" + name, "--no-log"], msg) for name, msg in WORLD_CASES],
+    ("worlds", ["show", "{bad}/include.xml"], "<include> is not allowed"),
+    ("worlds", ["show", "{bad}/keyframes_nan.xml"], "NaN or infinite"),
+    ("worlds", ["show", "300"], "unknown world id 300"),
+    ("worlds", ["show", "world_9999"], "unknown world id world_9999"),
+    ("worlds", ["show", "137", "--plot", "{bad}/p.xyz"], "use a .png, .pdf or .svg"),
+    ("worlds", ["show", "137", "--plot", "{bad}/a_file/p.png"], "error:"),
+    ("worlds", ["stats", "{bad}/set_escape"], "must be a file name inside the folder"),
+    ("worlds", ["stats", "{bad}/set_abs"], "must be a file name inside the folder"),
+    ("worlds", ["stats", "{bad}/set_no_worlds"], "index has no list of worlds"),
+    ("worlds", ["stats", "{bad}/set_bad_entry"], "integer id"),
+    ("worlds", ["stats", "{bad}/set_twice"], "appears twice"),
+    ("worlds", ["stats", "{bad}/set_foreign"], "not a dynabarn world index"),
+    ("worlds", ["stats", "{bad}/set_not_json"], "not valid JSON"),
+    ("worlds", ["stats", "--worlds", "5-2"], "ranges go upwards"),
+    ("worlds", ["generate", "--out", "{bad}/a_file/sub"], "error:"),
+    ("worlds", ["generate", "--seed", "abc"], "--seed"),
+    ("worlds", ["import", "{bad}/nope.json"], "import file not found"),
+    # Protocols.
+    *[("run", ["--world", "0", "--no-log", "--protocol", "{bad}/" + name], msg) for name, msg in PROTOCOL_CASES],
+    ("run", ["--world", "0", "--no-log", "--protocol", "nope"], "unknown protocol 'nope'"),
+    # Planner configurations.
+    *[
+        ("run", ["--world", "0", "--no-log", "--planner", planner, "--planner-config", cfg], msg)
+        for planner, cfg, msg in CONFIG_CASES
+    ],
+    ("run", ["--world", "0", "--no-log", "--planner", "nope"], "unknown planner 'nope'"),
+    (
+        "run",
+        ["--world", "0", "--no-log", "--planner", "bc", "--policy", "{bad}/not_a_policy.pt"],
+        "not a loadable policy",
+    ),
+    ("run", ["--world", "0", "--no-log", "--planner", "bc", "--policy", "{bad}/missing.pt"], "policy file not found"),
+    # Numbers on the command line.
+    ("run", ["--world", "0", "--no-log", "--seed", "-1"], "--seed: -1 is not in [0, 4294967295]"),
+    ("run", ["--world", "0", "--no-log", "--seed", "1e3"], "is not a whole number"),
+    ("run", ["--world", "0", "--no-log", "--dt", "1e-7"], "--dt: 1e-7 is not in"),
+    ("run", ["--world", "0", "--no-log", "--dt", "nan"], "--dt: nan is not in"),
+    ("run", ["--world", "0", "--no-log", "--control-rate", "nan"], "--control-rate: nan is not in"),
+    ("run", ["--world", "0", "--no-log", "--control-rate", "7"], "whole number of physics steps"),
+    ("run", ["--world", "0", "--log", "{bad}/a_folder"], "a folder, not a recording file"),
+    ("run", ["--world", "0", "--log", "{bad}/a_file/r.mcap"], "cannot record to"),
+    ("run", ["--world", "0", "--no-log", "--video", "{bad}/v.avi"], "--video must end in .mp4 or .gif"),
+    ("run", ["--no-log"], "--world"),
+    ("bench", ["--out", "{bad}/a_file", "--worlds", "0", "--trials", "1"], "exists and is not a folder"),
+    ("bench", ["--out", "{bad}/o1", "--jobs", "0"], "--jobs: 0 is not in [1, 256]"),
+    ("bench", ["--out", "{bad}/o1", "--jobs", "100000"], "--jobs: 100000 is not in [1, 256]"),
+    ("bench", ["--out", "{bad}/o1", "--trials", "0"], "--trials: 0 is not in"),
+    ("bench", ["--out", "{bad}/o1", "--worlds", "5-2"], "ranges go upwards"),
+    ("bench", ["--out", "{bad}/o1", "--worlds", "50"], "is in set 'paper60'"),
+    ("bench", ["--out", "{bad}/o1", "--worlds", "x"], "bad --worlds item 'x'"),
+    ("bench", ["--out", "{bad}/o1", "--planner", ","], "name at least one planner"),
+    ("bench", ["--out", "{bad}/o1", "--set", "{bad}/set_escape"], "must be a file name inside the folder"),
+    ("bench", ["--out", "{bad}/o1", "--set", "{bad}/nowhere"], "unknown world set"),
+    ("bench", ["--out", "{bad}/out_empty_meta", "--worlds", "0", "--trials", "1"], "is not a sweep's metadata"),
+    ("bench", ["--out", "{bad}/o1", "--backend", "ray", "--address", "not-an-address"], "--address 'not-an-address'"),
+    ("bench", ["--worlds", "0"], "--out is required"),
+    ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/v.mp4"], "error:"),
+    ("render", ["{bad}/missing.mcap", "--out", "{bad}/v.mp4"], "recording not found"),
+    ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/no/such/v.mp4"], "does not exist"),
+    ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/v.mp4", "--fps", "100000"], "--fps: 100000 is not in"),
+    ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/v.mp4", "--fps", "0"], "--fps: 0 is not in"),
+    ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/v.mp4", "--size", "100000x100000"], "bad --size"),
+    ("replay", ["{bad}/not_a_recording.mcap", "--save", "{bad}/x.rrd"], "error:"),
+    ("replay", ["{bad}/missing.mcap"], "recording not found"),
+    ("demos", ["collect", "--jobs", "0"], "--jobs: 0 is not in"),
+    ("demos", ["collect", "--trials", "-3"], "--trials: -3 is not in"),
+    ("demos", ["export", "{bad}/missing", "--out", "{bad}/d.npz"], "error:"),
+    ("demos", ["export", "{bad}/a_folder", "--out", "{bad}/d.npz", "--lookahead", "inf"], "--lookahead: inf"),
+    ("train", ["td3", "--out", "{bad}/t", "--steps", "0"], "--steps: 0 is not in"),
+    ("train", ["bc", "--data", "{bad}/missing.npz", "--out", "{bad}/p.pt", "--epochs", "-1"], "--epochs: -1"),
+    ("teleop", ["--world", "0", "--speed", "1e9"], "--speed: 1e9 is not in"),
+]
+
+
+def _call(command: str, argv: list[str]) -> tuple[int, str]:
+    """Run a command in this process; (exit status, what it printed on stderr)."""
+    import contextlib
+    import io
+
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            code = MAINS[command](argv)
+        except SystemExit as exc:  # argparse's usage errors
+            code = exc.code
+    return code, err.getvalue()
+
+
+@pytest.mark.parametrize("command, argv, message", BAD_INPUTS, ids=[f"{c} {' '.join(a)}" for c, a, _ in BAD_INPUTS])
+def test_bad_input_gives_one_clear_line(command, argv, message, bad_files, monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)  # nothing may depend on (or write to) the repository folder
+    argv = [a.replace("{bad}", str(bad_files)) for a in argv]
+    code, err = _call(command, argv)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2, f"exit {code}: {err}"
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert message.replace("{bad}", str(bad_files)) in lines[0], lines[0]
+
+
+def test_the_readme_counts_the_table():
+    readme = (REPO / "README.md").read_text()
+    match = re.search(r"(\d+) bad inputs", readme)
+    assert match and int(match[1]) == len(BAD_INPUTS), "update the README's count of bad inputs"
+
+
+def test_a_world_file_cannot_pull_in_a_hidden_wall(bad_files, tmp_path):
+    """The issue's proof of concept: the fragment beside the world is never read."""
+    code, err = _call("run", ["--world", str(bad_files / "include_rel.xml"), "--no-log"])
+    assert code == 2 and "<include>" in err
+
+
+def test_relative_references_do_not_depend_on_the_current_folder(tmp_path, monkeypatch):
+    """The same world file gives the same episode from any folder (it reads nothing else)."""
+    import shutil
+
+    from dynabarn.planners import get_planner
+    from dynabarn.protocol import get_protocol
+    from dynabarn.sim import run_episode
+
+    copy = tmp_path / "elsewhere" / "w.xml"
+    copy.parent.mkdir()
+    shutil.copy(WORLD, copy)  # its ../assets/jackal/jackal.xml does not exist here
+    results = []
+    for folder in (tmp_path, copy.parent, REPO):
+        monkeypatch.chdir(folder)
+        r = run_episode(copy, get_planner("straight"), get_protocol("barn"), seed=0)
+        results.append((r.outcome, r.time, r.world_sha256))
+    assert len(set(results)) == 1
+
+
+# -- fault scenarios -------------------------------------------------------------------------
+
+
+def _run_job_or_die(job):
+    """A pool worker's job that kills its own process in one episode, every time (a crash in
+    native code, the OOM killer); module level, so the pool can send it to its workers."""
+    from dynabarn.bench.jobs import run_job
+
+    if job.world_id == 1 and job.seed == 0:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return run_job(job)
+
+
+def _sweep_jobs(ids, trials=1, planner="straight", **kwargs):
+    from dynabarn import bench, worldset
+    from dynabarn.protocol import get_protocol
+
+    worlds = worldset.world_set("dynabarn300", ids)
+    return bench.make_jobs([(planner, {})], worlds, get_protocol("barn"), trials, **kwargs)
+
+
+def test_a_killed_worker_is_noticed_and_its_episodes_run_again(tmp_path, monkeypatch):
+    """`kill -9` of a pool worker: the sweep neither hangs nor loses rows; the episodes of
+    the dead pool run again, and one that kills its worker every time ends as a retry row."""
+    from dynabarn import bench
+    from dynabarn.bench import backends
+
+    real_run_job = backends.run_job
+    monkeypatch.setattr(backends, "run_job", _run_job_or_die)
+    jobs = _sweep_jobs([0, 1, 2, 3], trials=2)
+    report = bench.run_sweep(jobs, tmp_path / "out", n_workers=2)
+    rows = {r["key"]: r for r in report.rows}
+    assert len(rows) == len(jobs) == 8
+    dead = [r for r in rows.values() if r["outcome"] == "error"]
+    assert len(dead) == 1 and dead[0]["world_id"] == 1 and dead[0]["seed"] == 0 and dead[0]["retry"] is True
+    assert "worker process died" in dead[0]["reason"]
+    assert all(r["outcome"] in ("success", "collision") for r in rows.values() if r is not dead[0])
+    # On resume only the retry row runs again (and now its worker survives).
+    monkeypatch.setattr(backends, "run_job", real_run_job)
+    again = bench.run_sweep(jobs, tmp_path / "out", n_workers=2)
+    assert again.ran == 1 and again.skipped == 7
+    assert all(r["outcome"] != "error" and not r.get("retry") for r in again.rows) and len(again.rows) == 8
+
+
+def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path):
+    from dynabarn import bench
+
+    out = tmp_path / "out"
+    out_arg = ("--trials", "1", "--out", str(out))
+    with bench.locked(out):
+        proc = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "dynabarn",
+                "bench",
+                "--planner",
+                "straight",
+                "--worlds",
+                "0",
+                "--trials",
+                "1",
+                *out_arg,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+    assert proc.returncode == 2
+    assert f"is being written by another dynabarn-bench (pid {os.getpid()})" in proc.stderr
+    assert not (out / "results.jsonl").exists()
+
+
+def test_duplicate_jobs_run_once(tmp_path):
+    from dynabarn import bench
+
+    jobs = _sweep_jobs([0]) * 3
+    report = bench.run_sweep(jobs, tmp_path / "out")
+    assert report.ran == 1 and len(report.rows) == 1
+    code, err = _call(
+        "bench", ["--planner", "straight,straight", "--worlds", "0,0,0", "--trials", "1", "--out", str(tmp_path / "o2")]
+    )
+    assert code == 0, err
+    assert len((tmp_path / "o2" / "results.jsonl").read_text().splitlines()) == 1
+
+
+def test_a_crash_during_the_resume_rewrite_loses_nothing(tmp_path, monkeypatch):
+    """Resuming rewrites results.jsonl (dropping a torn line) through a temporary file: a
+    crash before the rename leaves the old file whole."""
+    from dynabarn import bench
+    from dynabarn.bench.results import prepare_resume
+
+    out = tmp_path / "out"
+    report = bench.run_sweep(_sweep_jobs([0, 1, 2]), out)
+    path = out / "results.jsonl"
+    with path.open("a") as f:
+        f.write('{"key": "torn')  # a kill mid-write
+    f.close()
+    before = path.read_bytes()
+
+    def crash(*args):
+        raise KeyboardInterrupt  # the process dies between writing and renaming
+
+    monkeypatch.setattr("dynabarn.files.os.replace", crash)
+    with pytest.raises(KeyboardInterrupt):
+        prepare_resume(path)
+    assert path.read_bytes() == before and [p.name for p in out.iterdir() if ".part" in p.name] == []
+    monkeypatch.undo()
+    rows = prepare_resume(path)
+    assert [r["key"] for r in rows] == [r["key"] for r in report.rows]
+    assert path.read_text().count("\n") == 3 and "torn" not in path.read_text()
+
+
+def test_foreign_lines_in_results_are_skipped(tmp_path):
+    from dynabarn import bench
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "results.jsonl").write_text('{}\nnull\n[1]\n"text"\n{"key": 5}\n')
+    report = bench.run_sweep(_sweep_jobs([0]), out)
+    assert report.ran == 1 and len(report.rows) == 1
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 16 MB tmpfs (root only; skipped where mounting is not allowed)."""
+    mnt = tmp_path / "disk"
+    mnt.mkdir()
+    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=16m", "tmpfs", str(mnt)]).returncode:
+        pytest.skip("needs root to mount a small tmpfs")
+    yield mnt
+    subprocess.run(["umount", "-l", str(mnt)], check=False)
+
+
+def _fill(disk: Path, leave: int) -> Path:
+    """Fill the disk but for `leave` bytes; returns the filler file."""
+    filler = disk / "filler"
+    st = os.statvfs(disk)
+    free = st.f_bavail * st.f_frsize
+    with filler.open("ab") as f:
+        f.write(b"\0" * max(0, free - leave))
+    return filler
+
+
+def test_full_disk_while_recording_keeps_the_result_and_a_readable_recording(small_disk):
+    from dynabarn.recording import read_recording
+    from dynabarn.recording.writer import CHUNK_SIZE, SPACE_RESERVE
+
+    _fill(small_disk, SPACE_RESERVE + 2 * CHUNK_SIZE + 200_000)  # room for about 200 kB of recording
+    log = small_disk / "r.mcap"
+    proc = subprocess.run(
+        [sys.executable, "-m", "dynabarn", "run", "--world", "137", "--planner", "dwa", "--log", str(log)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "SUCCESS in 14.27 s" in proc.stdout  # the episode ran to its end
+    assert "the disk was nearly full" in proc.stderr and proc.stderr.count("\n") == 1
+    rec = read_recording(log)
+    assert not rec.truncated and 0 < len(rec.topic("/scan")) < 143
+
+
+def test_full_disk_in_a_sweep_loses_no_row_and_resumes(small_disk):
+    """Results on a full disk: one line, exit 2, the rows written stay; recordings cut by a
+    nearly full disk are rows to run again; after freeing space the same command finishes."""
+    out = small_disk / "out"
+    argv = ["--planner", "straight", "--worlds", "0-5", "--trials", "1", "--jobs", "1", "--record", "all"]
+    argv += ["--out", str(out)]
+    code, err = _call("bench", argv)  # metadata and the first rows fit
+    assert code == 0, err
+    first = (out / "results.jsonl").read_text()
+    assert first.count("\n") == 6
+    (out / "results.jsonl").write_text(first.splitlines(keepends=True)[0])  # 5 episodes to run again
+    filler = _fill(small_disk, 0)  # now nothing fits
+    code, err = _call("bench", argv)
+    assert code == 2 and "No space left on device" in err and err.count("\n") == 1, err
+    assert (out / "results.jsonl").read_text() == first.splitlines(keepends=True)[0]  # the finished row stays
+    assert not list((out / "recordings").glob("*.part"))
+    filler.unlink()
+    code, err = _call("bench", argv)
+    assert code == 0, err
+    rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert len(rows) == 6 and "error" not in {r["outcome"] for r in rows} and not any(r.get("retry") for r in rows)
+    assert rows[0] == json.loads(first.splitlines()[0])  # the row finished before the full disk, untouched
