@@ -121,6 +121,7 @@ PROTOCOLS: dict[str, str] = {
     "p_not_object.json": "[1, 2]",
     "p_not_json.json": "{nope",
     "p_nested.json": "[" * 100_000,
+    "p_hour.json": '{"name": "x", "time_limit": 3600}',
 }
 
 
@@ -281,6 +282,7 @@ BAD_INPUTS: list[tuple[str, list[str], str]] = [
     ("run", ["--world", "0", "--no-log", "--dt", "nan"], "--dt: nan is not in"),
     ("run", ["--world", "0", "--no-log", "--control-rate", "nan"], "--control-rate: nan is not in"),
     ("run", ["--world", "0", "--no-log", "--control-rate", "7"], "whole number of physics steps"),
+    ("run", ["--world", "0", "--no-log", "--dt", "0.0001", "--protocol", "{bad}/p_hour.json"], "at most 5,000,000"),
     ("run", ["--world", "0", "--log", "{bad}/a_folder"], "a folder, not a recording file"),
     ("run", ["--world", "0", "--log", "{bad}/a_file/r.mcap"], "cannot record to"),
     ("run", ["--world", "0", "--no-log", "--video", "{bad}/v.avi"], "--video must end in .mp4 or .gif"),

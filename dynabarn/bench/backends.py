@@ -58,7 +58,7 @@ def _local_backend(jobs: list[Job], n_workers: int) -> Iterator[dict]:
             pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _dead_worker_row(job: Job) -> dict:
+def _dead_worker_row(job: Job, reason: str = "") -> dict:
     return {
         "key": job.key,
         "planner": job.planner,
@@ -67,7 +67,7 @@ def _dead_worker_row(job: Job) -> dict:
         "seed": job.seed,
         "protocol": job.protocol["name"],
         "outcome": "error",
-        "reason": f"infrastructure: the worker process died {MAX_ATTEMPTS} times running this episode",
+        "reason": reason or f"infrastructure: the worker process died {MAX_ATTEMPTS} times running this episode",
         "retry": True,
     }
 
@@ -91,11 +91,16 @@ def _ray_backend(jobs: list[Job], n_workers: int, address: str | None) -> Iterat
         kwargs = {"address": address} if address else {"num_cpus": n_workers, "include_dashboard": False}
         ray.init(ignore_reinit_error=True, log_to_driver=False, **kwargs)
     remote = ray.remote(num_cpus=1)(run_job)
-    pending = [remote.remote(job) for job in jobs]
+    jobs_of = {remote.remote(job): job for job in jobs}
+    pending = list(jobs_of)
     try:
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
-            yield ray.get(done[0])
+            try:
+                yield ray.get(done[0])
+            except ray.exceptions.RayError as exc:  # a lost node or worker: the machine's failure
+                first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+                yield _dead_worker_row(jobs_of[done[0]], f"infrastructure: Ray: {type(exc).__name__}: {first}")
     finally:
         for ref in pending:
             ray.cancel(ref, force=True)

@@ -13,6 +13,7 @@ from dynabarn.determinism import (
     RECORD_RESOLUTION,
     snap,
 )
+from dynabarn.errors import DynabarnError
 from dynabarn.metrics import (
     Outcome,
     footprint_clearance_at,
@@ -25,6 +26,9 @@ from dynabarn.sim.events import Tick
 from dynabarn.sim.observation import Observation, ObstacleState
 from dynabarn.sim.simulation import Simulation
 from dynabarn.worlds.schedule import SchedulePlayer
+
+MAX_PHYSICS_STEPS = 5_000_000
+"""Longest episode in physics steps (its pose buffer is 120 MB); 100 s at 5 ms is 40,000."""
 
 
 class Episode:
@@ -56,6 +60,11 @@ class Episode:
         self.k = config.steps_per_tick
         self.period = config.control_period
         max_steps = math.ceil(protocol.longest_episode / self.dt) + 2 * self.k
+        if max_steps > MAX_PHYSICS_STEPS:  # the per-step buffers below would not fit in memory
+            raise DynabarnError(
+                f"protocol {protocol.name!r} with dt {self.dt:g} s allows {max_steps:,} physics steps; "
+                f"at most {MAX_PHYSICS_STEPS:,} (shorten time_limit or enlarge dt)"
+            )
         self.poses = np.zeros((max_steps + 1, 3))  # robot pose after every physics step
         n_ticks_max = max_steps // self.k + 2
         self.tick_v = np.zeros(n_ticks_max)
