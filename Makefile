@@ -11,7 +11,7 @@ LOCK := requirements.lock
 # The extras the tests exercise; the lock covers the package and all of them.
 EXTRAS := test,ray,learn
 
-.PHONY: install demo worlds test lint format bench clean system-deps lock verify-golden
+.PHONY: install demo worlds test lint format bench clean system-deps ros-deps lock verify-golden
 
 # The package and what running it needs.
 $(STAMP): pyproject.toml $(LOCK)
@@ -48,6 +48,18 @@ system-deps:
 	  need=""; for p in xvfb xdotool libosmesa6 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri chromium fonts-dejavu-core; do \
 	    dpkg -s $$p >/dev/null 2>&1 || need="$$need $$p"; done; \
 	  if [ -n "$$need" ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$need >/dev/null; fi; \
+	fi
+	$(MAKE) ros-deps
+
+# ROS 1 (ros_comm 1.15, the Noetic generation) from Debian, for dynabarn-ros and its tests:
+# built for Debian's /usr/bin/python3, which the bridge's ROS side runs on (root only).
+ROS_PACKAGES := ros-core python3-rospy python3-sensor-msgs python3-nav-msgs python3-geometry-msgs \
+	python3-tf2-msgs python3-move-base-msgs python3-actionlib python3-rosbag python3-std-msgs \
+	python3-rosgraph-msgs python3-visualization-msgs
+ros-deps:
+	@if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
+	  need=""; for p in $(ROS_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || need="$$need $$p"; done; \
+	  if [ -n "$$need" ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$need >/dev/null; fi; \
 	fi
 
 worlds: $(STAMP)

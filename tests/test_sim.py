@@ -139,7 +139,7 @@ def test_command_limits_are_applied(empty_world):
 
 
 def test_bad_config_is_rejected():
-    with pytest.raises(DynabarnError, match=r"in \(0, 0\.01\]"):
+    with pytest.raises(DynabarnError, match=r"in \[0\.0001, 0\.01\]"):
         SimConfig(dt=0.05)
     with pytest.raises(DynabarnError, match="whole number"):
         SimConfig(dt=0.005, control_rate=7.0)

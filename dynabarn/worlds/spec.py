@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dynabarn.errors import WorldError
+from dynabarn.worlds.limits import MAX_OBSTACLES, check_layout, check_obstacle_numbers
 from dynabarn.worlds.profiles import (
     ARENA_HALF_SIZE,
     CountClass,
@@ -69,21 +70,7 @@ class Layout:
     """Static cylinders (x, y, radius) [m], e.g. the obstacles of a static BARN world."""
 
     def __post_init__(self) -> None:
-        def finite(values, limit: float) -> bool:
-            return all(isinstance(v, int | float) and math.isfinite(v) and abs(v) <= limit for v in values)
-
-        if not (finite(self.goal, MAX_COORDINATE) and len(self.goal) == 2):
-            raise WorldError(f"layout: goal {self.goal!r} must be two finite coordinates within {MAX_COORDINATE:g} m")
-        if not (finite([self.arena_half_size], MAX_COORDINATE) and self.arena_half_size > 0):
-            raise WorldError(f"layout: arena_half_size {self.arena_half_size!r} must be in (0, {MAX_COORDINATE:g}] m")
-        for w in self.walls:
-            if not (finite(w.centre, MAX_COORDINATE) and finite(w.size, MAX_COORDINATE) and min(w.size) > 0):
-                raise WorldError(f"layout: wall {w.name!r} needs a finite centre and positive finite sizes")
-        if len(self.cylinders) > MAX_STATIC_CYLINDERS:
-            raise WorldError(f"layout: {len(self.cylinders)} static cylinders (at most {MAX_STATIC_CYLINDERS})")
-        for c in self.cylinders:
-            if not (finite(c[:2], MAX_COORDINATE) and finite(c[2:], MAX_OBSTACLE_SIZE) and c[2] > 0):
-                raise WorldError(f"layout: static cylinder {c!r} needs a finite position and a radius > 0")
+        check_layout(self)
 
     def to_dict(self) -> dict:
         d = {
@@ -107,16 +94,6 @@ class Layout:
             cylinders=tuple((float(x), float(y), float(r)) for x, y, r in d.get("cylinders", [])),
         )
 
-
-MAX_OBSTACLES = 500
-"""Moving obstacles per world (the paper's worlds have up to 15)."""
-MAX_KEYFRAMES = 100_000
-MAX_SCHEDULE_TIME = 1e5
-"""Seconds a schedule may span before it loops."""
-MAX_COORDINATE = 1000.0
-"""Metres from the origin any position of a world may lie (the arena is 20 x 20 m)."""
-MAX_OBSTACLE_SIZE = 20.0
-MAX_STATIC_CYLINDERS = 10_000
 
 SCRIPTED = "scripted"
 """The paper's behaviour: the obstacle follows its schedule whatever the robot does."""
@@ -162,7 +139,7 @@ class Obstacle:
     yaw: float = 0.0
 
     def __post_init__(self) -> None:
-        self._check_numbers()
+        check_obstacle_numbers(self)
         if not (isinstance(self.behavior, str) and self.behavior.isidentifier()):
             raise WorldError(f"obstacle {self.name!r}: behavior must be a name, got {self.behavior!r}")
         for key, value in self.behavior_params.items():
@@ -191,27 +168,6 @@ class Obstacle:
                 }[self.shape]
                 + " (and height > 0)"
             )
-
-    def _check_numbers(self) -> None:
-        """Every number of the obstacle in a physical range (a world file is untrusted data)."""
-        for key in ("radius", "height", "half_length", "half_width"):
-            value = getattr(self, key)
-            if not (isinstance(value, int | float) and math.isfinite(value) and 0 <= value <= MAX_OBSTACLE_SIZE):
-                raise WorldError(f"obstacle {self.name!r}: {key} {value!r} is not in [0, {MAX_OBSTACLE_SIZE:g}] m")
-        if not math.isfinite(self.yaw):
-            raise WorldError(f"obstacle {self.name!r}: yaw {self.yaw!r} is not a finite angle")
-        t, xy = self.trajectory.times, self.trajectory.xy
-        if len(t) > MAX_KEYFRAMES:
-            raise WorldError(f"obstacle {self.name!r}: {len(t)} keyframes (at most {MAX_KEYFRAMES})")
-        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(xy))):
-            raise WorldError(f"obstacle {self.name!r}: keyframes hold NaN or infinite values")
-        if t[0] < 0 or np.any(np.diff(t) <= 0) or t[-1] > MAX_SCHEDULE_TIME:
-            raise WorldError(
-                f"obstacle {self.name!r}: keyframe times must start at >= 0 s, rise strictly and end by "
-                f"{MAX_SCHEDULE_TIME:g} s"
-            )
-        if np.abs(xy).max(initial=0.0) > MAX_COORDINATE:
-            raise WorldError(f"obstacle {self.name!r}: a keyframe lies more than {MAX_COORDINATE:g} m from the origin")
 
     @property
     def reactive(self) -> bool:
