@@ -4,6 +4,7 @@ size, keyframe and count is checked where a `WorldSpec` is built (from a file or
 from __future__ import annotations
 
 import math
+
 import numpy as np
 
 from dynabarn.errors import WorldError
