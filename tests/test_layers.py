@@ -27,6 +27,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("demos",),
     ("bench",),
     ("learn",),
+    ("ros",),
     ("cli", "__main__"),
 )
 """Bottom to top: the first dotted part below `dynabarn` names a module's layer."""

@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Iterator
 
-from dynabarn.bench.jobs import Job, run_job
+from dynabarn.bench.jobs import Job, row_head, run_job
 from dynabarn.errors import DynabarnError
 
 MAX_ATTEMPTS = 3
@@ -60,12 +60,7 @@ def _local_backend(jobs: list[Job], n_workers: int) -> Iterator[dict]:
 
 def _dead_worker_row(job: Job, reason: str = "") -> dict:
     return {
-        "key": job.key,
-        "planner": job.planner,
-        "world_id": job.world_id,
-        "difficulty": job.difficulty,
-        "seed": job.seed,
-        "protocol": job.protocol["name"],
+        **row_head(job),
         "outcome": "error",
         "reason": reason or f"infrastructure: the worker process died {MAX_ATTEMPTS} times running this episode",
         "retry": True,

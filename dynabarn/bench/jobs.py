@@ -67,12 +67,9 @@ def make_jobs(
     ]
 
 
-def run_job(job: Job) -> dict:
-    """Run one episode; never raises (an exception becomes an `error` row with its traceback)."""
-    from dynabarn.recording import McapRecorder
-    from dynabarn.sim import Simulation, run_episode
-
-    row: dict = {
+def row_head(job: Job) -> dict:
+    """The fields every row of `job` starts with, whatever became of the episode."""
+    return {
         "key": job.key,
         "planner": job.planner,
         "world_id": job.world_id,
@@ -80,6 +77,14 @@ def run_job(job: Job) -> dict:
         "seed": job.seed,
         "protocol": job.protocol["name"],
     }
+
+
+def run_job(job: Job) -> dict:
+    """Run one episode; never raises (an exception becomes an `error` row with its traceback)."""
+    from dynabarn.recording import McapRecorder
+    from dynabarn.sim import Simulation, run_episode
+
+    row = row_head(job)
     rec_path = None
     try:
         sim = Simulation(job.world_file)

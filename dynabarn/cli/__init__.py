@@ -7,6 +7,7 @@ from dynabarn.cli.bench import bench_main
 from dynabarn.cli.demos import demos_main
 from dynabarn.cli.render import render_main
 from dynabarn.cli.replay import replay_main
+from dynabarn.cli.ros import ros_main
 from dynabarn.cli.run import run_main
 from dynabarn.cli.teleop import teleop_main
 from dynabarn.cli.train import train_main
@@ -17,6 +18,7 @@ __all__ = [
     "demos_main",
     "render_main",
     "replay_main",
+    "ros_main",
     "run_main",
     "teleop_main",
     "train_main",

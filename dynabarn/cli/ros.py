@@ -1,0 +1,142 @@
+"""`dynabarn-ros`: a ROS 1 navigation stack drives the Jackal through a DynaBARN world, over
+the BARN Challenge's topics; judged and recorded like `dynabarn-run`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from dynabarn.cli.common import (
+    EXIT_EPISODE_ERROR,
+    add_protocol,
+    add_trial_seed,
+    add_world,
+    make_parser,
+    ranged,
+    run_command,
+)
+from dynabarn.errors import DynabarnError
+
+
+def ros_main(argv: Sequence[str] | None = None) -> int:
+    parser = make_parser(
+        "dynabarn-ros",
+        "Let a ROS 1 navigation stack drive the Jackal in a DynaBARN world: the bridge publishes /clock, "
+        "/front/scan, /odometry/filtered, /tf and the goal as the BARN Challenge's Gazebo does, takes /cmd_vel, "
+        "judges the episode with the protocol and records it to MCAP like dynabarn-run.",
+    )
+    add_world(parser)
+    add_protocol(parser)
+    add_trial_seed(parser)
+    parser.add_argument(
+        "--launch",
+        default=None,
+        metavar="COMMAND",
+        help="command that starts the stack (run with ROS_MASTER_URI set, stopped after the episode), e.g. "
+        "'roslaunch jackal_helper move_base_DWA.launch'; without it, start the stack yourself",
+    )
+    parser.add_argument(
+        "--master",
+        default=None,
+        metavar="URI",
+        help="use this ROS master (default: start a roscore of our own on a free port)",
+    )
+    clock = parser.add_mutually_exclusive_group()
+    clock.add_argument(
+        "--lockstep",
+        action="store_true",
+        default=True,
+        help="wait for the stack's /cmd_vel every control period: deterministic, as fast as the stack (default)",
+    )
+    clock.add_argument(
+        "--rate",
+        type=ranged(float, 0.01, 100.0),
+        default=None,
+        help="instead run paced at RATE x real time, as Gazebo runs, with the latest /cmd_vel",
+    )
+    parser.add_argument(
+        "--timeout", type=ranged(float, 0.1, 600.0), default=10.0, help="seconds a lockstep answer may take"
+    )
+    parser.add_argument(
+        "--ready-timeout",
+        type=ranged(float, 0.1, 600.0),
+        default=30.0,
+        help="seconds to wait for the stack to subscribe to the scan",
+    )
+    parser.add_argument(
+        "--remap",
+        action="append",
+        default=[],
+        metavar="FROM:=TO",
+        help="rename a bridge topic, e.g. /front/scan:=/scan (repeatable)",
+    )
+    log = parser.add_mutually_exclusive_group()
+    log.add_argument(
+        "--log", type=Path, default=None, help="MCAP file (default: runs/<world>_ros_<protocol>_s<seed>.mcap)"
+    )
+    log.add_argument("--no-log", action="store_true", help="do not record")
+    parser.add_argument("--runs-dir", type=Path, default=Path("runs"), help="folder of default recordings")
+    parser.add_argument("--json", action="store_true", help="print the full result as JSON instead of one line")
+    args = parser.parse_args(argv)
+    return run_command(_ros_episode, args)
+
+
+def _ros_episode(args: argparse.Namespace) -> int:
+    from dynabarn.metrics import Outcome
+    from dynabarn.protocol import get_protocol
+    from dynabarn.recording import McapRecorder, default_run_path
+    from dynabarn.ros.bridge import BridgeConfig, RosMaster, RosPlanner, bridge_overhead, ros_python
+    from dynabarn.sim import Simulation, run_episode
+    from dynabarn.worldset import resolve_world
+
+    for remap in args.remap:
+        source, sep, target = remap.partition(":=")
+        if not sep or not source.startswith("/") or not target.startswith("/"):
+            raise DynabarnError(f"--remap {remap!r}: use /from:=/to, e.g. /front/scan:=/scan")
+    sim = Simulation(resolve_world(args.world))
+    protocol = get_protocol(args.protocol)
+    ros_python()  # one clear line when ROS is missing, before a master is started
+    config = BridgeConfig(
+        lockstep=args.rate is None,
+        rate=args.rate or 1.0,
+        timeout=args.timeout,
+        ready_timeout=args.ready_timeout,
+        remaps=list(args.remap),
+        launch=args.launch,
+    )
+    log_path = (
+        None
+        if args.no_log
+        else args.log or default_run_path(args.runs_dir, sim.world.name, "ros", protocol.name, args.seed)
+    )
+    master = RosMaster.start(args.master)
+    planner = RosPlanner(master, config)
+    try:
+        print(
+            f"ROS master {master.uri}; {'lockstep' if config.lockstep else f'paced at {config.rate:g}x'}",
+            file=sys.stderr,
+        )
+        observers = [McapRecorder(log_path)] if log_path is not None else []
+        result = run_episode(sim, planner, protocol, seed=args.seed, observers=observers, planner_name="ros")
+        planner.finish(result.outcome.value)
+    finally:
+        planner.finish("interrupted")
+        master.close()
+    if args.json:
+        d = result.to_dict()
+        d["recording"] = str(log_path) if log_path else None
+        d["bridge_ms_per_tick"] = round(bridge_overhead(planner), 3)
+        print(json.dumps(d, indent=1, sort_keys=True, allow_nan=False))
+    else:
+        print(result.summary())
+        print(f"bridge overhead {bridge_overhead(planner):.2f} ms per control period", file=sys.stderr)
+        if log_path:
+            print(f"recording: {log_path}")
+    if result.outcome is Outcome.ERROR:
+        if not args.json:
+            print(f"error: {result.reason}", file=sys.stderr)
+        return EXIT_EPISODE_ERROR
+    return 0

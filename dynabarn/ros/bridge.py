@@ -1,0 +1,278 @@
+"""The simulation side of `dynabarn-ros`: a ROS master, the rospy node (`node.py`, run by
+Debian's Python, where rospy lives) and a `Planner` whose commands come from a ROS stack.
+
+Why two processes: Debian's ROS 1 packages are built for `/usr/bin/python3`, and the
+project's Python (with MuJoCo) may be another. The node imports nothing of dynabarn; the
+two speak length-prefixed binary frames over a pipe (see `node.py`). Because the commands
+come through an ordinary `Planner`, `run_episode` judges, times and records a ROS stack's
+episode exactly like any other planner's.
+
+The odometry frame is the BARN Challenge's: `odom` starts at the robot's spawn, x forward;
+the goal is given in it. The true pose (world frame) is on /dynabarn/ground_truth.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shlex
+import shutil
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+import xmlrpc.client
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from dynabarn.errors import DynabarnError
+from dynabarn.planners.base import EpisodeInfo, Observation, Planner
+from dynabarn.robot import JACKAL
+
+NODE = Path(__file__).resolve().parent / "node.py"
+ROS_PYTHON_ENV = "DYNABARN_ROS_PYTHON"
+"""Names the Python that has rospy (default: Debian's /usr/bin/python3)."""
+_HEADER = struct.Struct("<cI")
+_OBSERVATION = struct.Struct("<7d")
+_COMMAND = struct.Struct("<ddB")
+
+
+def ros_python() -> str:
+    """The interpreter that imports rospy (Debian's ROS 1 packages: `make ros-deps`)."""
+    exe = os.environ.get(ROS_PYTHON_ENV) or "/usr/bin/python3"
+    try:
+        ok = subprocess.run([exe, "-c", "import rospy"], capture_output=True, timeout=60).returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        ok = False
+    if not ok:
+        raise DynabarnError(
+            f"{exe} cannot import rospy: install Debian's ROS 1 packages (`make ros-deps`, as root) "
+            f"or set {ROS_PYTHON_ENV} to a Python that has rospy"
+        )
+    return exe
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _master_up(uri: str) -> bool:
+    try:
+        code, _, _ = xmlrpc.client.ServerProxy(uri).getSystemState("/dynabarn")
+        return code == 1
+    except (OSError, xmlrpc.client.Error):
+        return False
+
+
+@dataclass
+class RosMaster:
+    """A ROS master: one given by URI, or a `roscore` of our own on a free port (stopped
+    with `close`), so parallel bridges never share one."""
+
+    uri: str
+    process: subprocess.Popen | None = None
+
+    @classmethod
+    def start(cls, uri: str | None = None, *, timeout: float = 30.0) -> RosMaster:
+        if uri:
+            if not _master_up(uri):
+                raise DynabarnError(f"no ROS master answers at {uri}")
+            return cls(uri)
+        roscore = shutil.which("roscore")
+        if roscore is None:
+            raise DynabarnError("roscore is not installed: install Debian's ROS 1 packages (`make ros-deps`, as root)")
+        port = _free_port()
+        uri = f"http://127.0.0.1:{port}/"
+        env = {**os.environ, "ROS_MASTER_URI": uri, "ROS_HOSTNAME": "127.0.0.1"}
+        process = subprocess.Popen(
+            [roscore, "-p", str(port)],
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+        master = cls(uri, process)
+        deadline = time.monotonic() + timeout
+        while not _master_up(uri):
+            if process.poll() is not None or time.monotonic() > deadline:
+                master.close()
+                raise DynabarnError(f"roscore did not start on port {port}")
+            time.sleep(0.1)
+        return master
+
+    def env(self) -> dict[str, str]:
+        return {**os.environ, "ROS_MASTER_URI": self.uri, "ROS_HOSTNAME": "127.0.0.1"}
+
+    def close(self) -> None:
+        if self.process is not None:
+            _stop(self.process)
+            self.process = None
+
+
+def _stop(process: subprocess.Popen, timeout: float = 10.0) -> None:
+    """SIGINT (as roslaunch expects), then SIGTERM, then SIGKILL, to the process group."""
+    if process.poll() is not None:
+        return
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+        try:
+            os.killpg(process.pid, sig)
+        except (ProcessLookupError, PermissionError):
+            return
+        try:
+            process.wait(timeout=timeout if sig != signal.SIGKILL else None)
+            return
+        except subprocess.TimeoutExpired:
+            continue
+
+
+@dataclass
+class BridgeConfig:
+    """How the bridge meets the stack."""
+
+    lockstep: bool = True
+    """Wait for the stack's answer every control period (deterministic, as fast as the stack)."""
+    rate: float = 1.0
+    """Real-time factor when not in lockstep (1 = real time, as Gazebo runs)."""
+    timeout: float = 10.0
+    """Wall seconds a lockstep answer may take before the episode ends as an error."""
+    ready_timeout: float = 30.0
+    """Wall seconds to wait for the stack to subscribe to the scan."""
+    remaps: list[str] = field(default_factory=list)
+    """`from:=to` remappings of the bridge's topic names."""
+    launch: str | None = None
+    """Shell command that starts the stack (run once the master is up; stopped at the end)."""
+
+
+class RosPlanner(Planner):
+    """A ROS navigation stack, reached through the bridge node, as a `Planner`."""
+
+    name = "ros"
+
+    def __init__(self, master: RosMaster, config: BridgeConfig | None = None) -> None:
+        self.master = master
+        self.cfg = config or BridgeConfig()
+        self.node: subprocess.Popen | None = None
+        self.stack: subprocess.Popen | None = None
+        self.tick_ms: list[float] = []
+        """The bridge's own time per control period [ms] (packing, pipe, publishing)."""
+
+    def config(self) -> dict:
+        return {
+            "lockstep": self.cfg.lockstep,
+            "rate": self.cfg.rate,
+            "launch": self.cfg.launch,
+            "remaps": list(self.cfg.remaps),
+        }
+
+    def reset(self, info: EpisodeInfo) -> None:
+        angles = info.laser_angles
+        env = self.master.env()
+        cmd = [ros_python(), str(NODE), *self.cfg.remaps]
+        cmd += ["--timeout", str(self.cfg.timeout), "--ready-timeout", str(self.cfg.ready_timeout)]
+        cmd += ["--angle-min", repr(float(angles[0])), "--angle-max", repr(float(angles[-1]))]
+        cmd += ["--range-min", repr(float(info.laser_range[0])), "--range-max", repr(float(info.laser_range[1]))]
+        cmd += ["--laser-x", repr(float(info.laser_offset[0])), "--laser-z", repr(JACKAL.laser_z)]
+        if not self.cfg.lockstep:
+            cmd.append("--paced")
+        self.node = subprocess.Popen(
+            cmd,
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+        if self.cfg.launch:
+            self.stack = subprocess.Popen(
+                shlex.split(self.cfg.launch), env=env, stdin=subprocess.DEVNULL, start_new_session=True
+            )
+        self._origin = None
+        self._wall0 = None
+        self._goal_world = None
+
+    def _to_odom(self, x: float, y: float, yaw: float) -> tuple[float, float, float]:
+        x0, y0, yaw0 = self._origin
+        c, s = math.cos(yaw0), math.sin(yaw0)
+        dx, dy = x - x0, y - y0
+        return c * dx + s * dy, -s * dx + c * dy, math.atan2(math.sin(yaw - yaw0), math.cos(yaw - yaw0))
+
+    def act(self, obs: Observation) -> tuple[float, float]:
+        t0 = time.perf_counter()
+        if self._origin is None:  # the first tick: odom starts here; give the goal, wait for the stack
+            self._origin = tuple(float(v) for v in obs.pose)
+            gx, gy, _ = self._to_odom(float(obs.goal_in_world[0]), float(obs.goal_in_world[1]), 0.0)
+            self._send(b"G", struct.pack("<3d", gx, gy, 0.0))
+            _, _, ready = self._receive(b"R", self.cfg.ready_timeout + 30)
+            if not ready:
+                raise RuntimeError(f"no ROS stack subscribed to the scan within {self.cfg.ready_timeout:g} s")
+            self._wall0 = time.monotonic()
+        if not self.cfg.lockstep:  # paced: as Gazebo runs, rate x real time
+            wait = self._wall0 + obs.time / self.cfg.rate - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)
+        x, y, yaw = self._to_odom(*(float(v) for v in obs.pose))
+        ranges = np.asarray(obs.scan, dtype="<f4")
+        body = _OBSERVATION.pack(obs.time, x, y, yaw, float(obs.velocity[0]), float(obs.velocity[1]), len(ranges))
+        self._send(b"O", body + ranges.tobytes())
+        sent = time.perf_counter()
+        v, w, answered = self._receive(b"C", self.cfg.timeout + 30)
+        self.tick_ms.append((sent - t0) * 1e3)
+        if not answered:
+            self._check_stack()
+            raise RuntimeError(f"the ROS stack did not answer on /cmd_vel within {self.cfg.timeout:g} s")
+        return v, w
+
+    def _check_stack(self) -> None:
+        if self.stack is not None and self.stack.poll() is not None:
+            raise RuntimeError(f"the ROS stack exited with status {self.stack.returncode}")
+
+    def _send(self, kind: bytes, body: bytes) -> None:
+        try:
+            self.node.stdin.write(_HEADER.pack(kind, len(body)) + body)
+            self.node.stdin.flush()
+        except (BrokenPipeError, OSError):
+            raise RuntimeError(f"the bridge node stopped (status {self.node.poll()})") from None
+
+    def _receive(self, kind: bytes, timeout: float) -> tuple[float, float, bool]:
+        import select
+
+        out = self.node.stdout
+        ready, _, _ = select.select([out], [], [], timeout)
+        head = out.read(_HEADER.size) if ready else b""
+        if len(head) < _HEADER.size:
+            self._check_stack()
+            raise RuntimeError(f"the bridge node stopped answering (status {self.node.poll()})")
+        got, size = _HEADER.unpack(head)
+        body = out.read(size)
+        if got != kind or len(body) != _COMMAND.size:
+            raise RuntimeError(f"the bridge node sent {got!r} instead of {kind!r}")
+        v, w, answered = _COMMAND.unpack(body)
+        return v, w, bool(answered)
+
+    def finish(self, outcome: str) -> None:
+        """Tell the stack how the episode ended (/collision), then stop the stack and the node."""
+        if self.node is not None and self.node.poll() is None:
+            try:
+                self._send(b"E", outcome.encode())
+                self.node.stdin.close()
+            except RuntimeError:
+                pass
+        for process in (self.stack, self.node):
+            if process is not None:
+                _stop(process, timeout=5.0)
+        self.stack = self.node = None
+
+
+def bridge_overhead(planner: RosPlanner) -> float:
+    """Median bridge time per control period [ms] (excluding the stack's answer)."""
+    return float(np.median(planner.tick_ms)) if planner.tick_ms else math.nan
+
+
+__all__ = ["NODE", "BridgeConfig", "RosMaster", "RosPlanner", "bridge_overhead", "ros_python"]
+_ = sys  # the node is started with the ROS Python, never this one
