@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 
 
@@ -28,20 +29,24 @@ def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--die-after", type=int, default=0)
     parser.add_argument("--mute", action="store_true")
+    parser.add_argument("--goal-from", choices=["topic", "action"], default="topic")
     args = parser.parse_args(rospy.myargv(sys.argv)[1:])
     rospy.init_node("test_stack")
     cmd_pub = rospy.Publisher("/cmd_vel", Twist, queue_size=10, tcp_nodelay=True)
     state = {"goal": None, "odom": {}, "scans": {}, "n": 0}
 
     def on_goal(msg: PoseStamped) -> None:
-        state["goal"] = (msg.pose.position.x, msg.pose.position.y)
+        if args.goal_from == "topic":
+            state["goal"] = (msg.pose.position.x, msg.pose.position.y)
 
     def decide(scan: LaserScan, odom: Odometry) -> None:
         state["n"] += 1
         if args.die_after and state["n"] > args.die_after:
-            rospy.signal_shutdown("dying on purpose")
-            sys.exit(3)
-        if args.mute or state["goal"] is None:
+            os._exit(3)  # a crash: no clean shutdown
+        if args.mute:
+            return
+        if state["goal"] is None:  # no goal yet: stand still, but answer
+            cmd_pub.publish(Twist())
             return
         p, q = odom.pose.pose.position, odom.pose.pose.orientation
         yaw = 2.0 * math.atan2(q.z, q.w)
@@ -72,17 +77,17 @@ def main() -> int:
         state["odom"][msg.header.stamp] = msg
         pair(msg.header.stamp)
 
-    rospy.Subscriber("/move_base_simple/goal", PoseStamped, on_goal, queue_size=1)
-    rospy.Subscriber("/odometry/filtered", Odometry, on_odom, queue_size=50, tcp_nodelay=True)
-    rospy.Subscriber("/front/scan", LaserScan, on_scan, queue_size=50, tcp_nodelay=True)
-
     def on_action(goal) -> None:  # the move_base action: drive there, succeed when close
         pose = goal.target_pose.pose.position
         state["goal"] = (pose.x, pose.y)
         server.set_succeeded(MoveBaseResult())
 
     server = actionlib.SimpleActionServer("move_base", MoveBaseAction, execute_cb=on_action, auto_start=False)
-    server.start()
+    server.start()  # first, as move_base does: the bridge looks for it once the scan is heard
+    rospy.Subscriber("/move_base_simple/goal", PoseStamped, on_goal, queue_size=1)
+    rospy.Subscriber("/odometry/filtered", Odometry, on_odom, queue_size=50, tcp_nodelay=True)
+    rospy.Subscriber("/front/scan", LaserScan, on_scan, queue_size=50, tcp_nodelay=True)
+
     rospy.spin()
     return 0
 

@@ -104,6 +104,8 @@ class RosMaster:
                 master.close()
                 raise DynabarnError(f"roscore did not start on port {port}")
             time.sleep(0.1)
+        # Before any node starts: every node (the stack's, rostopic) then runs on /clock.
+        xmlrpc.client.ServerProxy(uri).setParam("/dynabarn", "/use_sim_time", True)
         return master
 
     def env(self) -> dict[str, str]:

@@ -94,6 +94,34 @@ def main(argv: list[str]) -> int:
 
     rospy.Subscriber("/cmd_vel", Twist, on_cmd, queue_size=10, tcp_nodelay=True)
 
+    def send_action_goal(goal) -> None:
+        """Also give the goal through the `move_base` action, as the challenge's run.py does,
+        when the stack offers that action server."""
+        import actionlib
+        from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+
+        deadline = time.monotonic() + 1.0
+        while "/move_base/status" not in dict(rospy.get_published_topics()):
+            if time.monotonic() > deadline:
+                return  # no move_base action server: the topic alone gives the goal
+            time.sleep(0.05)
+        client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
+        if _wait(client):
+            client.send_goal(MoveBaseGoal(target_pose=goal))
+            state["action_client"] = client  # keep it (and its connections) alive
+
+    def _wait(client) -> bool:
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:  # wall time: /clock does not run before the first tick
+            if _server_connected(client):
+                return True
+            time.sleep(0.05)
+        return False
+
+    def _server_connected(client) -> bool:
+        ac = client.action_client
+        return ac.pub_goal.get_num_connections() > 0 and ac.status_sub.get_num_connections() > 0
+
     def stamp_of(t: float):
         return rospy.Time(int(t), round((t - int(t)) * 1e9) % 1_000_000_000)
 
@@ -128,6 +156,7 @@ def main(argv: list[str]) -> int:
                 time.sleep(0.02)
             ready = scan_pub.get_num_connections() > 0
             time.sleep(0.2)  # let the stack's own subscriptions and its /cmd_vel publisher connect
+            send_action_goal(goal)
             write_frame(out, b"R", COMMAND.pack(0.0, 0.0, 1 if ready else 0))
         elif kind == b"O":
             t, x, y, yaw, v, w, n = OBSERVATION.unpack_from(body)
