@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed
 TEST_STAMP := $(VENV)/.installed-test
 LOCK := requirements.lock
 # The extras the tests exercise; the lock covers the package and all of them.
-EXTRAS := test,ray,learn
+EXTRAS := test,ray,learn,ros
 
 .PHONY: install demo worlds test lint format bench clean system-deps ros-deps lock verify-golden
 

@@ -128,3 +128,72 @@ def test_missing_ros_is_one_line(tmp_path):
         [sys.executable, "-m", "dynabarn", "ros", "--world", "0", "--no-log"], capture_output=True, text=True, env=env
     )
     assert proc.returncode == 2 and "cannot import rospy" in proc.stderr and proc.stderr.count("\n") == 1
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    from dynabarn.planners import get_planner
+    from dynabarn.protocol import get_protocol
+    from dynabarn.recording import McapRecorder
+    from dynabarn.sim import run_episode
+    from dynabarn.worldset import resolve_world
+
+    path = tmp_path_factory.mktemp("export") / "world_137_dwa.mcap"
+    result = run_episode(resolve_world(137), get_planner("dwa"), get_protocol("barn"), observers=[McapRecorder(path)])
+    return path, result
+
+
+def test_rosbag1_export_reads_back_with_rosbag(recording, tmp_path):
+    path, result = recording
+    bag = tmp_path / "run.bag"
+    proc = subprocess.run(
+        [sys.executable, "-m", "dynabarn", "export", str(path), "--out", str(bag)], capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stderr
+    info = subprocess.run(["rosbag", "info", str(bag)], capture_output=True, text=True, timeout=60)
+    assert info.returncode == 0, info.stderr
+    for line in ("sensor_msgs/LaserScan", "nav_msgs/Odometry", "tf2_msgs/TFMessage", "geometry_msgs/Twist",
+                 "visualization_msgs/MarkerArray", f"/front/scan          {result.n_ticks} msgs"):  # fmt: skip
+        assert line in info.stdout, line
+    # Debian's rosbag Python API deserialises every message with ROS's own classes.
+    script = (
+        "import rosbag, json, sys\n"
+        "b = rosbag.Bag(sys.argv[1])\n"
+        "scans = [m for _, m, _ in b.read_messages(topics=['/front/scan'])]\n"
+        "odom = [m for _, m, _ in b.read_messages(topics=['/odometry/filtered'])]\n"
+        "res = [json.loads(m.data) for _, m, _ in b.read_messages(topics=['/dynabarn/result'])]\n"
+        "obs = [m for _, m, _ in b.read_messages(topics=['/obstacles'])]\n"
+        "print(json.dumps([len(scans), len(scans[0].ranges), scans[0].header.frame_id, len(odom),"
+        " odom[-1].pose.pose.position.x, res[0]['outcome'], len(obs[0].markers)]))\n"
+    )
+    read = subprocess.run(["/usr/bin/python3", "-c", script, str(bag)], capture_output=True, text=True, timeout=60)
+    assert read.returncode == 0, read.stderr
+    n_scans, n_ranges, frame, n_odom, last_x, outcome, n_markers = json.loads(read.stdout)
+    assert (n_scans, n_ranges, frame, outcome, n_markers) == (result.n_ticks, 720, "front_laser", "success", 5)
+    assert n_odom > n_scans and last_x < -7.5  # near the goal at x = -9
+
+
+def test_rosbag2_export_reads_back_with_mcap_ros2(recording, tmp_path):
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    path, result = recording
+    out = tmp_path / "run_rosbag2"
+    proc = subprocess.run(
+        [sys.executable, "-m", "dynabarn", "export", str(path), "--format", "rosbag2", "--out", str(out)],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "metadata.yaml").is_file()
+    (mcap_file,) = out.glob("*.mcap")
+    counts: dict[str, int] = {}
+    with mcap_file.open("rb") as f:
+        for schema, channel, _, msg in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            if channel.topic == "/front/scan" and counts[channel.topic] == 1:
+                assert schema.name == "sensor_msgs/msg/LaserScan" and len(msg.ranges) == 720
+            if channel.topic == "/dynabarn/result":
+                assert json.loads(msg.data)["outcome"] == "success"
+    assert counts["/front/scan"] == result.n_ticks and counts["/dynabarn/result"] == 1
+    assert counts["/obstacles"] == counts["/cmd_vel"] == result.n_ticks

@@ -5,6 +5,7 @@ Each `*_main(argv)` returns an exit code; `[project.scripts]` names them.
 
 from dynabarn.cli.bench import bench_main
 from dynabarn.cli.demos import demos_main
+from dynabarn.cli.export import export_main
 from dynabarn.cli.render import render_main
 from dynabarn.cli.replay import replay_main
 from dynabarn.cli.ros import ros_main
@@ -16,6 +17,7 @@ from dynabarn.cli.worlds import worlds_main
 __all__ = [
     "bench_main",
     "demos_main",
+    "export_main",
     "render_main",
     "replay_main",
     "ros_main",
