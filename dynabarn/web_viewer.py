@@ -11,7 +11,6 @@ from __future__ import annotations
 import ipaddress
 import socket
 import subprocess
-import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -19,6 +18,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 from dynabarn.errors import DynabarnError
+from dynabarn.processes import die_with_parent
 
 DEFAULT_BIND = "127.0.0.1"
 DEFAULT_WEB_PORT = 9090
@@ -95,17 +95,6 @@ def rerun_binary() -> str:
     return found
 
 
-def _die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
-    """Linux: the server gets SIGTERM when the replay process dies, even by SIGKILL."""
-    try:
-        import ctypes
-        import signal
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-
-
 def _listening(host: str, port: int) -> bool:
     try:
         with socket.create_connection((host.strip("[]"), port), timeout=0.5):
@@ -137,7 +126,7 @@ def serve_web(
             stdin=subprocess.DEVNULL,
             stdout=sink,
             stderr=subprocess.STDOUT,
-            preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None,
+            preexec_fn=die_with_parent(),
         )
     viewer = WebViewer(process, viewer_url(bind, port, grpc_port), bind, log)
     deadline = time.monotonic() + timeout

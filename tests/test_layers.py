@@ -15,7 +15,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parent.parent / "dynabarn"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("errors", "determinism", "files", "provenance", "robot", "protocol", "metrics"),  # foundations
+    ("errors", "determinism", "files", "processes", "provenance", "robot", "protocol", "metrics"),  # foundations
     ("worlds",),
     ("mjcf",),
     ("worldset",),

@@ -197,3 +197,20 @@ def test_rosbag2_export_reads_back_with_mcap_ros2(recording, tmp_path):
                 assert json.loads(msg.data)["outcome"] == "success"
     assert counts["/front/scan"] == result.n_ticks and counts["/dynabarn/result"] == 1
     assert counts["/obstacles"] == counts["/cmd_vel"] == result.n_ticks
+
+
+def test_bench_sweeps_a_ros_stack_with_a_master_per_worker(tmp_path):
+    out = tmp_path / "sweep"
+    argv = ["--planner", "ros", "--ros-launch", _stack(), "--set", "dynabarn300", "--worlds", "0,5,137"]
+    proc = subprocess.run(
+        [sys.executable, "-m", "dynabarn", "bench", *argv, "--trials", "1", "--jobs", "2", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert len(rows) == 3 and {r["outcome"] for r in rows} == {"success"} and {r["planner"] for r in rows} == {"ros"}
+    time.sleep(1.0)  # the workers' roscores end with them
+    left = subprocess.run(["pgrep", "-f", "rosmaster"], capture_output=True, text=True).stdout.split()
+    assert not left, f"rosmaster processes left behind: {left}"

@@ -37,6 +37,13 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--policy", type=Path, default=None, help="weights for bc/td3 (default: the policy shipped in the package)"
     )
+    parser.add_argument(
+        "--ros-launch",
+        default=None,
+        metavar="COMMAND",
+        help="with --planner ros: the command that starts the ROS stack for each episode (each worker runs "
+        "its own roscore)",
+    )
     parser.add_argument("--set", default="paper60", help="world set: paper60, dynabarn300, or a folder with index.json")
     parser.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
     parser.add_argument("--trials", type=ranged(int, 1, 10_000), default=10, help="trials (seeds 0..N-1) per world")
@@ -126,6 +133,8 @@ def _bench(args: argparse.Namespace) -> int:
     config = planner_config(args.planner_config)
     if args.policy is not None:
         config["policy"] = str(args.policy.resolve())
+    if args.ros_launch is not None:
+        config["launch"] = args.ros_launch
     names = list(dict.fromkeys(p.strip() for p in args.planner.split(",") if p.strip()))  # each once
     if not names:
         raise DynabarnError(f"--planner {args.planner!r}: name at least one planner, e.g. dwa or dwa,teb")

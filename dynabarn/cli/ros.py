@@ -121,9 +121,8 @@ def _ros_episode(args: argparse.Namespace) -> int:
         )
         observers = [McapRecorder(log_path)] if log_path is not None else []
         result = run_episode(sim, planner, protocol, seed=args.seed, observers=observers, planner_name="ros")
-        planner.finish(result.outcome.value)
     finally:
-        planner.finish("interrupted")
+        planner.finish("interrupted")  # run_episode has done so already unless something broke
         master.close()
     if args.json:
         d = result.to_dict()

@@ -83,6 +83,10 @@ class Planner(abc.ABC):
     def reset(self, info: EpisodeInfo) -> None:  # noqa: B027 - optional hook
         """Called once before the first `act` of an episode."""
 
+    def finish(self, outcome: str) -> None:  # noqa: B027 - optional hook
+        """Called once when the episode has ended (its outcome's name), also after an error
+        or Ctrl-C: release what `reset` started (processes, connections)."""
+
     @abc.abstractmethod
     def act(self, obs: Observation) -> tuple[float, float]:
         """Return the command (v [m/s], w [rad/s]) for this tick."""

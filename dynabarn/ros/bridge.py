@@ -31,6 +31,7 @@ import numpy as np
 
 from dynabarn.errors import DynabarnError
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner
+from dynabarn.processes import die_with_parent
 from dynabarn.robot import JACKAL
 
 NODE = Path(__file__).resolve().parent / "node.py"
@@ -96,6 +97,7 @@ class RosMaster:
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
             start_new_session=True,
+            preexec_fn=die_with_parent(),
         )
         master = cls(uri, process)
         deadline = time.monotonic() + timeout
@@ -189,10 +191,15 @@ class RosPlanner(Planner):
             stdout=subprocess.PIPE,
             stderr=subprocess.DEVNULL,
             start_new_session=True,
+            preexec_fn=die_with_parent(),
         )
         if self.cfg.launch:
             self.stack = subprocess.Popen(
-                shlex.split(self.cfg.launch), env=env, stdin=subprocess.DEVNULL, start_new_session=True
+                shlex.split(self.cfg.launch),
+                env=env,
+                stdin=subprocess.DEVNULL,
+                start_new_session=True,
+                preexec_fn=die_with_parent(),
             )
         self._origin = None
         self._wall0 = None
@@ -271,10 +278,33 @@ class RosPlanner(Planner):
         self.stack = self.node = None
 
 
+_worker_master: RosMaster | None = None
+
+
+def ros_planner(*, launch: str | None = None, master: str | None = None, **config) -> RosPlanner:
+    """The `ros` planner of the registry (entry point): for `dynabarn-run --planner ros` and
+    `dynabarn-bench --planner ros --ros-launch CMD`. Each process (a bench worker) starts its
+    own roscore on a free port once, so parallel workers never share a master; the stack is
+    started per episode by `launch` and stopped when the episode ends."""
+    import atexit
+
+    from dynabarn.planners.base import config_from_kwargs
+
+    global _worker_master
+    cfg = config_from_kwargs(BridgeConfig, {"launch": launch, **config}, "ros")
+    if master is not None:
+        return RosPlanner(RosMaster.start(master), cfg)
+    if _worker_master is None or (_worker_master.process is not None and _worker_master.process.poll() is not None):
+        ros_python()
+        _worker_master = RosMaster.start()
+        atexit.register(_worker_master.close)
+    return RosPlanner(_worker_master, cfg)
+
+
 def bridge_overhead(planner: RosPlanner) -> float:
     """Median bridge time per control period [ms] (excluding the stack's answer)."""
     return float(np.median(planner.tick_ms)) if planner.tick_ms else math.nan
 
 
-__all__ = ["NODE", "BridgeConfig", "RosMaster", "RosPlanner", "bridge_overhead", "ros_python"]
+__all__ = ["NODE", "BridgeConfig", "RosMaster", "RosPlanner", "bridge_overhead", "ros_planner", "ros_python"]
 _ = sys  # the node is started with the ROS Python, never this one

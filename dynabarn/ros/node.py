@@ -51,6 +51,8 @@ def write_frame(stream, kind: bytes, body: bytes) -> None:
     stream.flush()
 
 
+# Over 80 lines on purpose: the node is one rospy process whose publishers, subscriber and
+# frame loop share their state; rospy imports only exist inside it (Debian's Python).
 def main(argv: list[str]) -> int:
     import rospy
     from geometry_msgs.msg import PoseStamped, TransformStamped, Twist

@@ -17,6 +17,7 @@ result; the MCAP recorder is one. The loop knows nothing of recording.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -120,8 +121,19 @@ def run_episode(
         result = episode_result(episode, start)
         for obs_ in observers:
             obs_.on_end(result)
+        _finish(planner, "interrupted")
         raise
+    _finish(planner, episode.outcome.value if episode.outcome else "error")
     result = episode_result(episode, start)
     for obs_ in observers:
         obs_.on_end(result)
     return result
+
+
+def _finish(planner, outcome: str) -> None:
+    """The planner's end-of-episode hook (planners that predate it have none)."""
+    finish = getattr(planner, "finish", None)
+    if finish is None:
+        return
+    with contextlib.suppress(Exception):  # releasing resources must not turn a judged episode into a crash
+        finish(outcome)
