@@ -191,6 +191,24 @@ def variant_worlds(tmp: Path) -> list[tuple[str, Path]]:
     return out
 
 
+def ros_lockstep(world_id: int = 137) -> tuple[float, float, float] | None:
+    """dynabarn-ros in lockstep with the tests' rospy stack: (x real time, bridge ms per
+    control period, stack round trip ms); None without Debian's ROS packages."""
+    from dynabarn.planners import get_planner
+    from dynabarn.protocol import get_protocol
+    from dynabarn.ros.bridge import bridge_overhead
+    from dynabarn.sim import run_episode
+    from dynabarn.worldset import resolve_world
+
+    stack = Path(__file__).resolve().parent.parent / "tests" / "ros_stack.py"
+    try:
+        planner = get_planner("ros", launch=f"/usr/bin/python3 {stack}")
+    except Exception:
+        return None
+    result = run_episode(resolve_world(world_id), planner, get_protocol("barn"), planner_name="ros")
+    return result.rtf, bridge_overhead(planner), result.planner_ms_mean
+
+
 def world_generation() -> float:
     from dynabarn.worlds.profiles import get_profile_set
     from dynabarn.worldset import generate_worlds
@@ -244,6 +262,12 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'bench sweep, 40 DWA episodes: 1 worker / 2 workers [s]':<66}{one:>6.1f} /{two:>5.1f}{one / two:>9.2f}x")
     conv, length = min(replay_conversion() for _ in range(args.repeat))
     print(f"{f'convert a {length:.0f} s recording to .rrd [s]':<66}{conv:>12.2f}{conv / length:>9.3f}")
+    ros = ros_lockstep()
+    if ros is not None:
+        rtf, bridge_ms, round_trip_ms = ros
+        print(f"{'dynabarn-ros lockstep, world 137, rospy test stack (x real time)':<66}{rtf:>12.1f}")
+        label = "  bridge overhead / full round trip per control period [ms]"
+        print(f"{label:<66}{bridge_ms:>6.2f} /{round_trip_ms:>5.2f}")
     return 0
 
 
