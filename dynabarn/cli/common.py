@@ -134,6 +134,22 @@ def add_trial_seed(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_recording(p: argparse.ArgumentParser, planner: str = "<planner>") -> None:
+    """--log / --no-log / --runs-dir / --json: where one episode is recorded and how it is printed."""
+    from pathlib import Path
+
+    log = p.add_mutually_exclusive_group()
+    log.add_argument(
+        "--log",
+        type=Path,
+        default=None,
+        help=f"MCAP file to record to (default: runs/<world>_{planner}_<protocol>_s<seed>.mcap)",
+    )
+    log.add_argument("--no-log", action="store_true", help="do not record")
+    p.add_argument("--runs-dir", type=Path, default=Path("runs"), help="folder of default recordings")
+    p.add_argument("--json", action="store_true", help="print the full result as JSON instead of one line")
+
+
 def add_jobs(p: argparse.ArgumentParser) -> None:
     import os
 

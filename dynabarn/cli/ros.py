@@ -7,11 +7,11 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
-from pathlib import Path
 
 from dynabarn.cli.common import (
     EXIT_EPISODE_ERROR,
     add_protocol,
+    add_recording,
     add_trial_seed,
     add_world,
     make_parser,
@@ -73,13 +73,7 @@ def ros_main(argv: Sequence[str] | None = None) -> int:
         metavar="FROM:=TO",
         help="rename a bridge topic, e.g. /front/scan:=/scan (repeatable)",
     )
-    log = parser.add_mutually_exclusive_group()
-    log.add_argument(
-        "--log", type=Path, default=None, help="MCAP file (default: runs/<world>_ros_<protocol>_s<seed>.mcap)"
-    )
-    log.add_argument("--no-log", action="store_true", help="do not record")
-    parser.add_argument("--runs-dir", type=Path, default=Path("runs"), help="folder of default recordings")
-    parser.add_argument("--json", action="store_true", help="print the full result as JSON instead of one line")
+    add_recording(parser, planner="ros")
     args = parser.parse_args(argv)
     return run_command(_ros_episode, args)
 

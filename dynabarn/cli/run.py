@@ -11,6 +11,7 @@ from pathlib import Path
 from dynabarn.cli.common import (
     EXIT_EPISODE_ERROR,
     add_protocol,
+    add_recording,
     add_trial_seed,
     add_world,
     make_parser,
@@ -44,16 +45,7 @@ def run_main(argv: Sequence[str] | None = None) -> int:
     )
     add_protocol(parser)
     add_trial_seed(parser)
-    log = parser.add_mutually_exclusive_group()
-    log.add_argument(
-        "--log",
-        type=Path,
-        default=None,
-        help="MCAP file to record to (default: runs/<world>_<planner>_<protocol>_s<seed>.mcap)",
-    )
-    log.add_argument("--no-log", action="store_true", help="do not record")
-    parser.add_argument("--runs-dir", type=Path, default=Path("runs"), help="folder of default recordings")
-    parser.add_argument("--json", action="store_true", help="print the full result as JSON instead of one line")
+    add_recording(parser)
     parser.add_argument("--dt", type=ranged(float, 1e-4, 0.01), default=0.005, help="physics step [s]")
     parser.add_argument(
         "--control-rate", type=ranged(float, 0.1, 1000.0), default=10.0, help="planner and laser rate [Hz]"
