@@ -53,11 +53,12 @@ def main() -> int:
         gx, gy = state["goal"]
         heading = math.atan2(gy - p.y, gx - p.x) - yaw
         heading = math.atan2(math.sin(heading), math.cos(heading))
-        n = len(scan.ranges)
-        front = [r for i, r in enumerate(scan.ranges) if abs(scan.angle_min + i * scan.angle_increment) < 0.5]
-        left = min(scan.ranges[n // 2 : n // 2 + n // 4], default=scan.range_max)
-        right = min(scan.ranges[n // 4 : n // 2], default=scan.range_max)
-        nearest = min(front, default=scan.range_max)
+        n, ranges = len(scan.ranges), scan.ranges
+        lo = max(0, math.ceil((-0.5 - scan.angle_min) / scan.angle_increment))  # the beams within +-0.5 rad
+        hi = min(n, math.floor((0.5 - scan.angle_min) / scan.angle_increment) + 1)
+        left = min(ranges[n // 2 : n // 2 + n // 4], default=scan.range_max)
+        right = min(ranges[n // 4 : n // 2], default=scan.range_max)
+        nearest = min(ranges[lo:hi], default=scan.range_max)
         cmd = Twist()
         cmd.linear.x = 2.0 if nearest > 2.0 else max(0.3, nearest - 0.5)
         cmd.angular.z = max(-3.0, min(3.0, 2.0 * heading + (0.8 if nearest < 1.5 and right < left else 0.0)))
