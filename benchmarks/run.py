@@ -206,7 +206,9 @@ def ros_lockstep(world_id: int = 137) -> tuple[float, float, float] | None:
     except Exception:
         return None
     result = run_episode(resolve_world(world_id), planner, get_protocol("barn"), planner_name="ros")
-    return result.rtf, bridge_overhead(planner), result.planner_ms_mean
+    # After the first period (the stack's start-up): simulated over wall time, in lockstep.
+    steady = (result.sim_time - planner.steady_sim_time) / (time.perf_counter() - planner.steady_since)
+    return steady, bridge_overhead(planner), float(np.median(planner.round_trip_ms))
 
 
 def world_generation() -> float:

@@ -214,3 +214,10 @@ def test_bench_sweeps_a_ros_stack_with_a_master_per_worker(tmp_path):
     time.sleep(1.0)  # the workers' roscores end with them
     left = subprocess.run(["pgrep", "-f", "rosmaster"], capture_output=True, text=True).stdout.split()
     assert not left, f"rosmaster processes left behind: {left}"
+
+
+def test_a_stack_that_commands_the_velocity_controller_directly():
+    """As the challenge's move_base launch files do: /jackal_velocity_controller/cmd_vel."""
+    proc = _ros("--world", "0", "--launch", _stack("/cmd_vel:=/jackal_velocity_controller/cmd_vel"), "--no-log")
+    assert proc.returncode == 0, proc.stderr
+    assert "SUCCESS" in proc.stdout

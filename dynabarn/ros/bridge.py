@@ -165,6 +165,11 @@ class RosPlanner(Planner):
         self.stack: subprocess.Popen | None = None
         self.tick_ms: list[float] = []
         """The bridge's own time per control period [ms] (packing, pipe, publishing)."""
+        self.round_trip_ms: list[float] = []
+        """Observation out to command back, per control period after the first [ms]."""
+        self.steady_since: float | None = None
+        self.steady_sim_time = 0.0
+        """perf_counter and simulated time when the first period (the stack's start-up) ended."""
 
     def config(self) -> dict:
         return {
@@ -203,6 +208,7 @@ class RosPlanner(Planner):
             )
         self._origin = None
         self._wall0 = None
+        self.steady_since = None
         self._goal_world = None
 
     def _to_odom(self, x: float, y: float, yaw: float) -> tuple[float, float, float]:
@@ -231,7 +237,12 @@ class RosPlanner(Planner):
         self._send(b"O", body + ranges.tobytes())
         sent = time.perf_counter()
         v, w, answered = self._receive(b"C", self.cfg.timeout + 30)
+        done = time.perf_counter()
         self.tick_ms.append((sent - t0) * 1e3)
+        if self.steady_since is None:  # the first period also waited for the stack to start
+            self.steady_since, self.steady_sim_time = done, obs.time
+        else:
+            self.round_trip_ms.append((done - t0) * 1e3)
         if not answered:
             self._check_stack()
             raise RuntimeError(f"the ROS stack did not answer on /cmd_vel within {self.cfg.timeout:g} s")

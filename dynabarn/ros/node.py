@@ -15,7 +15,9 @@ Published, as the challenge's simulation does: /clock (with /use_sim_time set), 
 (sensor_msgs/LaserScan, frame front_laser), /odometry/filtered (nav_msgs/Odometry, odom ->
 base_link), /tf (odom -> base_link) and /tf_static (base_link -> front_laser), the goal on
 /move_base_simple/goal (geometry_msgs/PoseStamped, frame odom), /collision (std_msgs/Bool)
-and the true pose on /dynabarn/ground_truth. Subscribed: /cmd_vel (geometry_msgs/Twist).
+the same odometry on /jackal_velocity_controller/odom, and the true pose on
+/dynabarn/ground_truth. Subscribed: /cmd_vel and /jackal_velocity_controller/cmd_vel
+(geometry_msgs/Twist).
 Every name can be remapped with the usual `name:=other` arguments.
 
 Lockstep (default): after publishing a control period's messages the node waits for the
@@ -84,6 +86,7 @@ def main(argv: list[str]) -> int:
     goal_pub = rospy.Publisher("/move_base_simple/goal", PoseStamped, queue_size=1, latch=True)
     collision_pub = rospy.Publisher("/collision", Bool, queue_size=1, latch=True)
     truth_pub = rospy.Publisher("/dynabarn/ground_truth", Odometry, queue_size=10)
+    wheel_odom_pub = rospy.Publisher("/jackal_velocity_controller/odom", Odometry, queue_size=10)
 
     answer = threading.Condition()
     state = {"cmd": (0.0, 0.0), "count": 0}
@@ -94,7 +97,10 @@ def main(argv: list[str]) -> int:
             state["count"] += 1
             answer.notify_all()
 
+    # The Jackal's twist_mux takes /cmd_vel; the challenge's move_base launch files publish
+    # straight to the controller's input. Both drive the robot here.
     rospy.Subscriber("/cmd_vel", Twist, on_cmd, queue_size=10, tcp_nodelay=True)
+    rospy.Subscriber("/jackal_velocity_controller/cmd_vel", Twist, on_cmd, queue_size=10, tcp_nodelay=True)
 
     def send_action_goal(goal) -> None:
         """Also give the goal through the `move_base` action, as the challenge's run.py does,
@@ -172,6 +178,7 @@ def main(argv: list[str]) -> int:
             odom.pose.pose.orientation.z, odom.pose.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
             odom.twist.twist.linear.x, odom.twist.twist.angular.z = v, w
             odom_pub.publish(odom)
+            wheel_odom_pub.publish(odom)  # the controller's odometry, which some stacks read
             truth_pub.publish(odom)
             scan = LaserScan()
             scan.header.stamp, scan.header.frame_id = stamp, "front_laser"
