@@ -221,3 +221,12 @@ def test_a_stack_that_commands_the_velocity_controller_directly():
     proc = _ros("--world", "0", "--launch", _stack("/cmd_vel:=/jackal_velocity_controller/cmd_vel"), "--no-log")
     assert proc.returncode == 0, proc.stderr
     assert "SUCCESS" in proc.stdout
+
+
+def test_paced_at_a_rate_as_gazebo_runs():
+    """--rate 4: four times real time with the latest command (no waiting for answers)."""
+    proc = _ros("--world", "0", "--launch", _stack(), "--no-log", "--rate", "4", "--json")
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout)
+    assert result["outcome"] == "success" and result["planner_config"]["lockstep"] is False
+    assert result["wall_time"] >= result["sim_time"] / 4 * 0.95  # paced, never faster
