@@ -4,12 +4,10 @@ the BARN Challenge's topics; judged and recorded like `dynabarn-run`."""
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections.abc import Sequence
 
 from dynabarn.cli.common import (
-    EXIT_EPISODE_ERROR,
     add_protocol,
     add_recording,
     add_trial_seed,
@@ -18,6 +16,7 @@ from dynabarn.cli.common import (
     ranged,
     run_command,
 )
+from dynabarn.cli.episode import exit_status, print_result, run_recorded
 from dynabarn.errors import DynabarnError
 
 
@@ -79,11 +78,10 @@ def ros_main(argv: Sequence[str] | None = None) -> int:
 
 
 def _ros_episode(args: argparse.Namespace) -> int:
-    from dynabarn.metrics import Outcome
     from dynabarn.protocol import get_protocol
-    from dynabarn.recording import McapRecorder, default_run_path
+    from dynabarn.recording import default_run_path
     from dynabarn.ros.bridge import BridgeConfig, RosMaster, RosPlanner, bridge_overhead, ros_python
-    from dynabarn.sim import Simulation, run_episode
+    from dynabarn.sim import Simulation
     from dynabarn.worldset import resolve_world
 
     for remap in args.remap:
@@ -113,23 +111,12 @@ def _ros_episode(args: argparse.Namespace) -> int:
             f"ROS master {master.uri}; {'lockstep' if config.lockstep else f'paced at {config.rate:g}x'}",
             file=sys.stderr,
         )
-        observers = [McapRecorder(log_path)] if log_path is not None else []
-        result = run_episode(sim, planner, protocol, seed=args.seed, observers=observers, planner_name="ros")
+        result = run_recorded(sim, planner, protocol, seed=args.seed, log_path=log_path, planner_name="ros")
     finally:
         planner.finish("interrupted")  # run_episode has done so already unless something broke
         master.close()
-    if args.json:
-        d = result.to_dict()
-        d["recording"] = str(log_path) if log_path else None
-        d["bridge_ms_per_tick"] = round(bridge_overhead(planner), 3)
-        print(json.dumps(d, indent=1, sort_keys=True, allow_nan=False))
-    else:
-        print(result.summary())
-        print(f"bridge overhead {bridge_overhead(planner):.2f} ms per control period", file=sys.stderr)
-        if log_path:
-            print(f"recording: {log_path}")
-    if result.outcome is Outcome.ERROR:
-        if not args.json:
-            print(f"error: {result.reason}", file=sys.stderr)
-        return EXIT_EPISODE_ERROR
-    return 0
+    overhead = bridge_overhead(planner)
+    print_result(result, as_json=args.json, recording=log_path, extra={"bridge_ms_per_tick": round(overhead, 3)})
+    if not args.json:
+        print(f"bridge overhead {overhead:.2f} ms per control period", file=sys.stderr)
+    return exit_status(result, as_json=args.json)

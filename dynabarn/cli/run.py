@@ -3,13 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
-    EXIT_EPISODE_ERROR,
     add_protocol,
     add_recording,
     add_trial_seed,
@@ -19,6 +16,7 @@ from dynabarn.cli.common import (
     ranged,
     run_command,
 )
+from dynabarn.cli.episode import exit_status, print_result, run_recorded
 from dynabarn.cli.render import render_video
 from dynabarn.errors import DynabarnError
 
@@ -58,11 +56,10 @@ def run_main(argv: Sequence[str] | None = None) -> int:
 
 def _run_episode(args: argparse.Namespace) -> int:
 
-    from dynabarn.metrics import Outcome
     from dynabarn.planners import get_planner
     from dynabarn.protocol import get_protocol
-    from dynabarn.recording import McapRecorder, default_run_path
-    from dynabarn.sim import SimConfig, Simulation, run_episode
+    from dynabarn.recording import default_run_path
+    from dynabarn.sim import SimConfig, Simulation
     from dynabarn.worldset import resolve_world
 
     world_path = resolve_world(args.world)
@@ -73,7 +70,6 @@ def _run_episode(args: argparse.Namespace) -> int:
     planner = get_planner(args.planner, **config)
     sim = Simulation(world_path, config=SimConfig(dt=args.dt, control_rate=args.control_rate))
     log_path = None
-    observers = []
     if args.video is not None and args.video.suffix.lower() not in (".mp4", ".gif"):
         raise DynabarnError(f"--video must end in .mp4 or .gif, got {args.video.name!r}")
     if not args.no_log:
@@ -82,35 +78,12 @@ def _run_episode(args: argparse.Namespace) -> int:
         import tempfile
 
         log_path = Path(tempfile.mkdtemp()) / "episode.mcap"
-    recorder = McapRecorder(log_path) if log_path is not None else None
-    if recorder is not None:
-        observers.append(recorder)
-    try:
-        result = run_episode(sim, planner, protocol, seed=args.seed, observers=observers, planner_name=args.planner)
-    except KeyboardInterrupt:
-        if log_path:
-            print(f"interrupted; recording kept: {log_path}", file=sys.stderr)
-        raise
-    except OSError as exc:  # the recording could not be started: a full disk, a folder...
-        raise DynabarnError(f"cannot record to {log_path}: {exc.strerror or exc}") from None
-    if recorder is not None and recorder.stopped:
-        print(f"warning: {log_path}: {recorder.stopped}", file=sys.stderr)
-    if args.json:
-        d = result.to_dict()
-        d["recording"] = str(log_path) if log_path and not args.no_log else None
-        print(json.dumps(d, indent=1, sort_keys=True, allow_nan=False))
-    else:
-        print(result.summary())
-        if log_path and not args.no_log:
-            print(f"recording: {log_path}")
+    result = run_recorded(sim, planner, protocol, seed=args.seed, log_path=log_path, planner_name=args.planner)
+    print_result(result, as_json=args.json, recording=None if args.no_log else log_path)
     if args.video is not None:
         render_video(log_path, args.video, args.camera, 20.0, "640x480")
         if args.no_log:
             import shutil
 
             shutil.rmtree(log_path.parent, ignore_errors=True)
-    if result.outcome is Outcome.ERROR:
-        if not args.json:
-            print(f"error: {result.reason}", file=sys.stderr)
-        return EXIT_EPISODE_ERROR
-    return 0
+    return exit_status(result, as_json=args.json)
