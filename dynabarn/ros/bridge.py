@@ -13,6 +13,7 @@ the goal is given in it. The true pose (world frame) is on /dynabarn/ground_trut
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import shlex
@@ -21,7 +22,6 @@ import signal
 import socket
 import struct
 import subprocess
-import sys
 import time
 import xmlrpc.client
 from dataclasses import dataclass, field
@@ -44,7 +44,13 @@ _COMMAND = struct.Struct("<ddB")
 
 def ros_python() -> str:
     """The interpreter that imports rospy (Debian's ROS 1 packages: `make ros-deps`)."""
-    exe = os.environ.get(ROS_PYTHON_ENV) or "/usr/bin/python3"
+    return _checked_ros_python(os.environ.get(ROS_PYTHON_ENV) or "/usr/bin/python3")
+
+
+@functools.cache
+def _checked_ros_python(exe: str) -> str:
+    """`exe`, once it has shown it imports rospy (checked once per interpreter and process:
+    the check starts a Python, and every episode's bridge asks)."""
     try:
         ok = subprocess.run([exe, "-c", "import rospy"], capture_output=True, timeout=60).returncode == 0
     except (OSError, subprocess.TimeoutExpired):
@@ -318,4 +324,3 @@ def bridge_overhead(planner: RosPlanner) -> float:
 
 
 __all__ = ["NODE", "BridgeConfig", "RosMaster", "RosPlanner", "bridge_overhead", "ros_planner", "ros_python"]
-_ = sys  # the node is started with the ROS Python, never this one
