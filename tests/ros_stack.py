@@ -7,7 +7,8 @@ Run with Debian's Python (`/usr/bin/python3 tests/ros_stack.py`). The controller
 the goal and away from close returns in front; deterministic for the same messages (each
 scan is paired with the odometry of the same stamp, whatever order they arrive in).
 
-Flags: --die-after N (exit after N scans: a stack that crashes), --mute (never answer).
+Flags: --die-after N (exit after N scans: a stack that crashes), --mute (never answer),
+--delay S (think S seconds per scan: a slow stack).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import argparse
 import math
 import os
 import sys
+import time
 
 
 def main() -> int:
@@ -29,6 +31,7 @@ def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--die-after", type=int, default=0)
     parser.add_argument("--mute", action="store_true")
+    parser.add_argument("--delay", type=float, default=0.0, help="seconds of thinking per scan (a slow stack)")
     parser.add_argument("--goal-from", choices=["topic", "action"], default="topic")
     args = parser.parse_args(rospy.myargv(sys.argv)[1:])
     rospy.init_node("test_stack")
@@ -45,6 +48,8 @@ def main() -> int:
             os._exit(3)  # a crash: no clean shutdown
         if args.mute:
             return
+        if args.delay:
+            time.sleep(args.delay)
         if state["goal"] is None:  # no goal yet: stand still, but answer
             cmd_pub.publish(Twist())
             return
