@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from dynabarn.cli.common import (
@@ -16,6 +17,48 @@ from dynabarn.cli.common import (
     subcommands,
 )
 from dynabarn.errors import LEARN_EXTRA, DynabarnError
+
+
+@dataclass
+class _TD3Defaults:
+    """`dynabarn.learn.td3.TD3Config`'s defaults, repeated here so `--help` works without
+    PyTorch; a test checks the two agree."""
+
+    world_set: str = "paper60"
+    difficulty: str = "all"
+    steps: int = 120_000
+    envs: int = 1
+    eval_every: int = 10_000
+    eval_episodes: int = 30
+    start_steps: int = 0
+    update_every: int = 2
+    demos: int = 200
+    demo_share: float = 0.25
+    bc_epochs: int = 10
+    critic_warmup: int = 2_000
+    bc_weight: float = 1.0
+    bc_decay_steps: int = 60_000
+    threads: int = 2
+    seed: int = 0
+
+
+TD3_DEFAULTS = _TD3Defaults()
+TD3_OPTIONS = (
+    ("steps", int, 1, 100_000_000, "environment steps in total"),
+    ("envs", int, 1, MAX_JOBS, "parallel environments (one process each when > 1)"),
+    ("eval_every", int, 1, 100_000_000, "steps between evaluations and checkpoints"),
+    ("eval_episodes", int, 1, 10_000, "episodes per evaluation (training worlds, seeds of their own)"),
+    ("start_steps", int, 0, 100_000_000, "uniformly random actions first"),
+    ("update_every", int, 1, 1_000, "environment steps per gradient update"),
+    ("demos", int, 0, 100_000, "oracle demonstration episodes in the replay buffer (0: none, the paper's TD3)"),
+    ("demo_share", float, 0.0, 1.0, "share of every batch drawn from the demonstrations"),
+    ("bc_epochs", int, 0, 10_000, "behaviour-cloning epochs on the demonstrations before TD3"),
+    ("critic_warmup", int, 0, 1_000_000, "critic-only updates on the demonstrations before TD3"),
+    ("bc_weight", float, 0.0, 100.0, "weight of the actor's distance to demonstrated actions (TD3+BC)"),
+    ("bc_decay_steps", int, 1, 100_000_000, "steps over which bc_weight decays linearly to 0"),
+    ("threads", int, 1, MAX_JOBS, "PyTorch threads (and demonstration processes)"),
+    ("seed", int, 0, MAX_SEED, "seed of torch, the buffers and the environments"),
+)
 
 
 def train_main(argv: Sequence[str] | None = None) -> int:
@@ -34,28 +77,17 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     bc.add_argument("--lr", type=ranged(float, 1e-8, 1.0), default=1e-3, help="Adam learning rate")
     bc.add_argument("--seed", type=ranged(int, 0, MAX_SEED), default=0, help="torch seed")
     td = sub.add_parser(
-        "td3", help="TD3 reinforcement learning", formatter_class=argparse.ArgumentDefaultsHelpFormatter
+        "td3",
+        help="TD3 reinforcement learning (resumes from --out's last checkpoint when run again)",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    td.add_argument("--set", default="paper60", help="world set to train in")
-    td.add_argument("--difficulty", default="easy", help="easy, medium, hard or all")
+    td.add_argument("--set", default=TD3_DEFAULTS.world_set, help="world set to train in")
+    td.add_argument("--difficulty", default=TD3_DEFAULTS.difficulty, help="easy, medium, hard or all")
     add_protocol(td)
-    td.add_argument("--steps", type=ranged(int, 1, 100_000_000), default=20_000, help="environment steps in total")
-    td.add_argument(
-        "--envs", type=ranged(int, 1, MAX_JOBS), default=1, help="parallel environments (one process each when > 1)"
-    )
-    td.add_argument(
-        "--eval-every",
-        type=ranged(int, 1, 100_000_000),
-        default=5_000,
-        help="steps between evaluations and checkpoints",
-    )
-    td.add_argument("--eval-episodes", type=ranged(int, 1, 10_000), default=10, help="episodes per evaluation")
-    td.add_argument(
-        "--start-steps", type=ranged(int, 0, 100_000_000), default=2_000, help="uniformly random actions first"
-    )
-    td.add_argument(
-        "--seed", type=ranged(int, 0, MAX_SEED), default=0, help="seed of torch, the buffer and the environments"
-    )
+    for name, kind, lo, hi, text in TD3_OPTIONS:
+        td.add_argument(
+            "--" + name.replace("_", "-"), type=ranged(kind, lo, hi), default=getattr(TD3_DEFAULTS, name), help=text
+        )
     td.add_argument("--out", type=Path, required=True, help="folder for checkpoints, policy.pt and the learning curve")
     args = parser.parse_args(argv)
     return run_command(_train, args)
@@ -88,18 +120,11 @@ def _train(args: argparse.Namespace) -> int:
     from dynabarn.learn.td3 import TD3Config, train_td3
 
     cfg = TD3Config(
-        steps=args.steps,
-        envs=args.envs,
         world_set=args.set,
         difficulty=args.difficulty,
         protocol=args.protocol,
-        eval_every=args.eval_every,
-        eval_episodes=args.eval_episodes,
-        start_steps=args.start_steps,
-        seed=args.seed,
+        **{name: getattr(args, name) for name, *_ in TD3_OPTIONS},
     )
-    if cfg.steps < 1 or cfg.envs < 1:
-        raise DynabarnError("--steps and --envs must be positive")
     report = train_td3(cfg, args.out, progress=lambda total: tqdm(total=total, desc="steps", disable=None))
     last = report.evaluations[-1]
     print(

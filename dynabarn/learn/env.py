@@ -30,7 +30,10 @@ Each term is in `info`.
 ## Starting state
 World drawn uniformly from the chosen set (and difficulty); trial seed drawn from the
 environment's generator (sets the obstacles' clock offset and the laser noise); robot at
-the protocol's spawn ((11, 0, yaw pi) for `barn`).
+the protocol's spawn ((11, 0, yaw pi) for `barn`). `reset(options=...)`: `world_index`
+(an index into the chosen worlds), `trial_seed`, and `privileged=True` (the obstacles'
+true states in `env.unwrapped.observation`, for a demonstrator such as the oracle; the
+policy's observation is unchanged).
 
 ## Episode end
 Terminated on success or collision; truncated on the protocol's time limit (100 s of
@@ -178,9 +181,16 @@ class DynaBARNEnv(gymnasium.Env):
         self._viewer_thread: threading.Thread | None = None
         self._viewer_file: str | None = None
         self._wall_next = 0.0
+        self._observation = None
+
+    @property
+    def observation(self):
+        """The simulator's last `Observation` (pose, scan, goal; the obstacles' true states
+        after `reset(options={"privileged": True})`), for an expert acting in the loop."""
+        return self._observation
 
     def _observe(self) -> np.ndarray:
-        obs = self.episode.observe()
+        obs = self._observation = self.episode.observe()
         self._pose = obs.pose
         return policy_input(obs.scan, self._planner.local_goal_in_robot(obs.pose, self.lookahead), np.float32)
 
@@ -201,7 +211,9 @@ class DynaBARNEnv(gymnasium.Env):
         sim = self._sims[file]
         self._file = file
         self._planner = self._planners[file]
-        self.episode = Episode(sim, self.protocol, seed=trial)
+        # Privileged episodes let a demonstrator (the oracle) see the obstacles' true states;
+        # the policy's observation is the same either way.
+        self.episode = Episode(sim, self.protocol, seed=trial, privileged=bool(options.get("privileged", False)))
         observation = self._observe()
         self._cost_to_go = self._planner.cost_to_go(float(self._pose[0]), float(self._pose[1]))
         self._info = {"world": sim.world.name, "world_id": wid, "difficulty": difficulty, "trial_seed": trial}
