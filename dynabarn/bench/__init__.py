@@ -16,6 +16,7 @@ from dynabarn.bench.results import (
     locked,
     metadata,
     read_results,
+    write_worlds,
 )
 from dynabarn.bench.summary import (
     DIFFICULTIES,
@@ -49,4 +50,5 @@ __all__ = [
     "summarise",
     "wilson_interval",
     "write_summary",
+    "write_worlds",
 ]

@@ -31,6 +31,12 @@ class Job:
     factory: Callable | None = None
     """The planner's factory, for a planner registered at run time (`register_planner`):
     worker processes that do not fork (spawn, Ray) know only installed planners."""
+    label: str = ""
+    """The name rows carry, when not the registry name (`dwa@dwa_dynabarn_authors`)."""
+
+    @property
+    def shown(self) -> str:
+        return self.label or self.planner
 
     @property
     def key(self) -> str:
@@ -40,7 +46,7 @@ class Job:
 
 
 def make_jobs(
-    planners: list[tuple[str, dict]],
+    planners: list[tuple[str, dict]] | list[tuple[str, dict, str]],
     worlds: list[tuple[int, str, str]],
     protocol: EvalProtocol,
     trials: int,
@@ -60,8 +66,9 @@ def make_jobs(
             record=record,
             recordings_dir=str(recordings_dir or ""),
             factory=planner_factory(name) if registered_at_run_time(name) else None,
+            label=label[0] if label and label[0] != name else "",
         )
-        for name, cfg in planners
+        for name, cfg, *label in planners
         for wid, file, difficulty in worlds
         for seed in range(trials)
     ]
@@ -71,7 +78,7 @@ def row_head(job: Job) -> dict:
     """The fields every row of `job` starts with, whatever became of the episode."""
     return {
         "key": job.key,
-        "planner": job.planner,
+        "planner": job.shown,
         "world_id": job.world_id,
         "difficulty": job.difficulty,
         "seed": job.seed,
@@ -101,7 +108,7 @@ def run_job(job: Job) -> dict:
             EvalProtocol.from_dict(job.protocol),
             seed=job.seed,
             observers=observers,
-            planner_name=job.planner,
+            planner_name=job.shown,
         )
         row.update(result.to_dict())
         if observers and observers[0].stopped:  # disk nearly full: the result stands, run it again
@@ -131,5 +138,5 @@ def run_job(job: Job) -> dict:
                 "traceback": traceback.format_exc(),
             }
         )
-    row["planner"] = job.planner  # the registry name, whatever the planner calls itself
+    row["planner"] = job.shown  # the registry name (or the label), whatever the planner calls itself
     return row

@@ -17,6 +17,7 @@ from dynabarn.files import write_atomically
 
 RESULTS = "results.jsonl"
 METADATA = "metadata.json"
+WORLDS = "worlds.json"
 LOCK = ".lock"
 
 
@@ -118,7 +119,7 @@ def metadata(args_dict: dict, jobs: list[Job]) -> dict:
         "python": sys.version.split()[0],
         "arguments": args_dict,
         "protocol": jobs[0].protocol if jobs else None,
-        "planners": sorted({j.planner for j in jobs}),
+        "planners": sorted({j.shown for j in jobs}),
         "episodes": len(jobs),
         "worlds_digest": hashlib.sha256("".join(world_hashes).encode()).hexdigest()[:16],
     }
@@ -140,7 +141,7 @@ def check_or_write_metadata(out_dir: Path, meta: dict, *, force: bool) -> None:
             if old.get(key) != meta.get(key):
                 raise DynabarnError(f"{out_dir} holds a different sweep ({key} differs); use another --out or --force")
     elif path.is_file() and force:
-        for name in (RESULTS, "summary.csv", "summary.md", "fig5.png"):
+        for name in (RESULTS, WORLDS, "summary.csv", "summary.md", "fig5.png"):
             (out_dir / name).unlink(missing_ok=True)
         shutil.rmtree(out_dir / "recordings", ignore_errors=True)
     write_atomically(path, json.dumps(meta, indent=1, sort_keys=True) + "\n")
@@ -149,3 +150,40 @@ def check_or_write_metadata(out_dir: Path, meta: dict, *, force: bool) -> None:
 def jsonable_args(args) -> dict:
     d = dict(vars(args))
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in d.items()}
+
+
+def write_worlds(out_dir: Path, jobs: list[Job]) -> Path:
+    """`OUT/worlds.json`: each world of the sweep with its index entry's difficulty class,
+    obstacle count and measured difficulty, so results can be related to the worlds
+    without their folder (the imported release worlds are not part of a checkout)."""
+    from dynabarn.worldset import read_index
+
+    path = Path(out_dir) / WORLDS
+    old = {}
+    if path.is_file():
+        try:
+            old = {w["name"]: w for w in json.loads(path.read_text())["worlds"]}
+        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError, KeyError, TypeError):
+            old = {}
+    worlds = dict(old)
+    folders = {Path(j.world_file).parent for j in jobs}
+    for folder in sorted(folders):
+        try:
+            entries = read_index(folder)["worlds"]
+        except DynabarnError:
+            continue
+        for e in entries:
+            name = e.get("name") or Path(e["file"]).stem
+            if any(Path(j.world_file).name == e["file"] and Path(j.world_file).parent == folder for j in jobs):
+                worlds[name] = {
+                    "name": name,
+                    "id": e["id"],
+                    "difficulty": e.get("difficulty"),
+                    "n_obstacles": e.get("n_obstacles"),
+                    "measured": e.get("measured"),
+                    "sha256": e.get("sha256"),
+                }
+    if worlds != old:
+        text = json.dumps({"worlds": [worlds[k] for k in sorted(worlds)]}, indent=1, sort_keys=True) + "\n"
+        write_atomically(path, text)
+    return path

@@ -1,7 +1,14 @@
 """The summary per planner and difficulty: success rate with a 95% Wilson interval,
 collision and timeout rates, mean time of successes, BARN score, SPL and minimum
-clearance; printed, and written as `summary.csv`, `summary.md` and a Fig. 5-style
-`fig5.png` with the paper's published values beside ours."""
+clearance, and the skill over the blind floor; printed, and written as `summary.csv`,
+`summary.md` and a Fig. 5-style `fig5.png` with the paper's published values and the
+floor beside ours.
+
+The floor is `straight` (drive at the goal at 2 m/s, avoid nothing) on the same worlds
+and seeds: how much of a difficulty blind speed alone solves. A planner's skill is its
+success minus the floor's on the same (world, seed) pairs; its 95% interval treats the
+worlds as clusters (trials of one world are not independent), with Student's t on the
+number of worlds less one."""
 
 from __future__ import annotations
 
@@ -24,6 +31,34 @@ PAPER_FIG5 = {
 
 
 DIFFICULTIES = tuple(d.value for d in Difficulty)
+FLOOR = "straight"
+"""The blind floor every planner is measured against."""
+
+
+def skill_over_floor(rows: list[dict], floor_rows: list[dict]) -> dict:
+    """Success minus the floor's on the shared (world, seed) episodes, with a 95% interval
+    clustered by world. Empty dict when no episode is shared."""
+    from scipy.stats import t as student_t
+
+    floor = {(r["world"], r["seed"]): r["outcome"] == "success" for r in floor_rows if "world" in r}
+    by_world: dict[str, list[float]] = defaultdict(list)
+    floor_hits = 0
+    for r in rows:
+        key = (r.get("world"), r["seed"])
+        if key in floor:
+            by_world[key[0]].append(float(r["outcome"] == "success") - float(floor[key]))
+            floor_hits += floor[key]
+    n = sum(len(v) for v in by_world.values())
+    if n == 0:
+        return {}
+    diff = sum(sum(v) for v in by_world.values()) / n
+    m = len(by_world)
+    if m < 2:
+        return {"floor": floor_hits / n, "skill": diff, "skill_lo": float("nan"), "skill_hi": float("nan")}
+    # Cluster-robust standard error of a mean (worlds as clusters, small-sample factor m/(m-1)).
+    se = math.sqrt(sum((sum(v) - len(v) * diff) ** 2 for v in by_world.values()) * m / (m - 1)) / n
+    half = float(student_t.ppf(0.975, m - 1)) * se
+    return {"floor": floor_hits / n, "skill": diff, "skill_lo": diff - half, "skill_hi": diff + half}
 
 
 def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -54,6 +89,7 @@ def summarise(rows: list[dict]) -> list[dict]:
         groups[(r["planner"], "all")].append(r)
     out = []
     order = {d: i for i, d in enumerate((*DIFFICULTIES, "all"))}
+    none = {"floor": None, "skill": None, "skill_lo": None, "skill_hi": None}
     for (planner, difficulty), rs in sorted(groups.items(), key=lambda kv: (kv[0][0], order.get(kv[0][1], 9))):
         n = len(rs)
         k = sum(r["outcome"] == "success" for r in rs)
@@ -75,27 +111,41 @@ def summarise(rows: list[dict]) -> list[dict]:
                 "spl": _mean([r.get("spl", 0.0) for r in rs]),
                 "min_clearance": _mean([r.get("min_clearance") for r in rs]),
                 # The paper's Fig. 5 only compares with runs in DynaBARN worlds under its protocols.
-                "paper": PAPER_FIG5.get(planner, {}).get(difficulty)
+                "paper": PAPER_FIG5.get(planner.split("@")[0], {}).get(difficulty)
                 if all(r.get("protocol") in PAPER_PROTOCOLS for r in rs)
                 else None,
+                **(
+                    none | skill_over_floor(rs, groups[(FLOOR, difficulty)])
+                    if planner != FLOOR and (FLOOR, difficulty) in groups
+                    else none
+                ),
             }
         )
     return out
 
 
+def _skill_text(s: dict) -> str:
+    if s.get("skill") is None:
+        return "-"
+    if not math.isfinite(s["skill_lo"]):
+        return f"{s['skill']:+.2f}"
+    return f"{s['skill']:+.2f} [{s['skill_lo']:+.2f}, {s['skill_hi']:+.2f}]"
+
+
 def format_table(summary: list[dict]) -> str:
+    wp = max([10, *(len(s["planner"]) + 2 for s in summary)])
     head = (
-        f"{'planner':<10}{'difficulty':<11}{'n':>5}{'success [95% CI]':>22}{'coll':>7}{'timeout':>8}"
-        f"{'t_succ':>8}{'score':>7}{'SPL':>6}{'clear':>7}{'paper':>7}"
+        f"{'planner':<{wp}}{'difficulty':<11}{'n':>5}{'success [95% CI]':>22}{'coll':>7}{'timeout':>8}"
+        f"{'t_succ':>8}{'score':>7}{'SPL':>6}{'clear':>7}{'paper':>7}  {'skill over floor [95% CI]'}"
     )
     lines = [head, "-" * len(head)]
     for s in summary:
         ci = f"{s['success']:.2f} [{s['success_lo']:.2f}, {s['success_hi']:.2f}]"
         paper = f"{s['paper']:.2f}" if s["paper"] is not None else "-"
         lines.append(
-            f"{s['planner']:<10}{s['difficulty']:<11}{s['episodes']:>5}{ci:>22}{s['collision']:>7.2f}"
+            f"{s['planner']:<{wp}}{s['difficulty']:<11}{s['episodes']:>5}{ci:>22}{s['collision']:>7.2f}"
             f"{s['timeout']:>8.2f}{s['time_success']:>8.1f}{s['score']:>7.3f}{s['spl']:>6.2f}"
-            f"{s['min_clearance']:>7.2f}{paper:>7}"
+            f"{s['min_clearance']:>7.2f}{paper:>7}  {_skill_text(s)}"
         )
     return "\n".join(lines)
 
@@ -109,15 +159,16 @@ def write_summary(summary: list[dict], out_dir: Path, *, title: str = "") -> dic
     write_atomically(paths["csv"], table.getvalue())
     md = [
         "| planner | difficulty | episodes | success [95% CI] | collision | timeout | mean time of successes [s] "
-        "| score | SPL | min clearance [m] | paper |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| score | SPL | min clearance [m] | paper | floor | skill over floor [95% CI] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for s in summary:
         paper = f"{s['paper']:.2f}" if s["paper"] is not None else "-"
         md.append(
             f"| {s['planner']} | {s['difficulty']} | {s['episodes']} | {s['success']:.2f} "
             f"[{s['success_lo']:.2f}, {s['success_hi']:.2f}] | {s['collision']:.2f} | {s['timeout']:.2f} | "
-            f"{s['time_success']:.1f} | {s['score']:.3f} | {s['spl']:.2f} | {s['min_clearance']:.2f} | {paper} |"
+            f"{s['time_success']:.1f} | {s['score']:.3f} | {s['spl']:.2f} | {s['min_clearance']:.2f} | {paper} | "
+            f"{'-' if s.get('floor') is None else format(s['floor'], '.2f')} | {_skill_text(s)} |"
         )
     write_atomically(paths["md"], (f"# {title}\n\n" if title else "") + "\n".join(md) + "\n")
     plot_fig5(summary, paths["png"], title=title)
@@ -131,7 +182,7 @@ def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
     from matplotlib import colormaps
     from matplotlib.figure import Figure
 
-    planners = sorted({s["planner"] for s in summary})
+    planners = sorted({s["planner"] for s in summary}, key=lambda p: (p != FLOOR, p))  # the floor first
     fig = Figure(figsize=(2.2 + 2.4 * len(planners), 4.0), dpi=120)
     ax = fig.subplots()
     width = 0.8 / (2 * len(planners))
@@ -149,7 +200,12 @@ def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
             ]
         ).T
         pos = x - 0.4 + width * (2 * k + 0.5)
-        ax.bar(pos, ours, width, yerr=err, capsize=3, color=colors(k), label=f"{planner} (ours)")
+        color = "0.6" if planner == FLOOR else colors(k)
+        label = f"{planner} (blind floor)" if planner == FLOOR else f"{planner} (ours)"
+        ax.bar(pos, ours, width, yerr=err, capsize=3, color=color, label=label)
+        if planner == FLOOR:  # the floor as a line across each difficulty's group
+            for xi, value in zip(x, ours, strict=True):
+                ax.hlines(value, xi - 0.42, xi + 0.42, colors="0.3", linestyles="--", linewidth=1)
         paper = [rows[d]["paper"] if d in rows and rows[d]["paper"] is not None else np.nan for d in DIFFICULTIES]
         if not all(np.isnan(paper)):
             ax.bar(

@@ -27,7 +27,18 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
         "Run planners over a world set and trials in parallel; resumable; summary table, CSV, Markdown "
         "and a Fig. 5-style PNG in --out.",
     )
-    parser.add_argument("--planner", default="dwa", help="planner(s), comma separated, e.g. dwa,teb")
+    parser.add_argument(
+        "--planner",
+        default="dwa",
+        help="planner(s), comma separated, e.g. dwa,teb; NAME@PRESET runs a shipped preset as its own row "
+        "(dwa@dwa_dynabarn_authors, teb@teb_ros_defaults)",
+    )
+    parser.add_argument(
+        "--no-floor",
+        action="store_true",
+        help="do not add the blind floor: without it, `straight` (drive at the goal at 2 m/s, avoid nothing) "
+        "runs on the same worlds and seeds, and the summary gives every planner's skill over it",
+    )
     parser.add_argument(
         "--planner-config",
         default=None,
@@ -125,7 +136,8 @@ def _bench(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from dynabarn import bench, worldset
-    from dynabarn.planners import get_planner
+    from dynabarn.bench.summary import FLOOR
+    from dynabarn.planners import get_planner, planner_spec
     from dynabarn.protocol import get_protocol
 
     if args.trials < 1 or args.jobs < 1:
@@ -135,15 +147,18 @@ def _bench(args: argparse.Namespace) -> int:
         config["policy"] = str(args.policy.resolve())
     if args.ros_launch is not None:
         config["launch"] = args.ros_launch
-    names = list(dict.fromkeys(p.strip() for p in args.planner.split(",") if p.strip()))  # each once
-    if not names:
+    specs = [planner_spec(p) for p in dict.fromkeys(p.strip() for p in args.planner.split(",") if p.strip())]
+    if not specs:
         raise DynabarnError(f"--planner {args.planner!r}: name at least one planner, e.g. dwa or dwa,teb")
-    for name in names:
-        get_planner(name, **config)  # fail fast on an unknown planner or bad configuration
+    planners = [(name, preset | config, label) for name, preset, label in specs]
+    for name, cfg, _ in planners:
+        get_planner(name, **cfg)  # fail fast on an unknown planner or bad configuration
+    if not args.no_floor and FLOOR not in {label for *_, label in planners}:
+        planners.append((FLOOR, {}, FLOOR))
     protocol = get_protocol(args.protocol)
     worlds = worldset.world_set(args.set, worldset.parse_ids(args.worlds))
     jobs = bench.make_jobs(
-        [(n, config) for n in names],
+        planners,
         worlds,
         protocol,
         args.trials,
@@ -160,6 +175,7 @@ def _bench(args: argparse.Namespace) -> int:
     with bench.locked(args.out):
         try:
             bench.check_or_write_metadata(args.out, bench.metadata(bench.jsonable_args(args), jobs), force=args.force)
+            bench.write_worlds(args.out, jobs)
         except OSError as exc:
             raise DynabarnError(f"cannot write to {args.out}: {exc.strerror}") from None
         try:
@@ -169,7 +185,9 @@ def _bench(args: argparse.Namespace) -> int:
         except KeyboardInterrupt:
             print(f"interrupted; finished episodes are in {args.out / bench.RESULTS}; rerun to resume", file=sys.stderr)
             raise
-    summary = bench.summarise(report.rows)
+    # The folder's whole sweep (every planner run into it, same worlds and protocol), so a
+    # planner added later is summarised beside the others and the floor.
+    summary = bench.summarise(bench.read_results(args.out / bench.RESULTS))
     title = f"{args.set}, protocol {protocol.name}, {args.trials} trials"
     paths = bench.write_summary(summary, args.out, title=title)
     print(bench.format_table(summary))

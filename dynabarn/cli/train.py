@@ -34,7 +34,8 @@ class _TD3Defaults:
     update_every: int = 2
     demos: int = 200
     demo_share: float = 0.25
-    bc_epochs: int = 10
+    bc_epochs: int = 30
+    bc_lr: float = 1e-3
     critic_warmup: int = 2_000
     bc_weight: float = 1.0
     bc_decay_steps: int = 60_000
@@ -53,6 +54,7 @@ TD3_OPTIONS = (
     ("demos", int, 0, 100_000, "oracle demonstration episodes in the replay buffer (0: none, the paper's TD3)"),
     ("demo_share", float, 0.0, 1.0, "share of every batch drawn from the demonstrations"),
     ("bc_epochs", int, 0, 10_000, "behaviour-cloning epochs on the demonstrations before TD3"),
+    ("bc_lr", float, 1e-8, 1.0, "Adam learning rate of the behaviour cloning"),
     ("critic_warmup", int, 0, 1_000_000, "critic-only updates on the demonstrations before TD3"),
     ("bc_weight", float, 0.0, 100.0, "weight of the actor's distance to demonstrated actions (TD3+BC)"),
     ("bc_decay_steps", int, 1, 100_000_000, "steps over which bc_weight decays linearly to 0"),

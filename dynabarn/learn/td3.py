@@ -69,7 +69,8 @@ class TD3Config:
     update_every: int = 2
     demos: int = 200
     demo_share: float = 0.25
-    bc_epochs: int = 10
+    bc_epochs: int = 30
+    bc_lr: float = 1e-3
     critic_warmup: int = 2_000
     bc_weight: float = 1.0
     bc_decay_steps: int = 60_000
@@ -137,6 +138,7 @@ class Learner:
         self.actor_t = copy.deepcopy(self.actor)
         self.critic1_t, self.critic2_t = copy.deepcopy(self.critic1), copy.deepcopy(self.critic2)
         self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=cfg.lr)
+        self.clone_opt = torch.optim.Adam(self.actor.parameters(), lr=cfg.bc_lr)
         self.critic_opt = torch.optim.Adam([*self.critic1.parameters(), *self.critic2.parameters()], lr=cfg.lr)
         self.updates = 0
 
@@ -162,9 +164,9 @@ class Learner:
             for i in range(0, len(obs), self.cfg.batch_size):
                 idx = perm[i : i + self.cfg.batch_size]
                 loss = ((self.actor(obs[idx]) - act[idx]) ** 2).mean()
-                self.actor_opt.zero_grad()
+                self.clone_opt.zero_grad()
                 loss.backward()
-                self.actor_opt.step()
+                self.clone_opt.step()
         self.actor_t.load_state_dict(self.actor.state_dict())
         return float(loss.detach())
 
@@ -258,8 +260,16 @@ def train_td3(cfg: TD3Config, out_dir: Path, *, progress=None) -> TD3Report:
         demos, online = ReplayBuffer(max(1, cfg.demos * 400)), ReplayBuffer(cfg.buffer_size)
         t0 = time.perf_counter()
         if cfg.demos:
-            report.demo_outcomes = collect_demonstrations(cfg.env_kwargs(), cfg.demos, demos, jobs=cfg.threads)
-            demos.save(out / DEMOS)
+            # Demonstrations already collected for this folder (an earlier attempt) are kept.
+            wanted = {"episodes": cfg.demos, "env": cfg.env_kwargs()}
+            meta = out / (DEMOS + ".json")
+            if (out / DEMOS).is_file() and meta.is_file() and json.loads(meta.read_text())["of"] == wanted:
+                demos = ReplayBuffer.load(out / DEMOS)
+                report.demo_outcomes = json.loads(meta.read_text())["outcomes"]
+            else:
+                report.demo_outcomes = collect_demonstrations(cfg.env_kwargs(), cfg.demos, demos, jobs=cfg.threads)
+                demos.save(out / DEMOS)
+                write_atomically(meta, json.dumps({"of": wanted, "outcomes": report.demo_outcomes}))
             loss = learner.clone_demonstrations(demos, cfg.bc_epochs, rng)
             for _ in range(cfg.critic_warmup):
                 learner.update(demos.sample(rng, cfg.batch_size), 0, 0.0, actor_too=False)

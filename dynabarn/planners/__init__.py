@@ -10,6 +10,7 @@ from dynabarn.planners.registry import (
     available_planners,
     get_planner,
     planner_presets,
+    planner_spec,
     read_planner_config,
     register_planner,
 )
@@ -23,6 +24,7 @@ __all__ = [
     "available_planners",
     "get_planner",
     "planner_presets",
+    "planner_spec",
     "read_planner_config",
     "register_planner",
 ]

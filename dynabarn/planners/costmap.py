@@ -52,6 +52,18 @@ class CostmapConfig:
     }
 
 
+def with_costmap(kwargs: dict, what: str) -> dict:
+    """A planner's keyword configuration with its `costmap.KEY` entries (or a `costmap`
+    dict) gathered into one checked `CostmapConfig` under "costmap"."""
+    from dynabarn.planners.base import config_from_kwargs
+
+    kwargs = dict(kwargs)
+    cm = dict(kwargs.pop("costmap", {}) or {})
+    for key in [k for k in kwargs if k.startswith("costmap.")]:
+        cm[key.split(".", 1)[1]] = kwargs.pop(key)
+    return {**kwargs, "costmap": config_from_kwargs(CostmapConfig, cm, f"{what} costmap")}
+
+
 class LocalCostmap:
     """Rolling-window occupancy and cost grid around the robot."""
 

@@ -31,7 +31,7 @@ import numpy as np
 
 from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
-from dynabarn.planners.costmap import CostmapConfig, LocalCostmap
+from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
 
 
@@ -92,11 +92,7 @@ class DWAConfig:
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> DWAConfig:
-        cm = dict(kwargs.pop("costmap", {}) or {})
-        for key in [k for k in kwargs if k.startswith("costmap.")]:
-            cm[key.split(".", 1)[1]] = kwargs.pop(key)
-        costmap = config_from_kwargs(CostmapConfig, cm, "DWA costmap")
-        return config_from_kwargs(cls, {**kwargs, "costmap": costmap}, "DWA")
+        return config_from_kwargs(cls, with_costmap(kwargs, "DWA"), "DWA")
 
 
 def rollout(pose: np.ndarray, v: np.ndarray, w: np.ndarray, times: np.ndarray) -> np.ndarray:

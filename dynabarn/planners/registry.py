@@ -86,9 +86,11 @@ def planner_presets() -> list[str]:
     return sorted(p.stem for p in PRESETS_DIR.glob("*.json"))
 
 
-def read_planner_config(text: str) -> dict:
-    """A shipped preset by name, or a planner configuration .json file: the parameters
-    (keys starting with "_", such as "_source", are notes and left out)."""
+def read_planner_config(text: str, _seen: tuple[str, ...] = ()) -> dict:
+    """A shipped preset by name, or a planner configuration .json file: the parameters.
+    Keys starting with "_" are notes and left out ("_source": where the values come from,
+    "_sources": one source per parameter), except "_extends": the name of a shipped preset
+    whose parameters this one starts from (one place for each published value)."""
     import json
 
     path = PRESETS_DIR / f"{text}.json" if text in planner_presets() else Path(text)
@@ -96,8 +98,29 @@ def read_planner_config(text: str) -> dict:
         raise DynabarnError(f"planner config file not found: {path}")
     try:
         cfg = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
         raise DynabarnError(f"{path}: planner config is not valid JSON ({exc})") from None
     if not isinstance(cfg, dict):
         raise DynabarnError(f"{path}: planner config must be a JSON object")
-    return {k: v for k, v in cfg.items() if not k.startswith("_")}
+    base: dict = {}
+    parent = cfg.get("_extends")
+    if parent is not None:
+        if not isinstance(parent, str) or parent not in planner_presets():
+            raise DynabarnError(f"{path}: _extends must name a shipped preset ({', '.join(planner_presets())})")
+        if parent in _seen:
+            raise DynabarnError(f"{path}: presets extend each other in a circle ({' -> '.join((*_seen, parent))})")
+        base = read_planner_config(parent, (*_seen, parent))
+    return base | {k: v for k, v in cfg.items() if not k.startswith("_")}
+
+
+def planner_spec(spec: str) -> tuple[str, dict, str]:
+    """`NAME` or `NAME@PRESET` (a shipped preset, e.g. `dwa@dwa_dynabarn_authors`) ->
+    (registry name, the preset's parameters, the label results carry)."""
+    name, sep, preset = spec.strip().partition("@")
+    name = name.strip()
+    if not sep:
+        return name, {}, name
+    preset = preset.strip()
+    if preset not in planner_presets():
+        raise DynabarnError(unknown_choice("planner preset", preset, planner_presets()))
+    return name, read_planner_config(preset), f"{name}@{preset}"

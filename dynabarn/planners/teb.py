@@ -34,7 +34,7 @@ nearest obstacle (recovery), as move_base would.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -42,7 +42,7 @@ from scipy.optimize import least_squares
 
 from dynabarn.determinism import STATE_RESOLUTION, exp, sincos, snap_array
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
-from dynabarn.planners.costmap import CostmapConfig, LocalCostmap
+from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
 
 
@@ -73,6 +73,8 @@ class TEBConfig:
     weight_inflation: float = 0.5
     max_iterations: int = 12
     """Residual evaluations allowed per tick (least_squares `max_nfev`)."""
+    costmap: CostmapConfig = field(default_factory=CostmapConfig)
+    """The local costmap the replanning around blocked stretches of the global plan uses."""
 
     LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
         "n_poses": (3, 100),
@@ -106,7 +108,7 @@ class TEBConfig:
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> TEBConfig:
-        cfg = config_from_kwargs(cls, kwargs, "TEB")
+        cfg = config_from_kwargs(cls, with_costmap(kwargs, "TEB"), "TEB")
         if cfg.n_poses < 3:
             raise TypeError("n_poses must be at least 3")
         return cfg
@@ -156,7 +158,7 @@ class TEBPlanner(Planner):
         self._band = None
         self._dts = None
         self._rerouted = self._was_rerouted = False
-        self.costmap = LocalCostmap(CostmapConfig())
+        self.costmap = LocalCostmap(self.cfg.costmap)
         self._beams = np.arange(0, len(info.laser_angles), self.cfg.obstacle_stride)
 
     def debug(self) -> dict:
