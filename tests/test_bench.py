@@ -157,3 +157,84 @@ def test_wilson_interval_contains_the_rate():
         for k in (0, n // 2, n):
             lo, hi = bench.wilson_interval(k, n)
             assert lo <= k / n <= hi
+
+
+def test_the_blind_floor_runs_beside_every_planner_with_skill_over_it(tmp_path, capsys):
+    """Without --no-floor, `straight` runs on the same worlds and seeds; the summary gives
+    each planner's success minus the floor's on the same episodes, with an interval."""
+    out = tmp_path / "f"
+    argv = ["--planner", "stop", "--worlds", "0,1,200", "--trials", "2", "--jobs", "2", "--out", str(out)]
+    assert bench_main(argv) == 0
+    text = capsys.readouterr().out
+    rows = bench.read_results(out / "results.jsonl")
+    assert sorted({r["planner"] for r in rows}) == ["stop", "straight"]
+    floor = {(r["world"], r["seed"]): r["outcome"] == "success" for r in rows if r["planner"] == "straight"}
+    assert len(floor) == 6
+    summary = {(s["planner"], s["difficulty"]): s for s in bench.summarise(rows)}
+    stop = summary[("stop", "all")]
+    # `stop` never reaches the goal: its skill is minus the floor's success, exactly.
+    assert stop["success"] == 0.0 and stop["floor"] == pytest.approx(sum(floor.values()) / 6)
+    assert stop["skill"] == pytest.approx(-stop["floor"])
+    assert stop["skill_lo"] <= stop["skill"] <= stop["skill_hi"]
+    assert summary[("straight", "all")]["skill"] is None
+    assert "skill over floor" in text and "skill over floor" in (out / "summary.md").read_text()
+    # worlds.json: the sweep's worlds with their measured difficulty.
+    worlds = json.loads((out / "worlds.json").read_text())["worlds"]
+    assert [w["id"] for w in worlds] == [0, 1, 200] and all("corridor_blocked" in w["measured"] for w in worlds)
+    # --no-floor runs only what was asked.
+    assert (
+        bench_main(["--planner", "stop", "--worlds", "0", "--trials", "1", "--no-floor", "--out", str(tmp_path / "n")])
+        == 0
+    )
+    assert {r["planner"] for r in bench.read_results(tmp_path / "n" / "results.jsonl")} == {"stop"}
+
+
+def test_skill_interval_is_clustered_by_world():
+    """Ten trials of one world are not ten independent worlds: with every win in one world,
+    the interval is wider than with the same wins spread over worlds."""
+    from dynabarn.bench.summary import FLOOR, skill_over_floor
+
+    def rows(planner, successes, per_world):
+        return [
+            {
+                "planner": planner,
+                "world": f"w{i // per_world}",
+                "seed": i % per_world,
+                "outcome": "success" if s else "x",
+            }
+            for i, s in enumerate(successes)
+        ]
+
+    wins = [1] * 10 + [0] * 30
+    widths = {}
+    for per_world in (10, 1):
+        r = skill_over_floor(rows("p", wins, per_world), rows(FLOOR, [0] * 40, per_world))
+        assert r["skill"] == pytest.approx(0.25) and r["skill_lo"] < 0.25 < r["skill_hi"]
+        widths[per_world] = r["skill_hi"] - r["skill_lo"]
+    assert widths[10] > 0.5 > widths[1]
+
+
+def test_presets_run_as_their_own_rows(tmp_path, capsys):
+    """NAME@PRESET: the preset's parameters, a row label of its own, the paper's value of NAME."""
+    out = tmp_path / "p"
+    argv = [
+        "--planner",
+        "dwa,dwa@dwa_dynabarn_authors",
+        "--worlds",
+        "0",
+        "--trials",
+        "1",
+        "--no-floor",
+        "--out",
+        str(out),
+    ]
+    assert bench_main(argv) == 0
+    rows = {r["planner"]: r for r in bench.read_results(out / "results.jsonl")}
+    assert set(rows) == {"dwa", "dwa@dwa_dynabarn_authors"}
+    authors = rows["dwa@dwa_dynabarn_authors"]["planner_config"]
+    assert authors["max_vel_x"] == 0.5 and authors["costmap"]["resolution"] == 0.05
+    assert rows["dwa"]["planner_config"]["max_vel_x"] == 2.0
+    summary = {(s["planner"], s["difficulty"]): s for s in bench.summarise(list(rows.values()))}
+    assert summary[("dwa@dwa_dynabarn_authors", "easy")]["paper"] == 0.78
+    assert bench_main(["--planner", "dwa@nope", "--worlds", "0", "--out", str(tmp_path / "x")]) == 2
+    assert "unknown planner preset" in capsys.readouterr().err

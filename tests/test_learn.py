@@ -1,5 +1,7 @@
 """Gymnasium environment, behaviour cloning, TD3 and the learned planners (learn extra)."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -119,30 +121,88 @@ def test_bc_fits_a_small_dataset(dataset, tmp_path, capsys):
     assert r.outcome is not Outcome.ERROR
 
 
-def test_short_td3_run_trains_and_saves(tmp_path, capsys):
+TD3_ARGV = [
+    "td3",
+    "--set",
+    "dynabarn300",
+    "--difficulty",
+    "easy",
+    "--steps",
+    "400",
+    "--eval-every",
+    "200",
+    "--eval-episodes",
+    "1",
+    "--demos",
+    "2",
+    "--bc-epochs",
+    "1",
+    "--critic-warmup",
+    "4",
+    "--threads",
+    "1",
+    "--start-steps",
+    "300",
+]
+
+
+def test_short_td3_run_trains_saves_and_resumes(tmp_path, capsys):
+    """Demonstrations, behaviour cloning, critic warm-up, TD3, checkpoints with the whole
+    state; running the same command again resumes (no new demonstrations, no new steps)."""
+    from dynabarn.learn.replay import ReplayBuffer
+
     out = tmp_path / "td3"
-    argv = [
-        "td3",
-        "--set",
-        "dynabarn300",
-        "--difficulty",
-        "easy",
-        "--steps",
-        "400",
-        "--start-steps",
-        "200",
-        "--eval-every",
-        "400",
-        "--eval-episodes",
-        "1",
-        "--out",
-        str(out),
-    ]
+    # A 4 s time limit from the start: episodes end within the run whatever the policy does.
+    protocol = get_protocol("barn").to_dict() | {"name": "short", "time_limit": 4.0, "timer_start_distance": 0.0}
+    (tmp_path / "short.json").write_text(json.dumps(protocol))
+    argv = [*TD3_ARGV, "--protocol", str(tmp_path / "short.json"), "--out", str(out)]
     assert train_main(argv) == 0
-    for name in ("policy.pt", "learning_curve.png", "training.json", "checkpoint_00000400.pt"):
+    for name in (
+        "policy.pt",
+        "learning_curve.png",
+        "training.json",
+        "train.log",
+        "state.pt",
+        "replay.npz",
+        "demos.npz",
+        "checkpoint_00000200.pt",
+        "checkpoint_00000400.pt",
+    ):
         assert (out / name).is_file(), name
     _, header = load_policy(out / "policy.pt")
     assert header["kind"] == "td3" and header["notes"]["steps"] == 400
+    log = (out / "train.log").read_text()
+    assert "demonstrations {'timeout': 2} (80 transitions)" in log and '"step": 400' in log
+    # The replay buffer holds true transitions: an episode's last row leads to its final
+    # observation, not to the next episode's first (same-step autoreset), so rows whose
+    # next observation is not the following row's are exactly the finished episodes.
+    buf = ReplayBuffer.load(out / "replay.npz")
+    assert len(buf) == 400
+    breaks = [i for i in range(len(buf) - 1) if not np.array_equal(buf.next_obs[i], buf.obs[i + 1])]
+    episodes = json.loads((out / "training.json").read_text())["episodes"]
+    assert len(breaks) >= 1 and len(breaks) in (episodes, episodes - 1)
+    # Interrupted after its last checkpoint: the same command finishes from the saved state.
+    weights = torch.load(out / "policy.pt", weights_only=True)["state_dict"]
+    (out / "policy.pt").unlink()
+    assert train_main(argv) == 0
+    resumed = torch.load(out / "policy.pt", weights_only=True)["state_dict"]
+    assert all(torch.equal(weights[k], resumed[k]) for k in weights)
+    assert "resumed at step 400" in (out / "train.log").read_text()
+    # Another configuration into the same folder is refused.
+    assert train_main([*argv, "--seed", "3"]) == 2
+    assert "another configuration" in capsys.readouterr().err
+
+
+def test_train_help_defaults_match_the_td3_configuration():
+    from dataclasses import asdict
+
+    from dynabarn.cli.train import TD3_DEFAULTS, TD3_OPTIONS
+    from dynabarn.learn.td3 import TD3Config
+
+    cfg = asdict(TD3Config())
+    for name, *_ in TD3_OPTIONS:
+        assert getattr(TD3_DEFAULTS, name) == cfg[name], name
+    assert TD3_DEFAULTS.world_set == cfg["world_set"] and TD3_DEFAULTS.difficulty == cfg["difficulty"]
 
 
 @pytest.mark.parametrize("planner", ["bc", "td3"])

@@ -114,3 +114,31 @@ def test_bad_planner_configuration():
         get_planner("dwa", max_speed=3)
     with pytest.raises(DynabarnError, match="n_poses"):
         get_planner("teb", n_poses=2)
+
+
+def test_authors_presets_carry_a_source_for_every_parameter():
+    """The authors' configurations: every value translated with where it comes from, and a
+    preset may extend another (one place for each published value)."""
+    from dynabarn.planners import read_planner_config
+    from dynabarn.planners.registry import PRESETS_DIR
+
+    teb = json.loads((PRESETS_DIR / "teb_ros_defaults.json").read_text())
+    params = {k for k in teb if not k.startswith("_")}
+    assert params == set(teb["_sources"])
+    cfg = read_planner_config("teb_ros_defaults")
+    assert cfg["max_vel_x"] == 0.4 and cfg["max_vel_theta"] == 0.3 and cfg["acc_lim_x"] == 0.5
+    planner = get_planner("teb", **cfg)
+    assert planner.cfg.costmap.resolution == 0.05 and planner.cfg.costmap.size == 10.0
+    authors = read_planner_config("dwa_dynabarn_authors")
+    barn = read_planner_config("dwa_barn_challenge")
+    assert authors == barn | {"costmap.size": 10.0, "costmap.resolution": 0.05}
+    assert get_planner("dwa", **authors).cfg.costmap.resolution == 0.05
+
+
+def test_preset_extension_is_checked(tmp_path):
+    from dynabarn.planners import read_planner_config
+
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"_extends": "no_such_preset", "max_vel_x": 1.0}')
+    with pytest.raises(DynabarnError, match="_extends must name a shipped preset"):
+        read_planner_config(str(bad))

@@ -127,7 +127,9 @@ def _train(args: argparse.Namespace) -> int:
         protocol=args.protocol,
         **{name: getattr(args, name) for name, *_ in TD3_OPTIONS},
     )
-    report = train_td3(cfg, args.out, progress=lambda total: tqdm(total=total, desc="steps", disable=None))
+    report = train_td3(
+        cfg, args.out, progress=lambda total, initial=0: tqdm(total=total, initial=initial, desc="steps", disable=None)
+    )
     last = report.evaluations[-1]
     print(
         f"wrote {args.out / 'policy.pt'} after {report.steps} steps ({report.episodes} episodes) in "

@@ -113,7 +113,9 @@ def evaluate(actor: Actor, cfg: TD3Config, n: int) -> dict:
     for k in range(n):
         seed = EVAL_SEED_BASE + k
         # Spread over the worlds (and so over the difficulties, which come in blocks).
-        obs, _ = env.reset(seed=seed, options={"world_index": (k * worlds) // n if n < worlds else k, "trial_seed": seed})
+        obs, _ = env.reset(
+            seed=seed, options={"world_index": (k * worlds) // n if n < worlds else k, "trial_seed": seed}
+        )
         done, total = False, 0.0
         while not done:
             with torch.no_grad():
@@ -196,7 +198,11 @@ class Learner:
             loss_a.backward()
             self.actor_opt.step()
         with torch.no_grad():
-            for net, tgt in ((self.actor, self.actor_t), (self.critic1, self.critic1_t), (self.critic2, self.critic2_t)):
+            for net, tgt in (
+                (self.actor, self.actor_t),
+                (self.critic1, self.critic1_t),
+                (self.critic2, self.critic2_t),
+            ):
                 torch._foreach_lerp_(list(tgt.parameters()), list(net.parameters()), cfg.tau)
 
 
@@ -205,7 +211,11 @@ def _joined(demo, online, rng, cfg: TD3Config):
     n_demo = round(cfg.batch_size * cfg.demo_share) if len(demo) else 0
     if len(online) == 0:
         return demo.sample(rng, cfg.batch_size), cfg.batch_size
-    parts = [demo.sample(rng, n_demo), online.sample(rng, cfg.batch_size - n_demo)] if n_demo else [online.sample(rng, cfg.batch_size)]
+    parts = (
+        [demo.sample(rng, n_demo), online.sample(rng, cfg.batch_size - n_demo)]
+        if n_demo
+        else [online.sample(rng, cfg.batch_size)]
+    )
     keys = ("obs", "act", "rew", "next_obs", "done")
     merged = type(parts[0])(*(np.concatenate([getattr(p, k) for p in parts]) for k in keys))
     return merged, n_demo

@@ -1,0 +1,210 @@
+"""The README's result tables and figures, generated from the committed results folder.
+
+`python benchmarks/readme_results.py` (`make readme`) rewrites every block of README.md
+between `<!-- results:NAME -->` and `<!-- /results:NAME -->` from `results/` and redraws
+the figures in `assets/readme/`; `--check` only compares and exits 1 when the README is
+not what the results say (a test runs it). The results come from `dynabarn-bench` sweeps
+(README "Comparison with the paper" gives the commands); nothing here runs an episode.
+
+results/
+  paper60_barn/    the paper's 60 generated worlds (ids 0-19, 100-109, 150-159, 200-219)
+  original60_barn/ the release's 60 worlds, imported with `dynabarn-worlds import`
+  unseen_barn/     the 240 generated worlds the learned policies never trained on
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+from dynabarn.bench import DIFFICULTIES, PAPER_FIG5, read_results, summarise
+from dynabarn.bench.results import RESULTS, WORLDS
+from dynabarn.bench.summary import FLOOR, plot_fig5
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS_DIR = ROOT / "results"
+README = ROOT / "README.md"
+FIGURES = ROOT / "assets" / "readme"
+TD3_TRAINING = ROOT / "dynabarn" / "policies" / "td3_training" / "training.json"
+
+SETS = {
+    "paper60_barn": "paper60",
+    "original60_barn": "original 60",
+    "unseen_barn": "unseen 240",
+}
+PLANNERS = {
+    FLOOR: "Blind floor (`straight`)",
+    "dwa": "DWA, our defaults (ROS's DWA biases, 2 m/s)",
+    "dwa@dwa_dynabarn_authors": "DWA, the authors' move_base configuration (`dwa@dwa_dynabarn_authors`)",
+    "teb": "TEB, our defaults (2 m/s)",
+    "teb@teb_ros_defaults": "TEB, teb_local_planner's defaults as the authors ran it (`teb@teb_ros_defaults`)",
+    "bc": "BC (shipped `bc.pt`)",
+    "td3": "TD3 (shipped `td3.pt`)",
+}
+PAPER_NAMES = {"dwa": "DWA", "teb": "TEB", "bc": "BC", "td3": "TD3"}
+
+
+def _ci(s: dict) -> str:
+    return f"{s['success']:.2f} [{s['success_lo']:.2f}, {s['success_hi']:.2f}]"
+
+
+def _skill(s: dict) -> str:
+    if s.get("skill") is None:
+        return "-"
+    return f"{s['skill']:+.2f} [{s['skill_lo']:+.2f}, {s['skill_hi']:+.2f}]"
+
+
+def load(folder: str) -> tuple[list[dict], list[dict]]:
+    """(rows, summary) of one results folder; empty when it is absent."""
+    rows = [r for r in read_results(RESULTS_DIR / folder / RESULTS) if not r.get("retry")]
+    return rows, summarise(rows) if rows else []
+
+
+def _by(summary: list[dict]) -> dict[tuple[str, str], dict]:
+    return {(s["planner"], s["difficulty"]): s for s in summary}
+
+
+def fig5_table(summaries: dict[str, list[dict]]) -> str:
+    """Success per difficulty: the paper's bar, then ours on each world set, planner by planner."""
+    lines = ["| planner | worlds | episodes | easy | medium | hard |", "|---|---|---|---|---|---|"]
+    for planner, title in PLANNERS.items():
+        base = planner.split("@")[0]
+        if base in PAPER_FIG5 and planner == base:
+            p = PAPER_FIG5[base]
+            lines.append(
+                f"| {PAPER_NAMES[base]}, **paper** | the paper's 60 | 200 per difficulty | "
+                + " | ".join(f"{p[d]:.2f}" for d in DIFFICULTIES)
+                + " |"
+            )
+        for folder in ("paper60_barn", "original60_barn"):
+            by = _by(summaries.get(folder, []))
+            if (planner, "all") not in by:
+                continue
+            cells = [(_ci(by[(planner, d)]) if (planner, d) in by else "-") for d in DIFFICULTIES]
+            lines.append(
+                f"| {title} | {SETS[folder]} | {by[(planner, 'all')]['episodes']} | " + " | ".join(cells) + " |"
+            )
+    return "\n".join(lines)
+
+
+def skill_table(summaries: dict[str, list[dict]]) -> str:
+    """Success minus the blind floor's on the same episodes, 95% intervals clustered by world."""
+    lines = ["| planner | worlds | easy | medium | hard | all |", "|---|---|---|---|---|---|"]
+    for planner, title in PLANNERS.items():
+        if planner == FLOOR:
+            continue
+        for folder in SETS:
+            by = _by(summaries.get(folder, []))
+            if (planner, "all") not in by:
+                continue
+            cells = [_skill(by[(planner, d)]) if (planner, d) in by else "-" for d in (*DIFFICULTIES, "all")]
+            lines.append(f"| {title} | {SETS[folder]} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def floor_table(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
+    """How much blind speed solves, per difficulty and world set, and whether the measured
+    difficulty of a world predicts its floor (Spearman over worlds)."""
+    from scipy.stats import spearmanr
+
+    lines = [
+        "| worlds | floor: easy | medium | hard | worlds the floor never solves | Spearman (floor, corridor blocked) "
+        "| Spearman (floor, crossings per minute) | Spearman (floor, obstacles) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for folder in ("paper60_barn", "original60_barn", "unseen_barn"):
+        rows, summary = folders.get(folder, ([], []))
+        by = _by(summary)
+        if (FLOOR, "all") not in by:
+            continue
+        per_world: dict[str, list[float]] = defaultdict(list)
+        for r in rows:
+            if r["planner"] == FLOOR:
+                per_world[r["world"]].append(float(r["outcome"] == "success"))
+        worlds_path = RESULTS_DIR / folder / WORLDS
+        measures = (
+            {w["name"]: w for w in json.loads(worlds_path.read_text())["worlds"]} if worlds_path.is_file() else {}
+        )
+        names = sorted(n for n in per_world if n in measures and measures[n].get("measured"))
+        floor = [sum(per_world[n]) / len(per_world[n]) for n in names]
+        cells = []
+        for key in ("corridor_blocked", "crossings_per_minute", "n_obstacles"):
+            x = [measures[n]["measured"][key] if key != "n_obstacles" else measures[n]["n_obstacles"] for n in names]
+            rho, p = spearmanr(x, floor) if len(names) > 2 else (math.nan, math.nan)
+            cells.append(f"{rho:+.2f} (p = {p:.1g})")
+        never = sum(v == 0 for v in floor)
+        lines.append(
+            f"| {SETS[folder]} | "
+            + " | ".join(_ci(by[(FLOOR, d)]) if (FLOOR, d) in by else "-" for d in DIFFICULTIES)
+            + f" | {never} of {len(names)} | "
+            + " | ".join(cells)
+            + " |"
+        )
+    return "\n".join(lines)
+
+
+def td3_training() -> str:
+    """The shipped TD3's run: command, time, steps, episodes, and its evaluations."""
+    if not TD3_TRAINING.is_file():
+        return "(no training record)"
+    t = json.loads(TD3_TRAINING.read_text())
+    cfg, evals = t["config"], t["evaluations"]
+    best = evals[-1]
+    return (
+        f"{t['steps']:,} environment steps, {t['updates']:,} gradient updates, {t['episodes']:,} episodes, "
+        f"{t['seconds'] / 60:.0f} min on this machine's 2 cores; {cfg['demos']} oracle demonstrations "
+        f"({sum(t['demo_outcomes'].values())} episodes); evaluation on the training worlds' own seeds: success "
+        f"{evals[0]['success']:.2f} after behaviour cloning, {best['success']:.2f} at the end."
+    )
+
+
+BLOCKS = {
+    "fig5": lambda f, s: fig5_table(s),
+    "skill": lambda f, s: skill_table(s),
+    "floor": lambda f, s: floor_table(f),
+    "td3-training": lambda f, s: td3_training(),
+}
+
+
+def render(readme: str, folders: dict, summaries: dict) -> str:
+    for name, make in BLOCKS.items():
+        pattern = re.compile(rf"(<!-- results:{name} -->\n).*?(\n<!-- /results:{name} -->)", re.S)
+        if not pattern.search(readme):
+            raise SystemExit(f"README.md has no block <!-- results:{name} --> ... <!-- /results:{name} -->")
+        readme = pattern.sub(lambda m: m.group(1) + make(folders, summaries) + m.group(2), readme)
+    return readme
+
+
+def draw(summaries: dict[str, list[dict]]) -> None:
+    for folder, summary in summaries.items():
+        if summary and folder != "unseen_barn":
+            plot_fig5(summary, FIGURES / f"fig5_{folder}.png", title=f"{SETS[folder]} worlds, barn protocol, 10 trials")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true", help="compare only; exit 1 when README.md differs")
+    args = parser.parse_args(argv)
+    folders = {folder: load(folder) for folder in SETS}
+    summaries = {folder: s for folder, (_, s) in folders.items()}
+    text = README.read_text()
+    new = render(text, folders, summaries)
+    if args.check:
+        if new != text:
+            print("README.md's result tables differ from results/: run `make readme`", file=sys.stderr)
+            return 1
+        print("README.md's result tables match results/")
+        return 0
+    README.write_text(new)
+    draw(summaries)
+    print(f"rewrote the result blocks of {README} and the figures in {FIGURES}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
