@@ -176,7 +176,8 @@ def render(readme: str, folders: dict, summaries: dict) -> str:
         pattern = re.compile(rf"(<!-- results:{name} -->\n).*?(\n<!-- /results:{name} -->)", re.S)
         if not pattern.search(readme):
             raise SystemExit(f"README.md has no block <!-- results:{name} --> ... <!-- /results:{name} -->")
-        readme = pattern.sub(lambda m: m.group(1) + make(folders, summaries) + m.group(2), readme)
+        text = make(folders, summaries)
+        readme = pattern.sub(lambda m, text=text: m.group(1) + text + m.group(2), readme)
     return readme
 
 
