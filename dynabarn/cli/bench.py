@@ -21,6 +21,7 @@ from dynabarn.errors import DynabarnError
 
 
 def bench_main(argv: Sequence[str] | None = None) -> int:
+    from dynabarn.planners import planner_presets
 
     parser = make_parser(
         "dynabarn-bench",
@@ -43,7 +44,7 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
         "--planner-config",
         default=None,
         help="parameters for every planner: key=value[,...], a .json file, or a shipped preset "
-        "(dwa_barn_challenge = the BARN Challenge's DWA configuration; teb_narrow = TEB for BARN's passages)",
+        + f"({', '.join(planner_presets())}; each file in dynabarn/planners/presets/ says its source)",
     )
     parser.add_argument(
         "--policy", type=Path, default=None, help="weights for bc/td3 (default: the policy shipped in the package)"

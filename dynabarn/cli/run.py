@@ -22,7 +22,7 @@ from dynabarn.errors import DynabarnError
 
 
 def run_main(argv: Sequence[str] | None = None) -> int:
-    from dynabarn.planners import available_planners
+    from dynabarn.planners import available_planners, planner_presets
 
     parser = make_parser(
         "dynabarn-run",
@@ -30,13 +30,15 @@ def run_main(argv: Sequence[str] | None = None) -> int:
     )
     add_world(parser)
     parser.add_argument(
-        "--planner", default="straight", help=f"planner name; available: {', '.join(available_planners())}"
+        "--planner",
+        default="straight",
+        help=f"planner name, or NAME@PRESET for a shipped preset; available: {', '.join(available_planners())}",
     )
     parser.add_argument(
         "--planner-config",
         default=None,
         help="planner parameters: key=value[,key=value], a .json file, or a shipped preset "
-        "(dwa_barn_challenge = the BARN Challenge's DWA configuration; teb_narrow = TEB for BARN's passages)",
+        + f"({', '.join(planner_presets())}; each file in dynabarn/planners/presets/ says its source)",
     )
     parser.add_argument(
         "--policy", type=Path, default=None, help="weights for bc/td3 (default: the policy shipped in the package)"
@@ -56,7 +58,7 @@ def run_main(argv: Sequence[str] | None = None) -> int:
 
 def _run_episode(args: argparse.Namespace) -> int:
 
-    from dynabarn.planners import get_planner
+    from dynabarn.planners import get_planner, planner_spec
     from dynabarn.protocol import get_protocol
     from dynabarn.recording import default_run_path
     from dynabarn.sim import SimConfig, Simulation
@@ -64,10 +66,11 @@ def _run_episode(args: argparse.Namespace) -> int:
 
     world_path = resolve_world(args.world)
     protocol = get_protocol(args.protocol)
-    config = planner_config(args.planner_config)
+    name, preset, _ = planner_spec(args.planner)
+    config = preset | planner_config(args.planner_config)
     if args.policy is not None:
         config["policy"] = str(args.policy)
-    planner = get_planner(args.planner, **config)
+    planner = get_planner(name, **config)
     sim = Simulation(world_path, config=SimConfig(dt=args.dt, control_rate=args.control_rate))
     log_path = None
     if args.video is not None and args.video.suffix.lower() not in (".mp4", ".gif"):
