@@ -11,7 +11,7 @@ LOCK := requirements.lock
 # The extras the tests exercise; the lock covers the package and all of them.
 EXTRAS := test,ray,learn,ros
 
-.PHONY: install demo worlds test lint format bench clean system-deps ros-deps lock verify-golden
+.PHONY: install demo worlds test lint format bench clean system-deps ros-deps lock verify-golden readme
 
 # The package and what running it needs.
 $(STAMP): pyproject.toml $(LOCK)
@@ -79,6 +79,10 @@ format: $(TEST_STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
+
+# The README's result tables and figures, from the committed results/ (README "Comparison with the paper").
+readme: $(STAMP)
+	$(BIN)/python benchmarks/readme_results.py
 
 # The golden set: the same episodes as the committed ones, or every field that differs.
 verify-golden: $(TEST_STAMP)

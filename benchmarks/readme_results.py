@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 RESULTS_DIR = ROOT / "results"
 README = ROOT / "README.md"
 FIGURES = ROOT / "assets" / "readme"
-TD3_TRAINING = ROOT / "dynabarn" / "policies" / "td3_training" / "training.json"
+TD3_TRAINING = RESULTS_DIR / "td3_training" / "training.json"
 
 SETS = {
     "paper60_barn": "paper60",

@@ -26,7 +26,7 @@ class _TD3Defaults:
 
     world_set: str = "paper60"
     difficulty: str = "all"
-    steps: int = 120_000
+    steps: int = 80_000
     envs: int = 1
     eval_every: int = 10_000
     eval_episodes: int = 30
@@ -37,8 +37,9 @@ class _TD3Defaults:
     bc_epochs: int = 30
     bc_lr: float = 1e-3
     critic_warmup: int = 2_000
-    bc_weight: float = 1.0
-    bc_decay_steps: int = 60_000
+    actor_start: int = 5_000
+    bc_weight: float = 5.0
+    bc_decay_steps: int = 100_000
     threads: int = 2
     seed: int = 0
 
@@ -56,6 +57,7 @@ TD3_OPTIONS = (
     ("bc_epochs", int, 0, 10_000, "behaviour-cloning epochs on the demonstrations before TD3"),
     ("bc_lr", float, 1e-8, 1.0, "Adam learning rate of the behaviour cloning"),
     ("critic_warmup", int, 0, 1_000_000, "critic-only updates on the demonstrations before TD3"),
+    ("actor_start", int, 0, 100_000_000, "steps of critic-only updates on the policy's own experience first"),
     ("bc_weight", float, 0.0, 100.0, "weight of the actor's distance to demonstrated actions (TD3+BC)"),
     ("bc_decay_steps", int, 1, 100_000_000, "steps over which bc_weight decays linearly to 0"),
     ("threads", int, 1, MAX_JOBS, "PyTorch threads (and demonstration processes)"),

@@ -67,8 +67,8 @@ imported, or by `import dynabarn` once gymnasium is imported; from a fresh inter
 `gymnasium.make("dynabarn.learn:dynabarn/DynaBARN-v0")` imports it.
 
 ## Version history
-- v0: first version (rendering, `is_success` and the time-limit spec added without
-  changing dynamics, observations or rewards).
+- v0: first version (rendering, `is_success`, the time-limit spec and the `privileged`
+  reset option added without changing dynamics, observations or rewards).
 """
 
 from __future__ import annotations

@@ -11,8 +11,10 @@ about 10^5 updates where the paper had 2 x 10^7 steps per difficulty:
 - `demos`: episodes of the privileged oracle in the training worlds, with the
   environment's rewards, kept in a demonstration buffer that fills `demo_share` of every
   batch (DDPGfD-style, Vecerik et al. 2017);
-- `bc_epochs`: the actor starts as behaviour cloning of those demonstrations, and
-  `critic_warmup` critic-only updates on them come first;
+- `bc_epochs`: the actor starts as behaviour cloning of those demonstrations,
+  `critic_warmup` critic-only updates on them come first, and the actor is left alone
+  for the first `actor_start` steps, while the critic learns the cloned policy's values
+  from its own experience (collisions included: the demonstrations have none);
 - `bc_weight`: the actor's loss adds that much of the squared distance to the
   demonstrated actions (TD3+BC, Fujimoto and Gu 2021, with Q normalised by its mean
   magnitude), decaying linearly to 0 at `bc_decay_steps`;
@@ -50,7 +52,7 @@ STATE, REPLAY, DEMOS, LOG = "state.pt", "replay.npz", "demos.npz", "train.log"
 
 @dataclass
 class TD3Config:
-    steps: int = 120_000
+    steps: int = 80_000
     envs: int = 1
     world_set: str = "paper60"
     difficulty: str | None = "all"
@@ -72,8 +74,9 @@ class TD3Config:
     bc_epochs: int = 30
     bc_lr: float = 1e-3
     critic_warmup: int = 2_000
-    bc_weight: float = 1.0
-    bc_decay_steps: int = 60_000
+    actor_start: int = 5_000
+    bc_weight: float = 5.0
+    bc_decay_steps: int = 100_000
     eval_every: int = 10_000
     eval_episodes: int = 30
     threads: int = 2
@@ -234,6 +237,10 @@ def _save_state(out: Path, learner: Learner, report: TD3Report, step: int, rng, 
     save_atomically(out / STATE, lambda f: torch.save(state, f))
 
 
+def _identity(cfg: dict | None) -> dict | None:
+    return None if cfg is None else {k: v for k, v in cfg.items() if k not in ("threads", "steps")}
+
+
 def _log(out: Path, line: str) -> None:
     with (out / LOG).open("a") as f:
         f.write(line + "\n")
@@ -253,13 +260,17 @@ def train_td3(cfg: TD3Config, out_dir: Path, *, progress=None) -> TD3Report:
     step = 0
     if (out / STATE).is_file():  # resume: the same configuration, from the last checkpoint
         old = json.loads(config_path.read_text()) if config_path.is_file() else None
-        if old != json.loads(json.dumps(asdict(cfg))):
+        # The thread count may change between sessions (a busier machine), and the step
+        # count (to train on, or to stop earlier); nothing else may.
+        if _identity(old) != _identity(json.loads(json.dumps(asdict(cfg)))):
             raise DynabarnError(f"{out} holds a run with another configuration ({config_path}); use another --out")
         state = torch.load(out / STATE, weights_only=False)
         for name, m in learner.modules().items():
             m.load_state_dict(state[name])
         step, learner.updates = state["step"], state["updates"]
         report = TD3Report(**state["report"])
+        report.steps = cfg.steps
+        write_atomically(config_path, json.dumps(asdict(cfg), indent=1))
         rng.bit_generator.state = json.loads(state["rng"])
         torch.set_rng_state(state["torch_rng"])
         demos, online = ReplayBuffer.load(out / DEMOS), ReplayBuffer.load(out / REPLAY)
@@ -327,7 +338,7 @@ def train_td3(cfg: TD3Config, out_dir: Path, *, progress=None) -> TD3Report:
             bc_weight = cfg.bc_weight * max(0.0, 1.0 - step / max(1, cfg.bc_decay_steps))
             for _ in range(max(1, cfg.envs // cfg.update_every) if step % cfg.update_every < cfg.envs else 0):
                 batch, n_demo = _joined(demos, online, rng, cfg)
-                learner.update(batch, n_demo, bc_weight)
+                learner.update(batch, n_demo, bc_weight, actor_too=step >= cfg.actor_start)
         if step % cfg.eval_every < cfg.envs or step >= cfg.steps:
             report.seconds = time.perf_counter() - t0
             ev = {"step": step, "seconds": report.seconds, **evaluate(learner.actor, cfg, cfg.eval_episodes)}
