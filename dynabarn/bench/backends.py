@@ -24,7 +24,12 @@ def _local_backend(jobs: list[Job], n_workers: int) -> Iterator[dict]:
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
-    ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
+    # fork is fast and carries run-time registrations, but not safe once PyTorch has run in
+    # this process: its OpenMP pool does not survive fork, and the workers hang on their
+    # first parallel operation (seen: a sweep of bc,td3 stuck with every worker waiting on
+    # a futex). Then fresh interpreters (spawn) run the episodes.
+    forkable = sys.platform.startswith("linux") and "torch" not in sys.modules
+    ctx = mp.get_context("fork" if forkable else "spawn")
     attempts: dict[str, int] = {}
     remaining = list(jobs)
     while remaining:
