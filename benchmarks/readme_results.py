@@ -173,10 +173,10 @@ BLOCKS = {
 
 def render(readme: str, folders: dict, summaries: dict) -> str:
     for name, make in BLOCKS.items():
-        pattern = re.compile(rf"(<!-- results:{name} -->\n).*?(\n<!-- /results:{name} -->)", re.S)
+        pattern = re.compile(rf"(<!-- results:{name} -->\n).*?(<!-- /results:{name} -->)", re.S)
         if not pattern.search(readme):
             raise SystemExit(f"README.md has no block <!-- results:{name} --> ... <!-- /results:{name} -->")
-        text = make(folders, summaries)
+        text = make(folders, summaries) + "\n"
         readme = pattern.sub(lambda m, text=text: m.group(1) + text + m.group(2), readme)
     return readme
 

@@ -155,7 +155,7 @@ def _bench(args: argparse.Namespace) -> int:
     for name, cfg, _ in planners:
         get_planner(name, **cfg)  # fail fast on an unknown planner or bad configuration
     if not args.no_floor and FLOOR not in {label for *_, label in planners}:
-        planners.append((FLOOR, {}, FLOOR))
+        planners.insert(0, (FLOOR, {}, FLOOR))  # first: a sweep cut short still has its floor
     protocol = get_protocol(args.protocol)
     worlds = worldset.world_set(args.set, worldset.parse_ids(args.worlds))
     jobs = bench.make_jobs(
