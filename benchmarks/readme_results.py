@@ -157,8 +157,9 @@ def td3_training() -> str:
     best = evals[-1]
     return (
         f"{t['steps']:,} environment steps, {t['updates']:,} gradient updates, {t['episodes']:,} episodes, "
-        f"{t['seconds'] / 60:.0f} min on this machine's 2 cores; {cfg['demos']} oracle demonstrations "
-        f"({sum(t['demo_outcomes'].values())} episodes); evaluation on the training worlds' own seeds: success "
+        f"{t['seconds'] / 60:.0f} min on this machine's 2 cores; {cfg['demos']} oracle demonstration episodes "
+        f"({', '.join(f'{n} {k}' for k, n in sorted(t['demo_outcomes'].items()))}); evaluation on 30 episodes of the "
+        f"training worlds with seeds of their own: success "
         f"{evals[0]['success']:.2f} after behaviour cloning, {best['success']:.2f} at the end."
     )
 
@@ -184,7 +185,8 @@ def render(readme: str, folders: dict, summaries: dict) -> str:
 def draw(summaries: dict[str, list[dict]]) -> None:
     for folder, summary in summaries.items():
         if summary and folder != "unseen_barn":
-            plot_fig5(summary, FIGURES / f"fig5_{folder}.png", title=f"{SETS[folder]} worlds, barn protocol, 10 trials")
+            title = f"{SETS[folder]} worlds, barn protocol (95% Wilson intervals; the floor dashed)"
+            plot_fig5(summary, FIGURES / f"fig5_{folder}.png", title=title)
 
 
 def main(argv: list[str] | None = None) -> int:
