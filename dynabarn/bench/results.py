@@ -166,15 +166,15 @@ def write_worlds(out_dir: Path, jobs: list[Job]) -> Path:
         except (json.JSONDecodeError, UnicodeDecodeError, RecursionError, KeyError, TypeError):
             old = {}
     worlds = dict(old)
-    folders = {Path(j.world_file).parent for j in jobs}
-    for folder in sorted(folders):
+    files = {(Path(j.world_file).parent, Path(j.world_file).name) for j in jobs}  # once, not per entry
+    for folder in sorted({folder for folder, _ in files}):
         try:
             entries = read_index(folder)["worlds"]
         except DynabarnError:
             continue
         for e in entries:
             name = e.get("name") or Path(e["file"]).stem
-            if any(Path(j.world_file).name == e["file"] and Path(j.world_file).parent == folder for j in jobs):
+            if (folder, e["file"]) in files:
                 worlds[name] = {
                     "name": name,
                     "id": e["id"],
