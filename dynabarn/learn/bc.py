@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,6 +21,34 @@ class BCReport:
     rows: int
     losses: list[float]
     seconds: float
+
+
+def fit_actor(
+    actor: Actor,
+    optim,
+    obs: torch.Tensor,
+    target: torch.Tensor,
+    *,
+    epochs: Iterable,
+    batch_size: int,
+    permutation: Callable[[int], Sequence[int]],
+) -> list[float]:
+    """Regress the actor onto the target actions by mean squared error: one pass over the
+    rows per item of `epochs`, in minibatches taken in `permutation(n)` order. Returns each
+    pass's mean loss. Behaviour cloning here and TD3's start share it."""
+    losses = []
+    for _ in epochs:
+        perm = permutation(len(obs))
+        total = 0.0
+        for i in range(0, len(obs), batch_size):
+            idx = perm[i : i + batch_size]
+            loss = torch.mean((actor(obs[idx]) - target[idx]) ** 2)
+            optim.zero_grad()
+            loss.backward()
+            optim.step()
+            total += float(loss.detach()) * len(idx)
+        losses.append(total / len(obs))
+    return losses
 
 
 def train_bc(
@@ -43,20 +72,16 @@ def train_bc(
     gen = torch.Generator().manual_seed(seed)
     actor = Actor(lookahead)
     optim = torch.optim.Adam(actor.parameters(), lr=lr)
-    losses = []
     t0 = time.perf_counter()
-    epochs_iter = range(epochs) if progress is None else progress(range(epochs))
-    for _ in epochs_iter:
-        perm = torch.randperm(len(obs), generator=gen)
-        total = 0.0
-        for i in range(0, len(obs), batch_size):
-            idx = perm[i : i + batch_size]
-            loss = torch.mean((actor(obs[idx]) - target[idx]) ** 2)
-            optim.zero_grad()
-            loss.backward()
-            optim.step()
-            total += float(loss.detach()) * len(idx)
-        losses.append(total / len(obs))
+    losses = fit_actor(
+        actor,
+        optim,
+        obs,
+        target,
+        epochs=range(epochs) if progress is None else progress(range(epochs)),
+        batch_size=batch_size,
+        permutation=lambda n: torch.randperm(n, generator=gen),
+    )
     seconds = time.perf_counter() - t0
     save_policy(
         actor,

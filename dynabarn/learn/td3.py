@@ -42,6 +42,7 @@ import torch
 from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically, write_atomically
 from dynabarn.learn import ENV_ID
+from dynabarn.learn.bc import fit_actor
 from dynabarn.learn.replay import ReplayBuffer, collect_demonstrations
 from dynabarn.planners.learned.models import Actor, Critic, save_policy
 
@@ -160,20 +161,19 @@ class Learner:
         }
 
     def clone_demonstrations(self, demos: ReplayBuffer, epochs: int, gen: np.random.Generator) -> float:
-        """Behaviour cloning of the demonstrated actions; the targets follow. Returns the last loss."""
-        obs = torch.as_tensor(demos.obs[: len(demos)].astype(np.float32))
-        act = torch.as_tensor(demos.act[: len(demos)])
-        loss = torch.zeros(())
-        for _ in range(epochs):
-            perm = gen.permutation(len(obs))
-            for i in range(0, len(obs), self.cfg.batch_size):
-                idx = perm[i : i + self.cfg.batch_size]
-                loss = ((self.actor(obs[idx]) - act[idx]) ** 2).mean()
-                self.clone_opt.zero_grad()
-                loss.backward()
-                self.clone_opt.step()
+        """Behaviour cloning of the demonstrated actions; the targets follow. Returns the
+        last epoch's mean loss."""
+        losses = fit_actor(
+            self.actor,
+            self.clone_opt,
+            torch.as_tensor(demos.obs[: len(demos)].astype(np.float32)),
+            torch.as_tensor(demos.act[: len(demos)]),
+            epochs=range(epochs),
+            batch_size=self.cfg.batch_size,
+            permutation=gen.permutation,
+        )
         self.actor_t.load_state_dict(self.actor.state_dict())
-        return float(loss.detach())
+        return losses[-1] if losses else float("nan")
 
     def update(self, batch, n_demo: int, bc_weight: float, *, actor_too: bool = True) -> None:
         cfg = self.cfg
