@@ -284,9 +284,10 @@ def train_td3(cfg: TD3Config, out_dir: Path, *, progress=None) -> TD3Report:
             # Demonstrations already collected for this folder (an earlier attempt) are kept.
             wanted = {"episodes": cfg.demos, "env": cfg.env_kwargs()}
             meta = out / (DEMOS + ".json")
-            if (out / DEMOS).is_file() and meta.is_file() and json.loads(meta.read_text())["of"] == wanted:
+            kept = json.loads(meta.read_text()) if (out / DEMOS).is_file() and meta.is_file() else {}
+            if kept.get("of") == wanted:
                 demos = ReplayBuffer.load(out / DEMOS)
-                report.demo_outcomes = json.loads(meta.read_text())["outcomes"]
+                report.demo_outcomes = kept["outcomes"]
             else:
                 report.demo_outcomes = collect_demonstrations(cfg.env_kwargs(), cfg.demos, demos, jobs=cfg.threads)
                 demos.save(out / DEMOS)
@@ -301,14 +302,10 @@ def train_td3(cfg: TD3Config, out_dir: Path, *, progress=None) -> TD3Report:
             )
         report.evaluations.append({"step": 0, "seconds": 0.0, **evaluate(learner.actor, cfg, cfg.eval_episodes)})
         _log(out, json.dumps(report.evaluations[-1]))
-    envs = gymnasium.vector.SyncVectorEnv(
+    vector_env = gymnasium.vector.AsyncVectorEnv if cfg.envs > 1 else gymnasium.vector.SyncVectorEnv
+    envs = vector_env(
         [_make_env(cfg) for _ in range(cfg.envs)], autoreset_mode=gymnasium.vector.AutoresetMode.SAME_STEP
     )
-    if cfg.envs > 1:
-        envs.close()
-        envs = gymnasium.vector.AsyncVectorEnv(
-            [_make_env(cfg) for _ in range(cfg.envs)], autoreset_mode=gymnasium.vector.AutoresetMode.SAME_STEP
-        )
     obs, _ = envs.reset(seed=cfg.seed + step)
     t0 = time.perf_counter() - report.seconds
     recent: list[float] = []
