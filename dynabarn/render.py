@@ -25,7 +25,8 @@ import numpy as np
 
 from dynabarn.errors import DynabarnError
 from dynabarn.mjcf import load_model, write_world
-from dynabarn.recording import TOPIC_POSE, Recording, obstacle_track, recorded_world
+from dynabarn.recording import Recording, attached_world, obstacle_track, pose_track, recorded_world
+from dynabarn.worlds.spec import WorldSpec
 from dynabarn.worlds.schedule import SchedulePlayer
 
 TRAIL_SECONDS = 2.0
@@ -52,19 +53,17 @@ def _interpolate(t: np.ndarray, xy: np.ndarray, at: np.ndarray) -> np.ndarray:
     return xy[k] + (xy[k1] - xy[k]) * u
 
 
-def _pose_track(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
-    poses = rec.topic(TOPIC_POSE)
-    if not poses:
-        raise DynabarnError(f"{rec.path}: the recording holds no robot poses")
-    t = np.array([p[0] for p in poses])
-    xyyaw = np.array(
-        [
-            [m.pose.position.x, m.pose.position.y, 2 * math.atan2(m.pose.orientation.z, m.pose.orientation.w)]
-            for _, m in poses
-        ]
-    )
-    xyyaw[:, 2] = np.unwrap(xyyaw[:, 2])
-    return t, xyyaw
+def recorded_model(rec: Recording, world: WorldSpec) -> mujoco.MjModel:
+    """The episode's MuJoCo model: the world file attached to the recording (the exact file
+    that ran), else one compiled anew from the recorded world description."""
+    attached = attached_world(rec)
+    if attached is not None:
+        name, data = attached
+        return load_model(rec.path.parent / name, beam_sensors=False, data=data)
+    with tempfile.TemporaryDirectory() as tmp:
+        xml = Path(tmp) / f"{world.name}.xml"
+        write_world(world, xml)
+        return load_model(xml, beam_sensors=False)
 
 
 def _add_geom(scene: mujoco.MjvScene, gtype: int, size, pos, rgba, mat=None) -> None:
@@ -130,15 +129,12 @@ def render_recording(
         raise DynabarnError(f"unknown camera {camera!r}; available: {', '.join(CAMERAS)}")
     world = recorded_world(rec)
     meta = rec.metadata
-    t_pose, track = _pose_track(rec)
+    t_pose, track = pose_track(rec)
     duration = float(t_pose[-1])
     n_frames = math.floor(duration * fps + 1e-9) + 1
     frame_times = np.arange(n_frames) / fps
 
-    with tempfile.TemporaryDirectory() as tmp:
-        xml = Path(tmp) / f"{world.name}.xml"
-        write_world(world, xml)
-        model = load_model(xml, beam_sensors=False)
+    model = recorded_model(rec, world)
     model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
     model.vis.global_.offheight = max(model.vis.global_.offheight, height)
     data = mujoco.MjData(model)

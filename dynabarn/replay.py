@@ -13,7 +13,7 @@ Entity tree (one per recording; several recordings of one world go under
 | <run>/robot_path | LineStrips3D: the path so far (at most 400 vertices) | every control tick |
 | <run>/scan | Points3D: laser returns in the world frame | every scan |
 | <run>/scan_beams | LineStrips3D: one beam in four from the laser to its return | every scan |
-| <run>/local_plan | LineStrips3D | when the planner recorded one |
+| <run>/local_plan, <run>/global_plan | LineStrips3D | when the planner recorded them |
 | metrics/<field>/<run> | Scalars: the fields `recording.topics` plots (v, w, clearance, ...) | every control tick |
 | description | TextDocument: world, planner, outcome | static |
 
@@ -38,6 +38,7 @@ from dynabarn.recording import (
     TOPIC_POSE,
     TOPIC_SCAN,
     Recording,
+    laser_poses,
     obstacle_pose,
     obstacle_track,
     recorded_world,
@@ -192,22 +193,31 @@ def log_recording(
     )
 
     # Scans: returns (not max-range) as points in the world, every fourth beam as a line.
+    # The scan is in the `laser` frame, placed by the robot's pose and the laser's mounting
+    # (recordings before /tf carried the laser's world pose in the scan itself).
     scans = rec.topic(TOPIC_SCAN)
     st = _times(scans)
+    in_world = bool(scans) and scans[0][1].frame_id == "world"
+    if scans and not in_world:
+        laser = laser_poses(rec, st)
+    laser_z = robot.get("laser_z", 0.3)
     pts_all, beams_all, n_pts, n_beams = [], [], [], []
-    for _, m in scans:
+    for k, (_, m) in enumerate(scans):
         r = np.asarray(m.ranges)
         a = np.linspace(m.start_angle, m.end_angle, len(r))
-        ox, oy = m.pose.position.x, m.pose.position.y
-        yaw = 2.0 * math.atan2(m.pose.orientation.z, m.pose.orientation.w)
+        if in_world:
+            ox, oy, oz = m.pose.position.x, m.pose.position.y, m.pose.position.z
+            yaw = 2.0 * math.atan2(m.pose.orientation.z, m.pose.orientation.w)
+        else:
+            (ox, oy, yaw), oz = laser[k], laser_z
         hit = r < robot.get("laser_range", [0.1, 30.0])[1] - 1e-6
         ang = a[hit] + yaw
         xy = np.column_stack([ox + r[hit] * np.cos(ang), oy + r[hit] * np.sin(ang)])
-        pts_all.append(np.column_stack([xy, np.full(len(xy), m.pose.position.z)]))
+        pts_all.append(np.column_stack([xy, np.full(len(xy), oz)]))
         n_pts.append(len(xy))
         sel = slice(None, None, BEAM_STRIDE)
         bxy = xy[sel]
-        origin = np.array([ox, oy, m.pose.position.z])
+        origin = np.array([ox, oy, oz])
         beams_all.append(
             np.stack(
                 [np.broadcast_to(origin, (len(bxy), 3)), np.column_stack([bxy, np.full(len(bxy), origin[2])])], axis=1
@@ -249,17 +259,19 @@ def log_recording(
         )
         stream.log(f"{run}/robot_path", rr.LineStrips3D.from_fields(colors=[color], radii=[0.03]), static=True)
 
-    # Local plans, when the planner recorded them.
-    plans = [(t, m["local_plan"]) for t, m in rec.topic(TOPIC_DEBUG) if m.get("local_plan")]
-    if plans:
+    # Local and global plans, when the planner recorded them.
+    for key, plan_color, z in (("local_plan", (250, 200, 0), 0.05), ("global_plan", (50, 115, 255), 0.03)):
+        plans = [(t, m[key]) for t, m in rec.topic(TOPIC_DEBUG) if m.get(key)]
+        if not plans:
+            continue
         stream.send_columns(
-            f"{run}/local_plan",
+            f"{run}/{key}",
             indexes=[_time_column(np.array([t for t, _ in plans]))],
             columns=rr.LineStrips3D.columns(
-                strips=[np.column_stack([np.asarray(p)[:, :2], np.full(len(p), 0.05)]) for _, p in plans]
+                strips=[np.column_stack([np.asarray(p)[:, :2], np.full(len(p), z)]) for _, p in plans]
             ),
         )
-        stream.log(f"{run}/local_plan", rr.LineStrips3D.from_fields(colors=[(250, 200, 0)], radii=[0.04]), static=True)
+        stream.log(f"{run}/{key}", rr.LineStrips3D.from_fields(colors=[plan_color], radii=[0.04]), static=True)
 
     # Time series: every field the topic table marks for plotting.
     for topic, name in plotted():

@@ -26,9 +26,30 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.planners.base import EndEpisode, EpisodeInfo, Observation, Planner
-from dynabarn.recording import McapRecorder
+from dynabarn.recording import McapRecorder, Topic
+from dynabarn.recording.schemas import document, number, obj
 
-TOPIC_INPUT = "/teleop/input"
+INPUT = Topic(
+    "/teleop/input",
+    "dynabarn.TeleopInput",
+    "10 Hz",
+    "the operator's input: keys pressed since the last tick, the command set, the mode, a gamepad's axes",
+    json_schema=document(
+        "dynabarn.TeleopInput",
+        obj(
+            "the operator's input at one control tick",
+            {
+                "keys": {"type": "array", "items": {"type": "string"}},
+                "v": number("forward speed set [m/s]"),
+                "w": number("yaw rate set [rad/s]"),
+                "mode": {"enum": ["slow", "fast"]},
+                "gamepad": {"type": ["object", "null"], "description": "axes and buttons, null without a gamepad"},
+            },
+            ("keys", "v", "w", "mode", "gamepad"),
+        ),
+    ),
+)
+TOPIC_INPUT = INPUT.name
 MANIFEST = "manifest.jsonl"
 
 KEY_UP, KEY_DOWN, KEY_LEFT, KEY_RIGHT = 265, 264, 263, 262
@@ -220,7 +241,7 @@ def run_teleop(
     sim = Simulation(world_path)
     state = TeleopState()
     recorder = McapRecorder(
-        out, extra_channels=(TOPIC_INPUT,), extra_metadata={"source": "human", "operator": operator}
+        out, extra_channels=(INPUT,), extra_metadata={"source": "human", "operator": operator}
     )
     gamepad = Gamepad()
     planner = TeleopPlanner(state, recorder, gamepad)

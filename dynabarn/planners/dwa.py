@@ -146,10 +146,12 @@ class DWAPlanner(Planner):
         self.global_planner = GlobalPlanner.for_robot(info.walls, info.goal, info.footprint, info.static_obstacles)
         self.period = info.control_period
         self._last_plan = np.zeros((0, 2))
+        self._global_plan = np.zeros((0, 2))
         self._prev = np.zeros(2)
 
     def debug(self) -> dict:
-        return {"local_plan": self._last_plan} if len(self._last_plan) else {}
+        plans = {"local_plan": self._last_plan, "global_plan": self._global_plan}
+        return {k: v for k, v in plans.items() if len(v)}
 
     def act(self, obs: Observation) -> tuple[float, float]:
         cfg, info = self.cfg, self.info
@@ -157,6 +159,7 @@ class DWAPlanner(Planner):
         self.costmap.update(pose, obs.scan, info.laser_angles, info.laser_offset, info.laser_range[1])
         path = self.global_planner.plan_around(pose[0], pose[1], self.costmap, block_radius=cfg.collision_radius)
         local_goal, path = self.global_planner.local_goal(pose[0], pose[1], cfg.lookahead, path)
+        self._global_plan = path
         # The part of the plan near the robot (scored against), at most `lookahead` + 1 m long.
         near = path[: max(2, int((cfg.lookahead + 1.0) / self.global_planner.resolution) + 2)]
 

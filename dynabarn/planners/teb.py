@@ -157,12 +157,14 @@ class TEBPlanner(Planner):
         self.global_planner = GlobalPlanner.for_robot(info.walls, info.goal, info.footprint, info.static_obstacles)
         self._band = None
         self._dts = None
+        self._global_plan = np.zeros((0, 2))
         self._rerouted = self._was_rerouted = False
         self.costmap = LocalCostmap(self.cfg.costmap)
         self._beams = np.arange(0, len(info.laser_angles), self.cfg.obstacle_stride)
 
     def debug(self) -> dict:
-        return {"local_plan": self._band[:, :2]} if self._band is not None else {}
+        plans = {"local_plan": self._band[:, :2] if self._band is not None else (), "global_plan": self._global_plan}
+        return {k: v for k, v in plans.items() if len(v)}
 
     # -- band construction -----------------------------------------------------------------
     def _initial_band(self, start: np.ndarray, goal: np.ndarray, path: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -291,6 +293,7 @@ class TEBPlanner(Planner):
         self._rerouted = rerouted and not self._was_rerouted
         self._was_rerouted = rerouted
         local_goal, path = self.global_planner.local_goal(start[0], start[1], cfg.lookahead, path)
+        self._global_plan = path
         if np.hypot(*(start[:2] - self.info.goal)) < cfg.lookahead:
             goal_heading = math.atan2(local_goal[1] - start[1], local_goal[0] - start[0])
         else:

@@ -1,14 +1,20 @@
 """Recordings: one MCAP file per episode (writer), read back (reader), one table of
-topics (topics), and the protobuf wire encoding of foxglove messages (wire)."""
+topics (topics), their JSON schemas (schemas), what is drawn (scene), and the protobuf
+wire encoding of foxglove messages (wire)."""
 
 from dynabarn.recording.reader import (
     Recording,
     RecordingError,
+    attached_world,
+    laser_poses,
     message_digest,
     obstacle_track,
+    pose_track,
     read_recording,
     recorded_world,
 )
+from dynabarn.recording.scene import obstacle_pose
+from dynabarn.recording.schemas import MACHINE_FIELDS, WALL_CLOCK_FIELDS
 from dynabarn.recording.topics import (
     TOPIC_CMD,
     TOPIC_DEBUG,
@@ -16,25 +22,29 @@ from dynabarn.recording.topics import (
     TOPIC_METADATA,
     TOPIC_METRICS,
     TOPIC_OBSTACLES,
+    TOPIC_PLANS,
     TOPIC_POSE,
     TOPIC_RESULT,
     TOPIC_SCAN,
     TOPIC_STATIC,
+    TOPIC_TF,
     TOPICS,
     Topic,
 )
 from dynabarn.recording.writer import (
-    MACHINE_FIELDS,
+    EPISODE_METADATA,
     MACHINE_METADATA,
-    WALL_CLOCK_FIELDS,
+    RESULT_METADATA,
+    WORLD_MEDIA_TYPE,
     McapRecorder,
     default_run_path,
-    obstacle_pose,
 )
 
 __all__ = [
+    "EPISODE_METADATA",
     "MACHINE_FIELDS",
     "MACHINE_METADATA",
+    "RESULT_METADATA",
     "TOPICS",
     "TOPIC_CMD",
     "TOPIC_DEBUG",
@@ -42,19 +52,25 @@ __all__ = [
     "TOPIC_METADATA",
     "TOPIC_METRICS",
     "TOPIC_OBSTACLES",
+    "TOPIC_PLANS",
     "TOPIC_POSE",
     "TOPIC_RESULT",
     "TOPIC_SCAN",
     "TOPIC_STATIC",
+    "TOPIC_TF",
     "WALL_CLOCK_FIELDS",
+    "WORLD_MEDIA_TYPE",
     "McapRecorder",
     "Recording",
     "RecordingError",
     "Topic",
+    "attached_world",
     "default_run_path",
+    "laser_poses",
     "message_digest",
     "obstacle_pose",
     "obstacle_track",
+    "pose_track",
     "read_recording",
     "recorded_world",
 ]

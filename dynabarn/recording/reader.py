@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import struct
 from collections import defaultdict
 from collections.abc import Callable
@@ -27,6 +28,9 @@ class Recording:
             dicts, foxglove topics to protobuf messages.
         schemas: topic -> schema name.
         truncated: True when the file ended early (a killed writer); `error` says how.
+        attachments: name -> bytes of the file's attachments (the world's MJCF).
+        records: name -> the MCAP metadata records (`dynabarn.episode`, `dynabarn.result`,
+            `dynabarn.machine`), values as written (strings).
     """
 
     path: Path
@@ -34,6 +38,8 @@ class Recording:
     schemas: dict[str, str] = field(default_factory=dict)
     truncated: bool = False
     error: str = ""
+    attachments: dict[str, bytes] = field(default_factory=dict)
+    records: dict[str, dict[str, str]] = field(default_factory=dict)
 
     def topic(self, name: str) -> list[tuple[float, object]]:
         return self.messages.get(name, [])
@@ -56,8 +62,27 @@ class RecordingError(DynabarnError):
     """A file that is not a readable MCAP recording at all."""
 
 
+def attached_world(rec: Recording) -> tuple[str, bytes] | None:
+    """(file name, bytes) of the world file attached to the recording, checked against the
+    hash its metadata records; None when the recording has none (older recordings)."""
+    meta = rec.metadata or {}
+    for name, data in rec.attachments.items():
+        if not name.endswith(".xml"):
+            continue
+        if meta.get("world_sha256") and hashlib.sha256(data).hexdigest() != meta["world_sha256"]:
+            raise DynabarnError(f"{rec.path}: the attached world {name} does not match the recorded world_sha256")
+        return name, data
+    return None
+
+
 def recorded_world(rec: Recording) -> WorldSpec:
-    """The world the episode ran in, from the recording's metadata."""
+    """The world the episode ran in: its attached world file, else the recording's metadata."""
+    attached = attached_world(rec)
+    if attached is not None:
+        from dynabarn.mjcf import read_world
+
+        name, data = attached
+        return read_world(rec.path.parent / name, data)
     meta = rec.metadata
     if not meta or "world" not in meta or "keyframes" not in meta:
         raise DynabarnError(f"{rec.path}: no world metadata in this recording")
@@ -67,6 +92,34 @@ def recorded_world(rec: Recording) -> WorldSpec:
     except (KeyError, TypeError) as exc:
         raise DynabarnError(f"{rec.path}: malformed world metadata ({exc})") from None
     return WorldSpec.from_dict(world, keyframes)
+
+
+def pose_track(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """The robot's recorded poses: times (T,) [s] and (x, y, yaw) (T, 3), yaw unwrapped."""
+    from dynabarn.recording.topics import TOPIC_POSE
+
+    poses = rec.topic(TOPIC_POSE)
+    if not poses:
+        raise DynabarnError(f"{rec.path}: the recording holds no robot poses")
+    t = np.array([p[0] for p in poses])
+    xyyaw = np.array(
+        [
+            [m.pose.position.x, m.pose.position.y, 2 * math.atan2(m.pose.orientation.z, m.pose.orientation.w)]
+            for _, m in poses
+        ]
+    )
+    xyyaw[:, 2] = np.unwrap(xyyaw[:, 2])
+    return t, xyyaw
+
+
+def laser_poses(rec: Recording, times: np.ndarray) -> np.ndarray:
+    """(x, y, yaw) of the laser in the world at `times` (K,): the robot's pose (interpolated
+    between the 50 Hz poses) composed with the laser's mounting, as `/tf` says."""
+    t, track = pose_track(rec)
+    robot = np.column_stack([np.interp(times, t, track[:, k]) for k in range(3)])
+    ox, oy = ((rec.metadata or {}).get("robot", {}).get("laser_offset") or [0.0, 0.0])[:2]
+    c, s = np.cos(robot[:, 2]), np.sin(robot[:, 2])
+    return np.column_stack([robot[:, 0] + c * ox - s * oy, robot[:, 1] + s * ox + c * oy, robot[:, 2]])
 
 
 def obstacle_track(rec: Recording, world: WorldSpec) -> tuple[np.ndarray, np.ndarray]:
@@ -163,4 +216,27 @@ def read_recording(path: Path | str, *, decode: bool = True) -> Recording:
     rec.messages = dict(rec.messages)
     if rec.truncated and not rec.messages:
         raise RecordingError(f"{path}: corrupt or empty recording ({rec.error})")
+    rec.attachments, rec.records = _attachments_and_records(path)
     return rec
+
+
+def _attachments_and_records(path: Path) -> tuple[dict[str, bytes], dict[str, dict[str, str]]]:
+    """The file's attachments and metadata records, from a record stream (so a file cut
+    before its summary still gives those written before the cut). Chunks are skipped
+    unread: attachments and metadata live outside them."""
+    from mcap.exceptions import McapError
+    from mcap.records import Attachment, Metadata
+    from mcap.stream_reader import StreamReader
+
+    attachments: dict[str, bytes] = {}
+    records: dict[str, dict[str, str]] = {}
+    with path.open("rb") as f:
+        try:
+            for record in StreamReader(f, skip_magic=False, emit_chunks=True, validate_crcs=True).records:
+                if isinstance(record, Attachment):
+                    attachments[record.name] = bytes(record.data)
+                elif isinstance(record, Metadata):
+                    records[record.name] = dict(record.metadata)
+        except (McapError, EOFError, ValueError, OSError, struct.error):
+            pass  # a cut: keep what came before it
+    return attachments, records

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dynabarn.determinism import snap_array
+from dynabarn.recording.schemas import DEBUG_SCHEMA, METADATA_SCHEMA, document, obj, result_schema
 from dynabarn.sim.events import Tick
 
 DEBUG_RESOLUTION = 1e-4
@@ -56,6 +57,10 @@ def _number(doc: str) -> dict:
     return {"type": "number", "description": doc}
 
 
+def _nullable(doc: str) -> dict:
+    return {"type": ["number", "null"], "description": doc}
+
+
 def _command(tick: Tick) -> dict:
     v, w = tick.command.tolist()
     raw_v, raw_w = tick.raw_command.tolist()
@@ -74,8 +79,24 @@ def _on_grid(value):
     return value
 
 
+GLOBAL_PLAN_POINTS = 200
+"""A recorded global plan is thinned to at most this many points (the first and last kept)."""
+
+
+def thin(points: np.ndarray, most: int) -> np.ndarray:
+    """At most `most` of the points, evenly spread, the first and last included."""
+    if len(points) <= most:
+        return points
+    return points[np.unique(np.linspace(0, len(points) - 1, most).astype(np.int64))]
+
+
 def _planner_debug(tick: Tick) -> dict | None:
-    return {k: _on_grid(v) for k, v in tick.debug.items()} if tick.debug else None
+    if not tick.debug:
+        return None
+    debug = {k: _on_grid(v) for k, v in tick.debug.items()}
+    if isinstance(debug.get("global_plan"), np.ndarray):
+        debug["global_plan"] = thin(debug["global_plan"], GLOBAL_PLAN_POINTS)
+    return debug
 
 
 METADATA = Topic(
@@ -84,7 +105,7 @@ METADATA = Topic(
     "once",
     "world, keyframes, protocol, planner and config, seed, clock offset, versions (dynabarn, mujoco, "
     "numpy, scipy; torch for bc/td3)",
-    json_schema={"type": "object"},
+    json_schema=METADATA_SCHEMA,
 )
 STATIC = Topic(
     "/world/static",
@@ -100,22 +121,34 @@ OBSTACLES = Topic(
     "cylinders for the cylinder and capsule obstacles (a capsule as a horizontal cylinder along its axis), "
     "cubes for the boxes, each list in world order; `dynabarn.recording.obstacle_track` undoes it",
 )
-SCAN = Topic("/scan", "foxglove.LaserScan", "10 Hz", "frame `world`, pose = the laser's pose")
+SCAN = Topic("/scan", "foxglove.LaserScan", "10 Hz", "frame `laser` (placed by `/tf`), pose = identity")
+TF = Topic(
+    "/tf",
+    "foxglove.FrameTransforms",
+    "50 Hz",
+    "the frame tree `world -> odom -> base_link -> laser` in every message (odom = world: the pose is the "
+    "simulator's, without drift)",
+)
 POSE = Topic("/robot/pose", "foxglove.PoseInFrame", "50 Hz", "frame `world`")
 CMD = Topic(
     "/cmd_vel",
     "dynabarn.Command",
     "10 Hz",
     "v, w sent; raw_v, raw_w from the planner (on the 1 um/s command grid)",
-    json_schema={
-        "type": "object",
-        "properties": {
-            "v": _number("forward speed sent [m/s]"),
-            "w": _number("yaw rate sent [rad/s]"),
-            "raw_v": _number("planner output before limits [m/s]"),
-            "raw_w": _number("planner output before limits [rad/s]"),
-        },
-    },
+    json_schema=document(
+        "dynabarn.Command",
+        obj(
+            "the command of one control tick",
+            {
+                "v": _number("forward speed sent [m/s]"),
+                "w": _number("yaw rate sent [rad/s]"),
+                "raw_v": _number("planner output before limits [m/s]"),
+                "raw_w": _number("planner output before limits [rad/s]"),
+            },
+            ("v", "w", "raw_v", "raw_w"),
+            closed=True,
+        ),
+    ),
     per_tick=_command,
     plots=("v", "w"),
 )
@@ -124,15 +157,20 @@ METRICS = Topic(
     "dynabarn.StepMetrics",
     "10 Hz",
     "measured v, w, clearance, distance to goal",
-    json_schema={
-        "type": "object",
-        "properties": {
-            "v": {"type": "number"},
-            "w": {"type": "number"},
-            "clearance": {"type": "number"},
-            "distance_to_goal": {"type": "number"},
-        },
-    },
+    json_schema=document(
+        "dynabarn.StepMetrics",
+        obj(
+            "what was measured at one control tick",
+            {
+                "v": _number("measured forward speed [m/s]"),
+                "w": _number("measured yaw rate [rad/s]"),
+                "clearance": _nullable("footprint to the nearest obstacle's surface [m] (null: no obstacles)"),
+                "distance_to_goal": _number("robot centre to the goal [m]"),
+            },
+            ("v", "w", "clearance", "distance_to_goal"),
+            closed=True,
+        ),
+    ),
     per_tick=_step_metrics,
     plots=("clearance", "distance_to_goal"),
 )
@@ -140,25 +178,36 @@ DEBUG = Topic(
     "/planner/debug",
     "dynabarn.PlannerDebug",
     "10 Hz",
-    "e.g. a local plan, on a 0.1 mm grid, when the planner has any",
-    json_schema={"type": "object"},
+    "e.g. local and global plans, on a 0.1 mm grid, when the planner has any (drawn on `/planner/plans`)",
+    json_schema=DEBUG_SCHEMA,
     per_tick=_planner_debug,
+)
+PLANS = Topic(
+    "/planner/plans",
+    "foxglove.SceneUpdate",
+    "10 Hz",
+    "the local plan (entity `local_plan`, yellow) and the global plan (`global_plan`, blue) as line strips, "
+    "frame `world`, when the planner has them",
 )
 RESULT = Topic(
     "/episode/result",
     "dynabarn.EpisodeResult",
     "once, at the end",
     "the metrics, without wall-clock fields",
-    json_schema={"type": "object"},
+    json_schema=result_schema(),
 )
 
-TOPICS: tuple[Topic, ...] = (METADATA, STATIC, GOAL, OBSTACLES, SCAN, POSE, CMD, METRICS, DEBUG, RESULT)
+TOPICS: tuple[Topic, ...] = (METADATA, STATIC, GOAL, OBSTACLES, SCAN, TF, POSE, CMD, METRICS, DEBUG, PLANS, RESULT)
 """Every topic, in the README's order; per-tick JSON topics are written in this order."""
 
 # The names under which the rest of the package knows them.
 TOPIC_METADATA, TOPIC_STATIC, TOPIC_GOAL = METADATA.name, STATIC.name, GOAL.name
 TOPIC_OBSTACLES, TOPIC_SCAN, TOPIC_POSE = OBSTACLES.name, SCAN.name, POSE.name
 TOPIC_CMD, TOPIC_METRICS, TOPIC_DEBUG, TOPIC_RESULT = CMD.name, METRICS.name, DEBUG.name, RESULT.name
+TOPIC_TF, TOPIC_PLANS = TF.name, PLANS.name
+
+FRAMES = ("world", "odom", "base_link", "laser")
+"""The frame tree on `/tf`, root first: each frame is the child of the one before."""
 
 
 def markdown_table() -> str:

@@ -145,13 +145,15 @@ def scene_entity(
     *,
     cylinders: list[bytes] = (),
     cubes: list[bytes] = (),
+    lines: list[bytes] = (),
     primitives: bytes = b"",
 ) -> bytes:
-    """foxglove.SceneEntity: timestamp=1, frame_id=2, id=3, cubes=8, cylinders=10, then
-    `primitives` already encoded as fields (a `PrimitiveBlock`)."""
+    """foxglove.SceneEntity: timestamp=1, frame_id=2, id=3, cubes=8, cylinders=10, lines=11,
+    then `primitives` already encoded as fields (a `PrimitiveBlock`)."""
     parts = [length_delimited(1, timestamp(ns)), frame, string(3, entity_id)]
     parts += [length_delimited(8, c) for c in cubes]
     parts += [length_delimited(10, c) for c in cylinders]
+    parts += [length_delimited(11, c) for c in lines]
     parts.append(primitives)
     return b"".join(parts)
 
@@ -199,3 +201,55 @@ class PrimitiveBlock:
         """The block's bytes with positions xy (n, 2) [m], in the primitives' order."""
         self._bytes[self._index] = np.ascontiguousarray(xy, dtype="<f8").view(np.uint8).ravel()
         return bytes(self._buffer)
+
+
+def frame_transform(ts: bytes, parent: bytes, child: bytes, translation: bytes, rotation: bytes) -> bytes:
+    """foxglove.FrameTransform body: timestamp=1 (an encoded Timestamp field), parent=2,
+    child=3 (pre-encoded string fields), translation=4 (Vector3 body), rotation=5 (Quaternion body)."""
+    return b"".join(
+        (
+            ts,
+            parent,
+            child,
+            bytes((_key(4, _LEN), len(translation))),
+            translation,
+            bytes((_key(5, _LEN), len(rotation))),
+            rotation,
+        )
+    )
+
+
+def quaternion(x: float, y: float, z: float, w: float) -> bytes:
+    return _QUAT.pack(0x09, x, 0x11, y, 0x19, z, 0x21, w)
+
+
+def frame_transforms(transforms: list[bytes]) -> bytes:
+    """foxglove.FrameTransforms with `transforms` (field 1), each a FrameTransform body."""
+    return b"".join(length_delimited(1, t) for t in transforms)
+
+
+# Point3 {x=1, y=2, z=3} as a repeated field 5 of LinePrimitive: key, length 27, then the
+# three tagged doubles; 29 bytes per point, written for all points at once with numpy.
+_POINT = np.dtype(
+    [("key", "u1"), ("len", "u1"), ("tx", "u1"), ("x", "<f8"), ("ty", "u1"), ("y", "<f8"), ("tz", "u1"), ("z", "<f8")]
+)
+
+
+def line_strip(points_xy: np.ndarray, z: float, thickness: float, color_body: bytes) -> bytes:
+    """foxglove.LinePrimitive body: a LINE_STRIP (type 0, omitted as proto3 does) through
+    points (n, 2) at height z, in the entity's frame, `thickness` [m] wide."""
+    xy = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
+    pts = np.empty(len(xy), dtype=_POINT)
+    pts["key"], pts["len"] = _key(5, _LEN), 27
+    pts["tx"], pts["ty"], pts["tz"] = 0x09, 0x11, 0x19
+    pts["x"], pts["y"], pts["z"] = xy[:, 0], xy[:, 1], z
+    return b"".join(
+        (
+            bytes((_key(2, _LEN), _POSE_LEN)),
+            pose(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0),
+            _DOUBLE.pack(_key(3, _F64), thickness),
+            pts.tobytes(),
+            bytes((_key(6, _LEN), len(color_body))),
+            color_body,
+        )
+    )

@@ -21,37 +21,42 @@ from pathlib import Path
 import foxglove
 import numpy as np
 from foxglove.mcap import MCAPWriteOptions
-from foxglove.messages import LaserScan, PoseInFrame, SceneUpdate
+from foxglove.messages import FrameTransforms, LaserScan, PoseInFrame, SceneUpdate
 
 from dynabarn.metrics import EpisodeResult
 from dynabarn.provenance import portable_path
-from dynabarn.recording import wire
+from dynabarn.recording import scene, wire
+from dynabarn.recording.schemas import MACHINE_FIELDS
 from dynabarn.recording.topics import (
+    TOPIC_DEBUG,
     TOPIC_GOAL,
     TOPIC_METADATA,
     TOPIC_OBSTACLES,
+    TOPIC_PLANS,
     TOPIC_POSE,
     TOPIC_RESULT,
     TOPIC_SCAN,
     TOPIC_STATIC,
+    TOPIC_TF,
     TOPICS,
+    Topic,
 )
 from dynabarn.robot import JACKAL
 from dynabarn.sim.events import EpisodeStart, Tick
-from dynabarn.worlds.spec import Obstacle
 
 CHUNK_SIZE = 64 * 1024
 SPACE_RESERVE = 4 * 1024 * 1024
 """Free bytes below which a recording stops cleanly (MCAP's writer cannot recover from a
 failed write: it would print one error per message and abort on close)."""
-WALL_CLOCK_FIELDS = ("rtf", "wall_time", "planner_ms_mean", "planner_ms_p95")
-"""Result fields that depend on the machine's speed, kept out of recordings."""
-MACHINE_FIELDS = (*WALL_CLOCK_FIELDS, "machine")
-"""Result fields kept out of the recording's messages (the machine block goes into the
-MCAP metadata record `dynabarn.machine`), so the messages are byte-identical across machines."""
 MACHINE_METADATA = "dynabarn.machine"
+EPISODE_METADATA = "dynabarn.episode"
+RESULT_METADATA = "dynabarn.result"
+"""MCAP metadata records: what `mcap info` and Foxglove's metadata view show of an episode
+without reading its messages (every value a string, as MCAP requires)."""
 PROFILE = "dynabarn"
 PER_TICK = tuple(t for t in TOPICS if t.per_tick is not None)
+LATCHED = (TOPIC_METADATA, TOPIC_STATIC, TOPIC_GOAL)
+"""Topics written once at the start: a live viewer that subscribes late is sent them again."""
 
 
 def _ns(t: float) -> int:
@@ -80,37 +85,53 @@ def default_run_path(runs_dir: Path, world: str, planner: str, protocol: str, se
 SOURCES = {"teleop": "human", "oracle": "oracle"}
 """Planner name -> source of the demonstration (anything else: `planner`)."""
 
-_WORLD_FRAME = wire.string(2, "world")
-_OBSTACLE_COLOR = wire.color(0.85, 0.15, 0.12, 1.0)
-_WALL_COLOR = wire.color(0.55, 0.55, 0.6, 1.0)
-_GOAL_COLOR = wire.color(0.1, 0.8, 0.2, 0.5)
+
+class _Fanout:
+    """One topic's channels, one per foxglove context (the file's, a live server's)."""
+
+    __slots__ = ("channels",)
+
+    def __init__(self, channels: list[foxglove.Channel]) -> None:
+        self.channels = channels
+
+    def log(self, data: bytes, log_time: int) -> None:
+        for c in self.channels:
+            c.log(data, log_time=log_time)
 
 
 class McapRecorder:
     """Records an episode to one MCAP file as it runs (an `EpisodeObserver`).
 
     Args:
-        path: the file to write (replaced if it exists).
+        path: the file to write (replaced if it exists); None: no file (a live view only).
         chunk_size: uncompressed chunk size [bytes]; small chunks bound what a killed
             process loses.
-        extra_channels: further JSON topics a caller logs to with `log_json`.
+        extra_channels: further JSON topics (`Topic`s with a schema) a caller logs to with
+            `log_json`.
         extra_metadata: fields added to `/world/metadata` (e.g. the operator's name).
+        live: further foxglove contexts every message is sent to as well (a live server's),
+            under the same topics and schemas.
     """
 
     def __init__(
         self,
-        path: Path | str,
+        path: Path | str | None,
         *,
         chunk_size: int = CHUNK_SIZE,
-        extra_channels: tuple[str, ...] = (),
+        extra_channels: tuple[Topic, ...] = (),
         extra_metadata: dict | None = None,
+        live: tuple[foxglove.Context, ...] = (),
     ):
-        self.path = Path(path)
+        self.path = Path(path) if path is not None else None
         self.chunk_size = chunk_size
         self.extra_channels = extra_channels
         self.extra_metadata = dict(extra_metadata or {})
+        self.live = live
         self._writer = None
-        self._json: dict[str, foxglove.Channel] = {}
+        self._open = False
+        self._json: dict[str, _Fanout] = {}
+        self.latched: dict[str, list[tuple[bytes, int]]] = {}
+        """What was written on the LATCHED topics: (message, log time [ns])."""
         self.stopped: str | None = None
         """Why the recording ended before the episode (a nearly full disk), or None."""
 
@@ -120,66 +141,70 @@ class McapRecorder:
         return st.f_bavail * st.f_frsize
 
     def _room(self) -> bool:
-        return self._space_left() >= SPACE_RESERVE + 2 * self.chunk_size
+        return self.path is None or self._space_left() >= SPACE_RESERVE + 2 * self.chunk_size
 
-    def on_start(self, start: EpisodeStart) -> None:
+    def _open_file(self, start: EpisodeStart) -> foxglove.Context:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if self.path.is_dir():
             raise IsADirectoryError(errno.EISDIR, f"{self.path} is a folder, not a recording file")
         if not self._room():
             raise OSError(errno.ENOSPC, f"no space left for a recording in {self.path.parent}")
-        self._ctx = foxglove.Context()
+        ctx = foxglove.Context()
         self._writer = foxglove.open_mcap(
             self.path,
             allow_overwrite=True,
-            context=self._ctx,
+            context=ctx,
             # compression_threads=0: compress on this thread, so one episode uses one core.
             writer_options=MCAPWriteOptions(chunk_size=self.chunk_size, profile=PROFILE, compression_threads=0),
         )
+        # The world file itself, so the recording rebuilds its world without the project
+        # (create and log time 0: the same bytes on every machine).
+        if start.world_xml:
+            self._writer.attach(
+                log_time=0, create_time=0, name=start.world_path.name, media_type=WORLD_MEDIA_TYPE, data=start.world_xml
+            )
+        self._writer.write_metadata(EPISODE_METADATA, _strings(_episode_record(start)))
+        return ctx
 
-        def proto_channel(topic: str, message_type) -> foxglove.Channel:
-            return foxglove.Channel(
-                topic, schema=message_type.get_schema(), message_encoding="protobuf", context=self._ctx
+    def on_start(self, start: EpisodeStart) -> None:
+        contexts = [self._open_file(start)] if self.path is not None else []
+        contexts += list(self.live)
+        self._contexts = contexts  # a context dropped closes its channels
+        self._open = True
+
+        def fanout(topic: str, schema: foxglove.Schema, encoding: str) -> _Fanout:
+            return _Fanout(
+                [foxglove.Channel(topic, schema=schema, message_encoding=encoding, context=c) for c in contexts]
             )
 
-        self._scan = proto_channel(TOPIC_SCAN, LaserScan)
-        self._pose = proto_channel(TOPIC_POSE, PoseInFrame)
-        self._goal = proto_channel(TOPIC_GOAL, PoseInFrame)
-        self._static = proto_channel(TOPIC_STATIC, SceneUpdate)
-        self._obstacles = proto_channel(TOPIC_OBSTACLES, SceneUpdate)
-        json_topics = [(t.name, t.schema, t.json_schema) for t in TOPICS if t.json_schema is not None]
-        for topic in self.extra_channels:
-            json_topics.append((topic, f"dynabarn{topic.replace('/', '.')}", {"type": "object"}))
-        for topic, name, schema in json_topics:
-            self._json[topic] = foxglove.Channel(
-                topic,
-                schema=foxglove.Schema(name=name, encoding="jsonschema", data=json.dumps(schema).encode()),
-                message_encoding="json",
-                context=self._ctx,
-            )
+        def proto(topic: str, message_type) -> _Fanout:
+            return fanout(topic, message_type.get_schema(), "protobuf")
+
+        self._scan = proto(TOPIC_SCAN, LaserScan)
+        self._tf = proto(TOPIC_TF, FrameTransforms)
+        self._pose = proto(TOPIC_POSE, PoseInFrame)
+        self._goal = proto(TOPIC_GOAL, PoseInFrame)
+        self._static = proto(TOPIC_STATIC, SceneUpdate)
+        self._obstacles = proto(TOPIC_OBSTACLES, SceneUpdate)
+        self._plans = proto(TOPIC_PLANS, SceneUpdate)
+        for t in (*(t for t in TOPICS if t.json_schema is not None), *self.extra_channels):
+            schema = foxglove.Schema(name=t.schema, encoding="jsonschema", data=json.dumps(t.json_schema).encode())
+            self._json[t.name] = fanout(t.name, schema, "json")
         info = start.info
         self._start_angle = float(info.laser_angles[0])
         self._end_angle = float(info.laser_angles[-1])
         self._laser_z = JACKAL.laser_z
-        obstacles = start.world.obstacles
-        # The obstacle update is encoded once; each tick rewrites only the positions.
-        # Boxes go in the entity's `cubes` (field 8), cylinders and capsules (drawn as
-        # horizontal cylinders: SceneUpdate has no capsule) in its `cylinders` (field 10),
-        # each in world order.
-        boxes = [i for i, o in enumerate(obstacles) if o.shape == "box"]
-        others = [i for i, o in enumerate(obstacles) if o.shape != "box"]
-        primitives = []
-        for field_number, encode, indices in ((8, wire.cube, boxes), (10, wire.cylinder, others)):
-            for i in indices:
-                z, q, size = _primitive_parts(obstacles[i])
-                primitives.append((field_number, encode(wire.pose(0.0, 0.0, z, *q), size, _OBSTACLE_COLOR)))
-        self._obstacle_block = wire.PrimitiveBlock(primitives)
-        self._obstacle_order = np.array(boxes + others, dtype=np.int64)
+        self._frames = scene.FrameTree(float(info.laser_offset[0]), float(info.laser_offset[1]), self._laser_z)
+        self._obstacle_block, self._obstacle_order = scene.obstacle_block(start.world.obstacles)
         self.log_json(TOPIC_METADATA, 0.0, self._metadata(start))
-        self._log_static(start)
+        static_update, goal_pose = scene.static_scene(start.world, start.protocol.goal_tolerance)
+        self.latched[TOPIC_STATIC] = [(static_update, 0)]
+        self.latched[TOPIC_GOAL] = [(goal_pose, 0)]
+        self._static.log(static_update, log_time=0)
+        self._goal.log(goal_pose, log_time=0)
 
     def on_tick(self, tick: Tick) -> None:
-        if self._writer is None:
+        if not self._open:
             return
         if not self._room():  # stop while the file can still be closed whole
             self.stopped = f"the disk was nearly full at {tick.time:.1f} s; the recording ends there"
@@ -187,48 +212,57 @@ class McapRecorder:
             return
         t = tick.time
         ns = _ns(t)
-        lx, ly, lyaw = tick.laser_pose.tolist()
-        laser_pose = wire.pose(lx, ly, self._laser_z, 0.0, 0.0, math.sin(lyaw / 2), math.cos(lyaw / 2))
         self._scan.log(
-            wire.laser_scan(ns, _WORLD_FRAME, laser_pose, self._start_angle, self._end_angle, tick.scan), log_time=ns
+            wire.laser_scan(ns, scene.LASER_FRAME, scene.IDENTITY_POSE, self._start_angle, self._end_angle, tick.scan),
+            log_time=ns,
         )
         block = self._obstacle_block.encode(tick.obstacles[self._obstacle_order])
-        entity = wire.scene_entity(ns, _WORLD_FRAME, "obstacles", primitives=block)
+        entity = wire.scene_entity(ns, scene.WORLD_FRAME, "obstacles", primitives=block)
         self._obstacles.log(wire.scene_update([entity]), log_time=ns)
         for topic in PER_TICK:
             message = topic.per_tick(tick)
             if message is not None:
                 self.log_json(topic.name, t, message)
+                if topic.name == TOPIC_DEBUG:
+                    self._plans.log(scene.plans_update(ns, message), log_time=ns)
 
     def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
-        if self._writer is None:
+        if not self._open:
             return
         ns = np.round(times * 1e9).astype(np.int64).tolist()
-        log = self._pose.log
+        log_pose, log_tf, tf_message = self._pose.log, self._tf.log, self._frames.message
+        world = scene.WORLD_FRAME
         sin, cos = math.sin, math.cos  # libm, not numpy's CPU-dependent SIMD paths
         for n, x, y, yaw in zip(ns, poses[:, 0].tolist(), poses[:, 1].tolist(), poses[:, 2].tolist(), strict=True):
             half = yaw * 0.5
-            log(wire.pose_in_frame(n, _WORLD_FRAME, wire.pose(x, y, 0.0, 0.0, 0.0, sin(half), cos(half))), log_time=n)
+            qz, qw = sin(half), cos(half)
+            log_pose(wire.pose_in_frame(n, world, wire.pose(x, y, 0.0, 0.0, 0.0, qz, qw)), log_time=n)
+            log_tf(tf_message(n, x, y, qz, qw), log_time=n)
 
     def on_end(self, result: EpisodeResult) -> None:
-        if self._writer is None:
+        if not self._open:
             return
         d = result.to_dict()
-        self._writer.write_metadata(
-            MACHINE_METADATA, {k: json.dumps(v, sort_keys=True) for k, v in d.get("machine", {}).items()}
-        )
-        self.log_json(TOPIC_RESULT, result.sim_time, {k: v for k, v in d.items() if k not in MACHINE_FIELDS})
+        judged = {k: v for k, v in d.items() if k not in MACHINE_FIELDS}
+        if self._writer is not None:
+            self._writer.write_metadata(MACHINE_METADATA, _strings(d.get("machine", {})))
+            self._writer.write_metadata(RESULT_METADATA, _strings(judged))
+        self.log_json(TOPIC_RESULT, result.sim_time, judged)
         self.close()
 
     # -- helpers ------------------------------------------------------------------------
     def log_json(self, topic: str, t: float, payload: dict) -> None:
         """Log a JSON message on one of the recorder's JSON topics at simulated time t [s]."""
-        if self._writer is None:
+        if not self._open:
             return
-        body = json.dumps(_jsonable(payload), sort_keys=True, separators=(",", ":"), allow_nan=False)
-        self._json[topic].log(body.encode(), log_time=_ns(t))
+        body = json.dumps(_jsonable(payload), sort_keys=True, separators=(",", ":"), allow_nan=False).encode()
+        ns = _ns(t)
+        if topic in LATCHED:
+            self.latched.setdefault(topic, []).append((body, ns))
+        self._json[topic].log(body, log_time=ns)
 
     def close(self) -> None:
+        self._open = False
         if self._writer is not None:
             self._writer.close()
             self._writer = None
@@ -264,50 +298,28 @@ class McapRecorder:
             **self.extra_metadata,
         }
 
-    def _log_static(self, start: EpisodeStart) -> None:
-        layout = start.world.layout
-        identity = (0.0, 0.0, 0.0, 1.0)
-        cubes = [
-            wire.cube(wire.pose(w.centre[0], w.centre[1], w.size[2] / 2, *identity), wire.vector3(*w.size), _WALL_COLOR)
-            for w in layout.walls
-        ]
-        gx, gy = layout.goal
-        d = 2 * start.protocol.goal_tolerance
-        goal = wire.cylinder(wire.pose(gx, gy, 0.005, *identity), wire.vector3(d, d, 0.01), _GOAL_COLOR)
-        entities = [
-            wire.scene_entity(0, _WORLD_FRAME, "walls", cubes=cubes),
-            wire.scene_entity(0, _WORLD_FRAME, "goal", cylinders=[goal]),
-        ]
-        if layout.cylinders:  # static BARN or mixed worlds
-            static = [
-                wire.cylinder(wire.pose(x, y, 0.5, *identity), wire.vector3(2 * r, 2 * r, 1.0), _WALL_COLOR)
-                for x, y, r in layout.cylinders
-            ]
-            entities.append(wire.scene_entity(0, _WORLD_FRAME, "static_obstacles", cylinders=static))
-        self._static.log(wire.scene_update(entities), log_time=0)
-        self._goal.log(wire.pose_in_frame(0, _WORLD_FRAME, wire.pose(gx, gy, 0.0, *identity)), log_time=0)
+
+WORLD_MEDIA_TYPE = "application/vnd.mujoco.mjcf+xml"
+"""Media type of the attached world file (MJCF is XML)."""
 
 
-def obstacle_pose(o: Obstacle) -> tuple[float, tuple[float, float, float, float]]:
-    """Centre height and orientation quaternion (x, y, z, w) of an obstacle's primitive: a
-    box turned by its yaw; a capsule's axis (a primitive's z) turned onto x (about y), then
-    by its yaw (about z); a cylinder upright."""
-    half = o.yaw / 2
-    if o.shape == "box":
-        return o.height / 2, (0.0, 0.0, math.sin(half), math.cos(half))
-    if o.shape == "capsule":
-        c = math.sqrt(0.5)
-        return o.radius, (-c * math.sin(half), c * math.cos(half), c * math.sin(half), c * math.cos(half))
-    return o.height / 2, (0.0, 0.0, 0.0, 1.0)
+def _strings(record: dict) -> dict[str, str]:
+    """An MCAP metadata record: strings as they are, everything else as compact JSON."""
+    return {
+        k: v if isinstance(v, str) else json.dumps(_jsonable(v), sort_keys=True, separators=(",", ":"))
+        for k, v in record.items()
+    }
 
 
-def _primitive_parts(o: Obstacle) -> tuple[float, tuple[float, float, float, float], bytes]:
-    """`obstacle_pose` and the encoded size of the obstacle's SceneUpdate primitive (a
-    capsule is drawn as a cylinder as long as the capsule)."""
-    if o.shape == "box":
-        size = wire.vector3(2 * o.half_length, 2 * o.half_width, o.height)
-    elif o.shape == "capsule":
-        size = wire.vector3(2 * o.radius, 2 * o.radius, 2 * (o.half_length + o.radius))
-    else:
-        size = wire.vector3(2 * o.radius, 2 * o.radius, o.height)
-    return (*obstacle_pose(o), size)
+def _episode_record(start: EpisodeStart) -> dict:
+    """The `dynabarn.episode` metadata record: which episode this is, in a few fields."""
+    return {
+        "world": start.world.name,
+        "world_file": start.world_path.name,
+        "world_sha256": start.world_sha256,
+        "planner": start.planner,
+        "protocol": start.protocol.name,
+        "seed": start.seed,
+        "clock_offset": start.clock_offset,
+        "versions": start.versions,
+    }

@@ -34,6 +34,8 @@ class EpisodeStart:
     config: SimConfig
     info: EpisodeInfo
     versions: dict
+    world_xml: bytes = b""
+    """The world file's bytes (what `world_sha256` hashes), attached to recordings."""
 
 
 @dataclass(slots=True)

@@ -85,6 +85,7 @@ def run_episode(
         config=sim.config,
         info=episode.info,
         versions=versions() | planner.versions(),
+        world_xml=sim.world_xml,
     )
     for obs_ in observers:
         obs_.on_start(start)

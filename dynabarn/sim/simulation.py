@@ -34,6 +34,7 @@ class Simulation:
         self.world = read_world(self.world_path, data)
         check_behaviors(self.world.obstacles)
         self.world_sha256 = hashlib.sha256(data).hexdigest()
+        self.world_xml = data
         self.config = config
         # The runner casts its own scans with mj_multiRay, so it compiles the world with the
         # Jackal's variant without the 720 beam sites and rangefinders (same geometry).
