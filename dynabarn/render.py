@@ -26,8 +26,8 @@ import numpy as np
 from dynabarn.errors import DynabarnError
 from dynabarn.mjcf import load_model, write_world
 from dynabarn.recording import Recording, attached_world, obstacle_track, pose_track, recorded_world
-from dynabarn.worlds.spec import WorldSpec
 from dynabarn.worlds.schedule import SchedulePlayer
+from dynabarn.worlds.spec import WorldSpec
 
 TRAIL_SECONDS = 2.0
 

@@ -42,6 +42,7 @@ from dynabarn.recording import (
     obstacle_pose,
     obstacle_track,
     recorded_world,
+    returns,
 )
 from dynabarn.recording.topics import plotted
 from dynabarn.worlds.spec import WorldSpec
@@ -210,7 +211,7 @@ def log_recording(
             yaw = 2.0 * math.atan2(m.pose.orientation.z, m.pose.orientation.w)
         else:
             (ox, oy, yaw), oz = laser[k], laser_z
-        hit = r < robot.get("laser_range", [0.1, 30.0])[1] - 1e-6
+        hit = returns(r, robot.get("laser_range", [0.1, 30.0])[1])
         ang = a[hit] + yaw
         xy = np.column_stack([ox + r[hit] * np.cos(ang), oy + r[hit] * np.sin(ang)])
         pts_all.append(np.column_stack([xy, np.full(len(xy), oz)]))

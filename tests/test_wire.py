@@ -126,3 +126,71 @@ def test_primitive_block_equals_encoding_each_primitive_anew():
         )
         assert block.encode(xy) == expected
     assert wire.PrimitiveBlock([]).encode(np.zeros((0, 2))) == b""
+
+
+def test_frame_transforms_match_sdk():
+    from foxglove.messages import FrameTransform, FrameTransforms
+
+    from dynabarn.recording.scene import FrameTree
+
+    ns, yaw = 3_250_000_000, 2.5
+    qz, qw = math.sin(yaw / 2), math.cos(yaw / 2)
+    ours = FrameTree(0.12, 0.0, 0.3).message(ns, 4.5, -1.25, qz, qw)
+    ts = Timestamp(sec=3, nsec=250_000_000)
+    identity = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
+    sdk = FrameTransforms(
+        transforms=[
+            FrameTransform(
+                timestamp=ts, parent_frame_id="world", child_frame_id="odom",
+                translation=Vector3(x=0.0, y=0.0, z=0.0), rotation=identity,
+            ),
+            FrameTransform(
+                timestamp=ts, parent_frame_id="odom", child_frame_id="base_link",
+                translation=Vector3(x=4.5, y=-1.25, z=0.0), rotation=Quaternion(x=0.0, y=0.0, z=qz, w=qw),
+            ),
+            FrameTransform(
+                timestamp=ts, parent_frame_id="base_link", child_frame_id="laser",
+                translation=Vector3(x=0.12, y=0.0, z=0.3), rotation=identity,
+            ),
+        ]
+    ).encode()  # fmt: skip
+    assert _decode(FrameTransforms, ours)[0] == _decode(FrameTransforms, sdk)[0]
+
+
+def test_plans_match_sdk():
+    from foxglove.messages import LinePrimitive, LinePrimitiveLineType, Point3
+
+    from dynabarn.recording.scene import plans_update
+
+    local = np.array([[1.0, 2.0], [1.5, 2.25], [2.0, 2.75]])
+    glob = np.array([[1.0, 2.0], [3.0, 4.0]])
+    ours = plans_update(1_100_000_000, {"local_plan": local, "global_plan": glob})
+
+    def line(points, z, width, color):
+        return LinePrimitive(
+            type=LinePrimitiveLineType.LineStrip,
+            pose=_pose(0.0, 0.0, 0.0, 0.0),
+            thickness=width,
+            scale_invariant=False,
+            points=[Point3(x=x, y=y, z=z) for x, y in points],
+            color=color,
+        )
+
+    ts = Timestamp(sec=1, nsec=100_000_000)
+    sdk = SceneUpdate(
+        entities=[
+            SceneEntity(
+                timestamp=ts, frame_id="world", id="global_plan",
+                lines=[line(glob, 0.03, 0.05, Color(r=0.2, g=0.45, b=1.0, a=0.8))],
+            ),
+            SceneEntity(
+                timestamp=ts, frame_id="world", id="local_plan",
+                lines=[line(local, 0.06, 0.06, Color(r=1.0, g=0.78, b=0.0, a=1.0))],
+            ),
+        ]
+    ).encode()  # fmt: skip
+    assert _decode(SceneUpdate, ours)[0] == _decode(SceneUpdate, sdk)[0]
+    # No plan this tick: the entities are sent empty, so the last plan does not linger.
+    _, empty = _decode(SceneUpdate, plans_update(0, {}))
+    assert [e.id for e in empty.entities] == ["global_plan", "local_plan"]
+    assert all(len(e.lines) == 0 for e in empty.entities)

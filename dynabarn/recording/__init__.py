@@ -12,6 +12,7 @@ from dynabarn.recording.reader import (
     pose_track,
     read_recording,
     recorded_world,
+    returns,
 )
 from dynabarn.recording.scene import obstacle_pose
 from dynabarn.recording.schemas import MACHINE_FIELDS, WALL_CLOCK_FIELDS
@@ -73,4 +74,5 @@ __all__ = [
     "pose_track",
     "read_recording",
     "recorded_world",
+    "returns",
 ]

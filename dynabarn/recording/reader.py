@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.errors import DynabarnError
+from dynabarn.robot import JACKAL
 from dynabarn.recording.topics import TOPIC_METADATA, TOPIC_OBSTACLES, TOPIC_RESULT
 from dynabarn.worlds.spec import WorldSpec
 
@@ -120,6 +121,12 @@ def laser_poses(rec: Recording, times: np.ndarray) -> np.ndarray:
     ox, oy = ((rec.metadata or {}).get("robot", {}).get("laser_offset") or [0.0, 0.0])[:2]
     c, s = np.cos(robot[:, 2]), np.sin(robot[:, 2])
     return np.column_stack([robot[:, 0] + c * ox - s * oy, robot[:, 1] + s * ox + c * oy, robot[:, 2]])
+
+
+def returns(ranges: np.ndarray, range_max: float) -> np.ndarray:
+    """Which beams hit something: a beam without a return reads `range_max` plus the
+    laser's noise (clipped), so anything within five noise deviations of it is no return."""
+    return np.asarray(ranges) < range_max - 5 * JACKAL.laser_noise_std
 
 
 def obstacle_track(rec: Recording, world: WorldSpec) -> tuple[np.ndarray, np.ndarray]:

@@ -93,7 +93,10 @@ METADATA_SCHEMA = document(
                 "the world's description (dynabarn.worlds.WorldSpec.metadata())",
                 {
                     "name": {"type": "string"},
-                    "layout": obj("walls, goal, static cylinders", {"goal": points_xy("goal [x, y]")}),
+                    "layout": obj(
+                        "walls, goal, static cylinders",
+                        {"goal": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}},
+                    ),
                     "obstacles": {"type": "array", "items": _OBSTACLE},
                 },
                 ("name", "layout", "obstacles"),

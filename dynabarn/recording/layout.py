@@ -1,0 +1,133 @@
+"""The Foxglove layout shipped for recordings and live runs (`assets/foxglove/dynabarn.json`).
+
+Built from the topic table with foxglove-sdk's layout classes: a 3D panel following the
+robot's `base_link` in the `world` frame (scan, obstacles, walls, goal, plans), a top-down
+3D panel of the whole arena, one plot per field the table marks for plotting, the episode's
+result and the frame tree. Import the file in Foxglove (Layouts -> Import from file).
+`python -m dynabarn.recording.layout --write` regenerates it; a test keeps it in step.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import foxglove.layouts as fl
+
+from dynabarn.recording.topics import (
+    FRAMES,
+    TOPIC_GOAL,
+    TOPIC_OBSTACLES,
+    TOPIC_PLANS,
+    TOPIC_RESULT,
+    TOPIC_SCAN,
+    TOPIC_STATIC,
+    plotted,
+)
+
+LAYOUT_FILE = Path(__file__).resolve().parents[2] / "assets" / "foxglove" / "dynabarn.json"
+SCENE_TOPICS = (TOPIC_STATIC, TOPIC_OBSTACLES, TOPIC_PLANS, TOPIC_SCAN, TOPIC_GOAL)
+"""What the 3D panels draw (the frame tree on `/tf` places them)."""
+
+
+def _scene(follow: str | None, camera: fl.ThreeDeeCameraState, title: str) -> fl.ThreeDeePanel:
+    topics: dict = {t: fl.BaseRendererSceneUpdateTopicSettings(visible=True) for t in SCENE_TOPICS}
+    topics[TOPIC_SCAN] = fl.BaseRendererLaserScanTopicSettings(visible=True, point_size=4)
+    topics[TOPIC_GOAL] = fl.BaseRendererPoseTopicSettings(visible=True)
+    return fl.ThreeDeePanel(
+        title=title,
+        config=fl.ThreeDeeConfig(
+            fixed_frame=FRAMES[0],
+            follow_tf=follow or FRAMES[0],
+            follow_mode="follow-position" if follow else "follow-none",
+            camera_state=camera,
+            topics=topics,
+        ),
+    )
+
+
+def foxglove_layout() -> fl.Layout:
+    """The layout: scenes on the left, plots, result and frame tree on the right."""
+    follow = _scene(
+        FRAMES[2], fl.ThreeDeeCameraState(distance=12.0, perspective=True, phi=50.0, theta_offset=90.0), "robot"
+    )
+    arena = _scene(
+        None,
+        fl.ThreeDeeCameraState(distance=30.0, perspective=False, phi=0.0, target=(0.5, 0.0, 0.0), theta_offset=90.0),
+        "arena (top)",
+    )
+    plots = [
+        fl.SplitItem(
+            content=fl.PlotPanel(config=fl.PlotConfig(paths=[fl.PlotSeries(value=f"{topic.name}.{name}", label=name)]))
+        )
+        for topic, name in plotted()
+    ]
+    result = fl.RawMessagesPanel(config=fl.RawMessagesConfig(topic_path=TOPIC_RESULT, expansion="all"))
+    return fl.Layout(
+        content=fl.SplitContainer(
+            direction="row",
+            items=[
+                fl.SplitItem(
+                    proportion=3,
+                    content=fl.SplitContainer(
+                        direction="column",
+                        items=[fl.SplitItem(proportion=2, content=follow), fl.SplitItem(content=arena)],
+                    ),
+                ),
+                fl.SplitItem(
+                    proportion=2,
+                    content=fl.SplitContainer(
+                        direction="column",
+                        items=[
+                            *plots,
+                            fl.SplitItem(content=result),
+                            fl.SplitItem(content=fl.TransformTreePanel()),
+                        ],
+                    ),
+                ),
+            ],
+        )
+    )
+
+
+def layout_json() -> str:
+    """The layout file's text: indented, keys in a fixed order, a final newline."""
+    return json.dumps(json.loads(foxglove_layout().to_json()), indent=2) + "\n"
+
+
+def referenced_topics(layout: dict) -> set[str]:
+    """Every topic a layout's panels name (3D topics, plot paths, raw messages)."""
+    found: set[str] = set()
+
+    def walk(node) -> None:
+        if isinstance(node, dict):
+            for key, value in node.items():
+                if key == "topics" and isinstance(value, dict):
+                    found.update(value)
+                elif key in ("value", "topicPath") and isinstance(value, str) and value.startswith("/"):
+                    found.add(value.split(".")[0])
+                walk(value)
+        elif isinstance(node, list):
+            for item in node:
+                walk(item)
+
+    walk(layout)
+    return found
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="Print (or --write) the Foxglove layout for DynaBARN recordings.")
+    parser.add_argument("--write", action="store_true", help=f"write it to {LAYOUT_FILE}")
+    args = parser.parse_args(argv)
+    if args.write:
+        LAYOUT_FILE.parent.mkdir(parents=True, exist_ok=True)
+        LAYOUT_FILE.write_text(layout_json())
+        print(f"wrote {LAYOUT_FILE}")
+    else:
+        print(layout_json(), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
