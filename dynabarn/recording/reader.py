@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.errors import DynabarnError
-from dynabarn.robot import JACKAL
 from dynabarn.recording.topics import TOPIC_METADATA, TOPIC_OBSTACLES, TOPIC_RESULT
+from dynabarn.robot import JACKAL
 from dynabarn.worlds.spec import WorldSpec
 
 
