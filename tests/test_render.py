@@ -35,7 +35,9 @@ def test_mp4_frames_count_content_and_motion(recording, tmp_path, capsys):
     duration = float(line.split("frames, ")[1].split(" s")[0])
     frames = iio.imread(out, index=None)
     assert frames.shape[1:] == (480, 640, 3)
-    assert len(frames) == int(np.floor(duration * 4 + 1e-9)) + 1
+    # One frame per 1/4 s of the episode, then the last held for 1.5 s with the outcome.
+    assert len(frames) == int(np.floor(duration * 4 + 1e-9)) + 1 + round(1.5 * 4) - 1
+    assert f"wrote {out}: {len(frames)} frames" in line
     assert all(f.std() > 10 for f in frames[:: max(1, len(frames) // 5)]), "blank frame"
     start, end = _yellow_centroid(frames[0]), _yellow_centroid(frames[-1])
     # The robot drives 19 m from right to left across the top view.
@@ -60,9 +62,80 @@ def test_run_with_video(tmp_path, capsys):
 
 @pytest.mark.parametrize(
     "argv, message",
-    [(["--out", "x.avi"], "must end in .mp4 or .gif"), (["--out", "x.gif", "--size", "big"], "bad --size")],
+    [
+        (["--out", "x.avi"], "must end in .mp4 or .gif"),
+        (["--out", "x.gif", "--size", "big"], "bad --size"),
+        (["--out", "x.mp4", "--size", "641x480"], "needs an even width and height"),
+    ],
 )
 def test_bad_render_arguments(recording, tmp_path, capsys, argv, message):
     argv = [str(recording), *[a if not a.startswith("x.") else str(tmp_path / a) for a in argv]]
     assert render_main(argv) == 2
     assert message in capsys.readouterr().err
+
+
+def _near(frame: np.ndarray, color, tol: int = 40) -> np.ndarray:
+    return np.abs(frame.astype(int) - np.array(color)).max(axis=2) < tol
+
+
+def test_frames_explain_themselves(recording, tmp_path):
+    """Header, time line, legend, laser dots, the robot's marker, and the outcome at the end."""
+    from dynabarn.recording import read_recording
+    from dynabarn.render import render_recording
+    from dynabarn.render.overlay import LASER, OUTCOME_COLORS, PANEL
+
+    out = tmp_path / "v.mp4"
+    rec = read_recording(recording)
+    info = render_recording(rec, out, fps=2, width=640, height=480)
+    frames = iio.imread(out, index=None)
+    assert len(frames) == info.frames
+    middle, last = frames[len(frames) // 3], frames[-1]
+    for f in (middle, last):
+        assert _near(f[:12], PANEL, 30).mean() > 0.7, "no header strip"
+        assert (f[:24].max(axis=2) > 200).sum() > 100, "no header text"
+        assert _near(f[-12:], PANEL, 30).mean() > 0.5, "no legend strip"
+    # The laser's returns: magenta dots on the walls and obstacles.
+    assert _near(middle, LASER, 70).sum() > 150
+    # The robot is legible from above: its marker disc covers a few hundred pixels.
+    blue = (middle[..., 2].astype(int) > 180) & (middle[..., 0].astype(int) < 120) & (middle[..., 1].astype(int) < 160)
+    assert blue[30:-30].sum() > 200
+    # The outcome, in its colour, on the held last frames.
+    outcome = rec.result["outcome"]
+    strip = last[26:40]
+    assert _near(strip, OUTCOME_COLORS[outcome], 45).mean() > 0.5
+    assert not _near(middle[26:40], OUTCOME_COLORS[outcome], 45).mean() > 0.5
+
+
+def test_projection_puts_world_points_on_their_pixels(recording):
+    """The overlay's projection agrees with MuJoCo's rendering: the goal region's centre
+    projects onto green, a wall's middle onto the wall's grey."""
+    import mujoco
+
+    from dynabarn.recording import read_recording, recorded_world
+    from dynabarn.render import place_camera, recorded_model
+    from dynabarn.render.overlay import project
+
+    rec = read_recording(recording)
+    world = recorded_world(rec)
+    model = recorded_model(rec, world)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    goal_geom = model.geom("goal").id
+    model.geom_group[goal_geom] = 0  # drawn (it is in a hidden group in world files)
+    model.geom_size[goal_geom, 0] = 1.0
+    cam = mujoco.MjvCamera()
+    for camera, pose in (("top", (0, 0, 0)), ("follow", (-6.0, 0.0, np.pi))):
+        place_camera(cam, camera, pose)
+        with mujoco.Renderer(model, 240, 320) as r:
+            r.update_scene(data, cam)
+            frame = r.render()
+            gx, gy = world.layout.goal
+            col, row = project(r.scene.camera[0], np.array([[gx, gy, 0.0]]), 320, 240)[0]
+            px = frame[int(row), int(col)].astype(int)
+            assert px[1] > px[0] + 40 and px[1] > px[2] + 40, (camera, px)
+
+
+def test_size_is_honoured_exactly(recording, tmp_path):
+    out = tmp_path / "v.mp4"
+    assert render_main([str(recording), "--out", str(out), "--fps", "1", "--size", "642x362"]) == 0
+    assert iio.imread(out, index=None).shape[1:3] == (362, 642)

@@ -22,11 +22,30 @@ def render_main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("recording", type=Path, help="MCAP recording (from dynabarn-run)")
     parser.add_argument("--out", type=Path, required=True, help="video file, .mp4 or .gif")
-    parser.add_argument("--camera", choices=["top", "follow"], default="top", help="whole arena or behind the robot")
-    parser.add_argument("--fps", type=ranged(float, 1.0, 120.0), default=20.0, help="frames per second of the video")
-    parser.add_argument("--size", default="640x480", help="frame size WIDTHxHEIGHT")
+    add_video_options(parser)
     args = parser.parse_args(argv)
     return run_command(_render, args)
+
+
+def add_video_options(parser: argparse.ArgumentParser, prefix: str = "") -> None:
+    """--camera, --fps, --size, --quality (dynabarn-run's --video takes the same)."""
+    from dynabarn.render import CAMERAS, QUALITIES
+
+    parser.add_argument(
+        "--camera", choices=CAMERAS, default="top", help=f"{prefix}whole arena from above, or behind the robot"
+    )
+    parser.add_argument(
+        "--fps", type=ranged(float, 1.0, 120.0), default=20.0, help=f"{prefix}frames per second of the video"
+    )
+    parser.add_argument(
+        "--size", default="640x480", help=f"{prefix}frame size WIDTHxHEIGHT, 16 to 4096 px (even for .mp4)"
+    )
+    parser.add_argument(
+        "--quality",
+        choices=QUALITIES,
+        default=QUALITIES[0],
+        help=f"{prefix}fast: no multisampling, coarse round shapes; high: MuJoCo's defaults, about 3x slower",
+    )
 
 
 def _parse_size(text: str) -> tuple[int, int]:
@@ -36,35 +55,42 @@ def _parse_size(text: str) -> tuple[int, int]:
     return int(w), int(h)
 
 
-def render_video(recording: Path, out: Path, camera: str, fps: float, size: str) -> None:
+def video_settings(args: argparse.Namespace, out: Path) -> dict:
+    """The video options checked before anything runs: one line for a bad one."""
+    from dynabarn.render import check_video
+
+    width, height = _parse_size(args.size)
+    check_video(out, width, height)
+    return {"camera": args.camera, "fps": args.fps, "width": width, "height": height, "quality": args.quality}
+
+
+def render_video(recording: Path, out: Path, settings: dict) -> None:
     from tqdm import tqdm
 
     from dynabarn.recording import read_recording
     from dynabarn.render import render_recording
 
-    if fps <= 0:
-        raise DynabarnError("--fps must be positive")
-    width, height = _parse_size(size)
     rec = read_recording(recording)
     if rec.truncated:
         print(f"warning: {recording} is truncated ({rec.error}); rendering up to the cut", file=sys.stderr)
     info = render_recording(
         rec,
         out,
-        camera=camera,
-        fps=fps,
-        width=width,
-        height=height,
+        **settings,
         progress=lambda it: tqdm(it, desc="rendering", unit="frame", disable=None, leave=False),
     )
-    print(f"wrote {info.path}: {info.frames} frames, {info.duration:.2f} s at {info.fps:g} fps, {width}x{height}")
+    print(
+        f"wrote {info.path}: {info.frames} frames, {info.duration:.2f} s at {info.fps:g} fps, "
+        f"{info.width}x{info.height}"
+    )
 
 
 def _render(args: argparse.Namespace) -> int:
     if not args.out.parent.is_dir():
         raise DynabarnError(f"--out {args.out}: the folder {args.out.parent} does not exist")
+    settings = video_settings(args, args.out)
     try:
-        render_video(args.recording, args.out, args.camera, args.fps, args.size)
+        render_video(args.recording, args.out, settings)
     except OSError as exc:
         raise DynabarnError(f"cannot write {args.out}: {exc.strerror or exc}") from None
     return 0

@@ -17,8 +17,7 @@ from dynabarn.cli.common import (
     run_command,
 )
 from dynabarn.cli.episode import exit_status, print_result, run_recorded
-from dynabarn.cli.render import render_video
-from dynabarn.errors import DynabarnError
+from dynabarn.cli.render import add_video_options, render_video, video_settings
 
 
 def run_main(argv: Sequence[str] | None = None) -> int:
@@ -51,7 +50,7 @@ def run_main(argv: Sequence[str] | None = None) -> int:
         "--control-rate", type=ranged(float, 0.1, 1000.0), default=10.0, help="planner and laser rate [Hz]"
     )
     parser.add_argument("--video", type=Path, default=None, help="also render the episode to this .mp4 or .gif")
-    parser.add_argument("--camera", choices=["top", "follow"], default="top", help="camera of --video")
+    add_video_options(parser, prefix="--video: ")
     args = parser.parse_args(argv)
     return run_command(_run_episode, args)
 
@@ -73,8 +72,7 @@ def _run_episode(args: argparse.Namespace) -> int:
     planner = get_planner(name, **config)
     sim = Simulation(world_path, config=SimConfig(dt=args.dt, control_rate=args.control_rate))
     log_path = None
-    if args.video is not None and args.video.suffix.lower() not in (".mp4", ".gif"):
-        raise DynabarnError(f"--video must end in .mp4 or .gif, got {args.video.name!r}")
+    video = video_settings(args, args.video) if args.video is not None else None
     if not args.no_log:
         log_path = args.log or default_run_path(args.runs_dir, sim.world.name, args.planner, protocol.name, args.seed)
     elif args.video is not None:  # the video is rendered from a recording: keep a temporary one
@@ -84,7 +82,7 @@ def _run_episode(args: argparse.Namespace) -> int:
     result = run_recorded(sim, planner, protocol, seed=args.seed, log_path=log_path, planner_name=args.planner)
     print_result(result, as_json=args.json, recording=None if args.no_log else log_path)
     if args.video is not None:
-        render_video(log_path, args.video, args.camera, 20.0, "640x480")
+        render_video(log_path, args.video, video)
         if args.no_log:
             import shutil
 

@@ -1,0 +1,7 @@
+"""Offscreen pictures of recorded episodes: what each frame shows (frames), the model and
+cameras (model), the overlay drawn on the frames (overlay), the video loop (video)."""
+
+from dynabarn.render.model import CAMERAS, place_camera, recorded_model
+from dynabarn.render.video import QUALITIES, VideoInfo, check_video, render_recording
+
+__all__ = ["CAMERAS", "QUALITIES", "VideoInfo", "check_video", "place_camera", "recorded_model", "render_recording"]

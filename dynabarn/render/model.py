@@ -1,0 +1,42 @@
+"""The episode's MuJoCo model for pictures, and the cameras that look at it."""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from pathlib import Path
+
+import mujoco
+
+from dynabarn.mjcf import load_model, write_world
+from dynabarn.recording import Recording, attached_world
+from dynabarn.worlds.spec import WorldSpec
+
+CAMERAS = ("top", "follow")
+"""top: the whole arena from above; follow: behind and above the robot."""
+
+
+def place_camera(cam: mujoco.MjvCamera, camera: str, pose) -> None:
+    """Point the free camera `cam` for `camera` (one of CAMERAS) at robot pose (x, y, yaw)."""
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    x, y, yaw = (float(v) for v in pose[:3])
+    if camera == "top":
+        cam.lookat[:] = [1.0, 0.0, 0.0]  # the floor's centre
+        # 31 m up: the 20 m arena and the spawn beyond it, with room for a video's text strips.
+        cam.distance, cam.elevation, cam.azimuth = 31.0, -90.0, 90.0
+    else:
+        cam.lookat[:] = [x, y, 0.3]
+        cam.distance, cam.elevation, cam.azimuth = 7.0, -35.0, math.degrees(yaw)
+
+
+def recorded_model(rec: Recording, world: WorldSpec) -> mujoco.MjModel:
+    """The episode's MuJoCo model: the world file attached to the recording (the exact file
+    that ran), else one compiled anew from the recorded world description."""
+    attached = attached_world(rec)
+    if attached is not None:
+        name, data = attached
+        return load_model(rec.path.parent / name, beam_sensors=False, data=data)
+    with tempfile.TemporaryDirectory() as tmp:
+        xml = Path(tmp) / f"{world.name}.xml"
+        write_world(world, xml)
+        return load_model(xml, beam_sensors=False)
