@@ -7,7 +7,9 @@ Measures, on one core:
 4. DWA's and TEB's compute time per call over six worlds of all difficulties;
 5. converting a 60 s recording to a rerun .rrd (and its ratio to the recording's length);
 6. the Gymnasium environment's control steps per second (with the learn extra);
-7. the speed-up of a 2-worker benchmark sweep over 1 worker.
+7. the speed-up of a 2-worker benchmark sweep over 1 worker;
+8. video frames per second, the default renderer against `--quality high` (MuJoCo's
+   defaults, what every video used before).
 Each figure is the best of `--repeat` runs (the least disturbed by other processes).
 """
 
@@ -15,9 +17,13 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import tempfile
 import time
 from pathlib import Path
+
+if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+    os.environ["MUJOCO_GL"] = "egl"  # before mujoco is imported: it picks its OpenGL platform then
 
 import mujoco
 import numpy as np
@@ -118,6 +124,26 @@ def replay_conversion() -> tuple[float, float]:
         t0 = time.perf_counter()
         save_rrd([read_recording(path)], Path(tmp) / "r.rrd")
         return time.perf_counter() - t0, result.sim_time
+
+
+def video_speed(quality: str, seconds: float = 10.0) -> tuple[float, float]:
+    """(frames per wall second, frames per CPU second) of `dynabarn-render` at 640x480, 20 fps,
+    top camera, on a DWA episode of world 137 cut to its first `seconds`."""
+    from dynabarn.protocol import EvalProtocol
+    from dynabarn.render import render_recording
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "r.mcap"
+        run_episode(
+            resolve_world(137),
+            get_planner("dwa"),
+            EvalProtocol("cut", time_limit=seconds),
+            observers=[McapRecorder(path)],
+        )
+        rec = read_recording(path)
+        w0, c0 = time.perf_counter(), time.process_time()
+        info = render_recording(rec, Path(tmp) / "v.mp4", quality=quality)
+        return info.frames / (time.perf_counter() - w0), info.frames / (time.process_time() - c0)
 
 
 def env_steps_per_second(n_steps: int = 3000) -> float | None:
@@ -262,6 +288,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{'DynaBARN-v0 control steps per second (720-ray scan)':<66}{sps:>12.0f}")
     one, two = sweep_speedup()
     print(f"{'bench sweep, 40 DWA episodes: 1 worker / 2 workers [s]':<66}{one:>6.1f} /{two:>5.1f}{one / two:>9.2f}x")
+    fast, high = best(video_speed, "fast"), best(video_speed, "high")
+    label = "video 640x480 (frames/s wall, /s CPU): fast (default) vs --quality high"
+    print(f"{label:<66}{fast[0]:>6.1f} /{fast[1]:>5.1f}{fast[0] / high[0]:>8.1f}x")
+    print(f"{'  --quality high: MuJoCo defaults, the renderer before issue 19':<66}{high[0]:>6.1f} /{high[1]:>5.1f}")
     conv, length = min(replay_conversion() for _ in range(args.repeat))
     print(f"{f'convert a {length:.0f} s recording to .rrd [s]':<66}{conv:>12.2f}{conv / length:>9.3f}")
     ros = ros_lockstep()
