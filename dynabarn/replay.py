@@ -19,7 +19,7 @@ Entity tree (one per recording; several recordings of one world go under
 
 Everything per-time is sent in bulk with `rr.send_columns`, one call per entity. rerun's
 own `rerun mcap convert` leaves LaserScan as raw columns; this module does the mapping.
-All `rr.` calls of the package live here.
+All `rr.` calls of the package live here and in `live.rerun_live` (the same entities, tick by tick).
 """
 
 from __future__ import annotations
@@ -115,7 +115,7 @@ def log_static_world(meta: dict, stream: rr.RecordingStream) -> None:
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
 
 
-def _log_obstacles(stream: rr.RecordingStream, run: str, world: WorldSpec, t: np.ndarray, xy: np.ndarray) -> None:
+def log_obstacles(stream: rr.RecordingStream, run: str, world: WorldSpec, t: np.ndarray, xy: np.ndarray) -> None:
     index = [_time_column(t)]
     red = [(215, 40, 30)]
     shapes = np.array([o.shape for o in world.obstacles])
@@ -244,7 +244,7 @@ def log_recording(
     world = recorded_world(rec)
     ot, oxy = obstacle_track(rec, world)
     if len(ot):
-        _log_obstacles(stream, run, world, ot, oxy)
+        log_obstacles(stream, run, world, ot, oxy)
 
     # The path so far, at the control ticks, decimated to PATH_VERTICES.
     ticks = rec.topic(TOPIC_CMD)

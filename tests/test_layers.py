@@ -24,6 +24,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("recording",),
     ("replay", "web_viewer"),  # consumers of the layers above, each may use the ones before it
     ("render",),
+    ("live",),
     ("demos",),
     ("bench",),
     ("learn",),

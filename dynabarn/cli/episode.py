@@ -10,16 +10,35 @@ from dynabarn.cli.common import EXIT_EPISODE_ERROR
 from dynabarn.errors import DynabarnError
 
 
-def run_recorded(sim, planner, protocol, *, seed: int, log_path: Path | None, planner_name: str):
-    """`run_episode` with an MCAP recorder when `log_path` is given: Ctrl-C says where the
-    recording is kept, a recording that cannot start is one line, a cut one a warning."""
+def run_recorded(
+    sim,
+    planner,
+    protocol,
+    *,
+    seed: int,
+    log_path: Path | None,
+    planner_name: str,
+    live_contexts: tuple = (),
+    observers: tuple = (),
+    on_recorder=None,
+):
+    """`run_episode` with an MCAP recorder when `log_path` is given (or live foxglove
+    contexts to stream to), then further `observers` (viewers, pacing): Ctrl-C says where
+    the recording is kept, a recording that cannot start is one line, a cut one a warning."""
     from dynabarn.recording import McapRecorder
     from dynabarn.sim import run_episode
 
-    recorder = McapRecorder(log_path) if log_path is not None else None
+    recorder = McapRecorder(log_path, live=live_contexts) if log_path is not None or live_contexts else None
+    if recorder is not None and on_recorder is not None:
+        on_recorder(recorder)
     try:
         result = run_episode(
-            sim, planner, protocol, seed=seed, observers=[recorder] if recorder else [], planner_name=planner_name
+            sim,
+            planner,
+            protocol,
+            seed=seed,
+            observers=[*([recorder] if recorder else []), *observers],
+            planner_name=planner_name,
         )
     except KeyboardInterrupt:
         if log_path:

@@ -17,6 +17,7 @@ from dynabarn.cli.common import (
     run_command,
 )
 from dynabarn.cli.episode import exit_status, print_result, run_recorded
+from dynabarn.cli.live import LiveOutputs, add_live_options
 from dynabarn.cli.render import add_video_options, render_video, video_settings
 
 
@@ -51,8 +52,21 @@ def run_main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--video", type=Path, default=None, help="also render the episode to this .mp4 or .gif")
     add_video_options(parser, prefix="--video: ")
+    add_live_options(parser)
     args = parser.parse_args(argv)
-    return run_command(_run_episode, args)
+    code = run_command(_run_episode, args)
+    from dynabarn.live.viewer import viewer_was_opened
+
+    if viewer_was_opened():
+        # Everything is written and closed by now; some Mesa GLX drivers crash (or hang) in
+        # the interpreter's teardown after MuJoCo's viewer thread has used them.
+        import os
+        import sys
+
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
 
 
 def _run_episode(args: argparse.Namespace) -> int:
@@ -79,7 +93,18 @@ def _run_episode(args: argparse.Namespace) -> int:
         import tempfile
 
         log_path = Path(tempfile.mkdtemp()) / "episode.mcap"
-    result = run_recorded(sim, planner, protocol, seed=args.seed, log_path=log_path, planner_name=args.planner)
+    with LiveOutputs(args, sim, protocol) as live:
+        result = run_recorded(
+            sim,
+            planner,
+            protocol,
+            seed=args.seed,
+            log_path=log_path,
+            planner_name=args.planner,
+            live_contexts=live.contexts,
+            observers=live.observers,
+            on_recorder=live.attach,
+        )
     print_result(result, as_json=args.json, recording=None if args.no_log else log_path)
     if args.video is not None:
         render_video(log_path, args.video, video)

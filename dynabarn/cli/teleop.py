@@ -38,9 +38,9 @@ def teleop_main(argv: Sequence[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     code = run_command(_teleop, args)
-    from dynabarn.demos import teleop
+    from dynabarn.live.viewer import viewer_was_opened
 
-    if teleop.viewer_was_opened():
+    if viewer_was_opened():
         # Everything is written and closed by now. Some Mesa GLX drivers crash (or hang) in
         # the interpreter's teardown after MuJoCo's viewer thread has used them, which would
         # turn a clean session into exit code 139: leave without that teardown.

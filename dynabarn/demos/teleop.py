@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -65,6 +64,8 @@ MODES = {"slow": (0.1, 0.3, 1.0), "fast": (0.25, 0.6, 2.0)}
 
 class OperatorStop(EndEpisode):
     """The operator ended the episode (Escape or closed window)."""
+
+    REASON = "ended by the operator"
 
 
 @dataclass
@@ -168,7 +169,7 @@ class TeleopPlanner(Planner):
         if self.recorder is not None:
             self.recorder.log_json(TOPIC_INPUT, obs.time, {"keys": keys, "v": v, "w": w, "mode": mode, "gamepad": pad})
         if stop:
-            raise OperatorStop("ended by the operator")
+            raise OperatorStop(OperatorStop.REASON)
         return v, w
 
 
@@ -186,43 +187,6 @@ def append_manifest(demos_dir: Path, entry: dict) -> None:
         f.write(json.dumps(entry, sort_keys=True) + "\n")
 
 
-class ViewerSync:
-    """An EpisodeObserver that shows the episode in MuJoCo's passive viewer at real time."""
-
-    def __init__(self, viewer, state: TeleopState, *, speed: float = 1.0) -> None:
-        self.viewer = viewer
-        self.state = state
-        self.speed = speed
-        self._t0 = None
-
-    def on_start(self, start) -> None:
-        self._t0 = time.perf_counter()
-
-    def on_tick(self, tick) -> None:
-        if not self.viewer.is_running():
-            with self.state.lock:
-                self.state.stop_requested = True
-            return
-        self.viewer.sync()
-        lag = self._t0 + tick.time / self.speed - time.perf_counter()
-        if lag > 0:
-            time.sleep(lag)
-
-    def on_poses(self, times, poses) -> None: ...
-
-    def on_end(self, result) -> None:
-        if self.viewer.is_running():
-            self.viewer.sync()
-
-
-_viewer_opened = False
-
-
-def viewer_was_opened() -> bool:
-    """Whether this process has opened MuJoCo's viewer (see `dynabarn-teleop`'s exit)."""
-    return _viewer_opened
-
-
 def run_teleop(
     world_path: Path,
     protocol,
@@ -233,41 +197,27 @@ def run_teleop(
     speed: float = 1.0,
 ):
     """Open the viewer, run one episode driven by the operator, record it; returns the result."""
-    import mujoco
-    import mujoco.viewer
-
+    from dynabarn.live.viewer import MujocoViewer
     from dynabarn.sim import Simulation, run_episode
 
     sim = Simulation(world_path)
     state = TeleopState()
-    recorder = McapRecorder(
-        out, extra_channels=(INPUT,), extra_metadata={"source": "human", "operator": operator}
-    )
+    recorder = McapRecorder(out, extra_channels=(INPUT,), extra_metadata={"source": "human", "operator": operator})
     gamepad = Gamepad()
     planner = TeleopPlanner(state, recorder, gamepad)
     sim.reset(protocol.spawn)
-    mujoco.mj_forward(sim.model, sim.data)
-    global _viewer_opened
-    _viewer_opened = True
-    with mujoco.viewer.launch_passive(
-        sim.model, sim.data, key_callback=state.press, show_left_ui=False, show_right_ui=False
-    ) as viewer:
-        robot = sim.model.body("jackal/base_link").id
-        viewer.cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
-        viewer.cam.trackbodyid = robot
-        viewer.cam.distance, viewer.cam.elevation, viewer.cam.azimuth = 6.0, -35.0, 180.0
-        goal = sim.goal
-        with viewer.lock():
-            scn = viewer.user_scn
-            mujoco.mjv_initGeom(
-                scn.geoms[0],
-                mujoco.mjtGeom.mjGEOM_CYLINDER,
-                np.array([protocol.goal_tolerance, 0.01, 0]),
-                np.array([goal[0], goal[1], 0.01]),
-                np.eye(3).ravel(),
-                np.array([0.1, 0.9, 0.2, 0.5], np.float32),
-            )
-            scn.ngeom = 1
-        sync = ViewerSync(viewer, state, speed=speed)
-        result = run_episode(sim, planner, protocol, seed=seed, observers=[recorder, sync], planner_name="teleop")
+    # The operator's keys drive; closing the window ends the episode as Escape does.
+    viewer = MujocoViewer(
+        sim,
+        goal_tolerance=protocol.goal_tolerance,
+        rate=speed,
+        key_callback=state.press,
+        own_keys=False,
+        closed_reason=OperatorStop.REASON,
+    )
+    viewer.open()
+    try:
+        result = run_episode(sim, planner, protocol, seed=seed, observers=[recorder, viewer], planner_name="teleop")
+    finally:
+        viewer.close()
     return result, gamepad.name

@@ -172,10 +172,15 @@ class McapRecorder:
         self._contexts = contexts  # a context dropped closes its channels
         self._open = True
 
+        self._by_context: dict[int, dict[str, foxglove.Channel]] = {id(c): {} for c in contexts}
+
         def fanout(topic: str, schema: foxglove.Schema, encoding: str) -> _Fanout:
-            return _Fanout(
-                [foxglove.Channel(topic, schema=schema, message_encoding=encoding, context=c) for c in contexts]
-            )
+            channels = []
+            for c in contexts:
+                channel = foxglove.Channel(topic, schema=schema, message_encoding=encoding, context=c)
+                self._by_context[id(c)][topic] = channel
+                channels.append(channel)
+            return _Fanout(channels)
 
         def proto(topic: str, message_type) -> _Fanout:
             return fanout(topic, message_type.get_schema(), "protobuf")
@@ -260,6 +265,10 @@ class McapRecorder:
         if topic in LATCHED:
             self.latched.setdefault(topic, []).append((body, ns))
         self._json[topic].log(body, log_time=ns)
+
+    def live_channels(self, context: foxglove.Context) -> dict[str, foxglove.Channel]:
+        """topic -> this recorder's channel in one of its live contexts (empty before the start)."""
+        return dict(getattr(self, "_by_context", {}).get(id(context), {}))
 
     def close(self) -> None:
         self._open = False

@@ -111,8 +111,12 @@ def run_episode(
                 break
             if observers:
                 tick = episode.tick_record(planner.debug())
-                for obs_ in observers:
-                    obs_.on_tick(tick)
+                try:
+                    for obs_ in observers:
+                        obs_.on_tick(tick)
+                except EndEpisode as exc:  # a person watching ended it (closed the viewer)
+                    if episode.outcome is None:
+                        episode.end(Outcome.ERROR, str(exc) or "ended by an observer")
                 times, poses = episode.poses_between(first)
                 if len(times):
                     for obs_ in observers:

@@ -1,0 +1,126 @@
+"""`dynabarn-run`'s ways to watch an episode while it runs: `--viewer`, `--live foxglove`,
+`--live rerun`, paced by `--rate`."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from dynabarn.cli.common import ranged
+from dynabarn.errors import DynabarnError
+
+LIVE_TARGETS = ("foxglove", "rerun")
+
+
+def add_live_options(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("watching it run (paced to --rate times real time)")
+    group.add_argument(
+        "--viewer",
+        action="store_true",
+        help="show the episode in MuJoCo's viewer as it runs, following the robot (needs a display or Xvfb); "
+        "Space pauses, Escape or closing the window ends the episode (its recording is kept)",
+    )
+    group.add_argument(
+        "--live",
+        action="append",
+        choices=LIVE_TARGETS,
+        default=[],
+        help="stream the episode as it runs: foxglove (a WebSocket server on 127.0.0.1:--port; open "
+        "ws://127.0.0.1:PORT in Foxglove with assets/foxglove/dynabarn.json), rerun (a spawned viewer, or "
+        "--connect); may be given twice",
+    )
+    group.add_argument(
+        "--rate",
+        type=ranged(float, 0.01, 1000.0),
+        default=1.0,
+        help="simulated seconds per wall-clock second while watched (1: real time)",
+    )
+    group.add_argument("--port", type=ranged(int, 0, 65535), default=8765, help="--live foxglove: the server's port")
+    group.add_argument(
+        "--wait",
+        type=ranged(float, 0.0, 3600.0),
+        default=30.0,
+        help="--live foxglove: seconds to wait for Foxglove to connect before the episode starts (0: start at once)",
+    )
+    group.add_argument(
+        "--connect",
+        default=None,
+        help="--live rerun: a running viewer's PORT, HOST:PORT or rerun+http://HOST:PORT/proxy (default: spawn one)",
+    )
+
+
+class LiveOutputs:
+    """The live outputs one `dynabarn-run` asked for, opened before the episode and closed
+    after it whatever happens. `contexts` go to the recorder; `observers` run after it."""
+
+    def __init__(self, args: argparse.Namespace, sim, protocol) -> None:
+        self.args, self.sim, self.protocol = args, sim, protocol
+        self.contexts: tuple = ()
+        self.observers: tuple = ()
+        self._foxglove = self._rerun = self._viewer = None
+        if args.connect is not None and "rerun" not in args.live:
+            raise DynabarnError("--connect is for --live rerun")
+
+    def __enter__(self) -> LiveOutputs:
+        args = self.args
+        observers = []
+        if "foxglove" in args.live:
+            from dynabarn.live.foxglove_live import FoxgloveLive
+
+            try:
+                self._foxglove = FoxgloveLive(args.port, wait=args.wait)
+            except RuntimeError as exc:
+                raise DynabarnError(f"--live foxglove: cannot serve on port {args.port} ({exc})") from None
+            self.contexts = (self._foxglove.context,)
+            observers.append(self._foxglove)
+            print(f"Foxglove: open a connection to {self._foxglove.url}", file=sys.stderr, flush=True)
+        if "rerun" in args.live:
+            observers.append(self._open_rerun())
+        if args.viewer:
+            observers.append(self._open_viewer())
+        elif args.live:
+            from dynabarn.live.pacing import Pacer
+
+            observers.append(Pacer(args.rate))
+        self.observers = tuple(observers)
+        return self
+
+    def attach(self, recorder) -> None:
+        if self._foxglove is not None:
+            self._foxglove.attach(recorder)
+
+    def _open_rerun(self):
+        from dynabarn.live.rerun_live import RerunLive
+
+        if self.args.connect is None:
+            if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+                raise DynabarnError("--live rerun spawns a viewer and needs a display; or --connect to a running one")
+            self._rerun = RerunLive()
+        else:
+            from dynabarn.web_viewer import check_reachable, grpc_url
+
+            url = grpc_url(self.args.connect)
+            check_reachable(url)
+            self._rerun = RerunLive(url)
+        return self._rerun
+
+    def _open_viewer(self):
+        if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+            raise DynabarnError("--viewer needs a display (or Xvfb); none is set")
+        if os.environ.get("MUJOCO_GL", "glfw") != "glfw":
+            raise DynabarnError(f"--viewer needs MuJoCo's windowed GL; MUJOCO_GL={os.environ['MUJOCO_GL']} is set")
+        from dynabarn.live.viewer import MujocoViewer
+
+        self.sim.reset(self.protocol.spawn)
+        self._viewer = MujocoViewer(self.sim, goal_tolerance=self.protocol.goal_tolerance, rate=self.args.rate)
+        self._viewer.open()
+        return self._viewer
+
+    def __exit__(self, *exc) -> None:
+        if self._viewer is not None:
+            self._viewer.close()
+        if self._rerun is not None:
+            self._rerun.close()
+        if self._foxglove is not None:
+            self._foxglove.stop()

@@ -1,0 +1,106 @@
+"""Streaming an episode to Foxglove as it runs: foxglove-sdk's WebSocket server on loopback.
+
+The recorder (`McapRecorder(live=...)`) sends every message to the server's context as well
+as to the MCAP file: the same topics, schemas and bytes, so the shipped layout works live
+as it does on a recording. The server advertises the `time` capability and is told the
+simulated time after every tick, so Foxglove's clock follows the episode. A viewer that
+subscribes after the start is sent the messages written once (world metadata, walls and
+goal) again, as ROS latches them.
+
+Open Foxglove, "Open connection", `ws://127.0.0.1:8765` (or `--port`).
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+
+import foxglove
+from foxglove.websocket import Capability, ChannelView, Client, ServerListener
+
+from dynabarn.recording import McapRecorder
+
+HOST = "127.0.0.1"
+"""Loopback only: a simulator has no business listening on every interface (use an SSH
+tunnel to watch from another machine)."""
+
+
+class _Latch(ServerListener):
+    """Resends the latched messages of a topic to the server when a client subscribes."""
+
+    def __init__(self, live: FoxgloveLive) -> None:
+        self.live = live
+
+    def on_subscribe(self, client: Client, channel: ChannelView) -> None:
+        self.live.subscribed.set()
+        self.live.resend(channel.topic)
+
+
+class FoxgloveLive:
+    """A Foxglove WebSocket server for one episode; pass `context` to the recorder's `live`.
+
+    Args:
+        port: the TCP port on 127.0.0.1 (0: any free port; `port` says which afterwards).
+        name: the server's name, shown in Foxglove.
+        wait: seconds the episode's start waits for a client to subscribe (its channels
+            exist from the start on, so this is when a client can see them).
+    """
+
+    def __init__(self, port: int = 8765, *, name: str = "dynabarn", wait: float = 0.0) -> None:
+        self.wait = wait
+        self.context = foxglove.Context()
+        self.subscribed = threading.Event()
+        self.recorder: McapRecorder | None = None
+        self._lock = threading.Lock()
+        self._channels: dict[str, foxglove.Channel] = {}
+        self.server = foxglove.start_server(
+            name=name,
+            host=HOST,
+            port=port,
+            capabilities=[Capability.Time],
+            server_listener=_Latch(self),
+            context=self.context,
+        )
+
+    @property
+    def port(self) -> int:
+        return self.server.port
+
+    @property
+    def url(self) -> str:
+        return f"ws://{HOST}:{self.port}"
+
+    def attach(self, recorder: McapRecorder) -> None:
+        """The recorder whose latched messages late subscribers get again."""
+        self.recorder = recorder
+
+    def resend(self, topic: str) -> None:
+        recorder = self.recorder
+        if recorder is None or topic not in recorder.latched:
+            return
+        channels = recorder.live_channels(self.context)
+        with self._lock:
+            for data, ns in list(recorder.latched[topic]):
+                if topic in channels:
+                    channels[topic].log(data, log_time=ns)
+
+    def wait_for_client(self, timeout: float | None) -> bool:
+        """Block until a client subscribes to something (or `timeout` seconds pass)."""
+        return self.subscribed.wait(timeout)
+
+    # -- EpisodeObserver: the server's clock follows simulated time ---------------------
+    def on_start(self, start) -> None:
+        self.server.broadcast_time(0)
+        if self.wait > 0 and not self.wait_for_client(self.wait):
+            print(f"no Foxglove client after {self.wait:g} s; starting anyway", file=sys.stderr, flush=True)
+
+    def on_tick(self, tick) -> None:
+        self.server.broadcast_time(round(tick.time * 1e9))
+
+    def on_poses(self, times, poses) -> None: ...
+
+    def on_end(self, result) -> None:
+        self.server.broadcast_time(round(result.sim_time * 1e9))
+
+    def stop(self) -> None:
+        self.server.stop()
