@@ -108,7 +108,7 @@ class LiveOutputs:
     def _open_viewer(self):
         if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
             raise DynabarnError("--viewer needs a display (or Xvfb); none is set")
-        if os.environ.get("MUJOCO_GL", "glfw") != "glfw":
+        if os.environ.get("MUJOCO_GL") not in (None, "", "glfw"):
             raise DynabarnError(f"--viewer needs MuJoCo's windowed GL; MUJOCO_GL={os.environ['MUJOCO_GL']} is set")
         from dynabarn.live.viewer import MujocoViewer
 

@@ -112,4 +112,8 @@ def _run_episode(args: argparse.Namespace) -> int:
             import shutil
 
             shutil.rmtree(log_path.parent, ignore_errors=True)
+    from dynabarn.live.viewer import CLOSED, ESCAPED
+
+    if result.reason in (CLOSED, ESCAPED):  # the person watching ended it: not a failure
+        return 0
     return exit_status(result, as_json=args.json)
