@@ -184,7 +184,7 @@ def test_a_tampered_world_attachment_is_refused(dwa_recording):
 
 def test_the_shipped_foxglove_layout_is_current_and_names_recorded_topics():
     shipped = LAYOUT_FILE.read_text()
-    assert shipped == layout_json(), "regenerate it: python -m dynabarn.recording.layout --write"
+    assert shipped == layout_json(), "regenerate it: python -m dynabarn.recording.layout --out assets/foxglove/dynabarn.json"
     layout = json.loads(shipped)
     names = referenced_topics(layout)
     assert {"/scan", "/world/obstacles", "/planner/plans", "/episode/result", "/cmd_vel"} <= names

@@ -4,7 +4,9 @@ Built from the topic table with foxglove-sdk's layout classes: a 3D panel follow
 robot's `base_link` in the `world` frame (scan, obstacles, walls, goal, plans), a top-down
 3D panel of the whole arena, one plot per field the table marks for plotting, the episode's
 result and the frame tree. Import the file in Foxglove (Layouts -> Import from file).
-`python -m dynabarn.recording.layout --write` regenerates it; a test keeps it in step.
+`python -m dynabarn.recording.layout --out assets/foxglove/dynabarn.json` regenerates it (a
+test keeps it in step); from an installed package, `python -m dynabarn.recording.layout`
+prints it.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from dynabarn.recording.topics import (
 )
 
 LAYOUT_FILE = Path(__file__).resolve().parents[2] / "assets" / "foxglove" / "dynabarn.json"
+"""The shipped copy, in a checkout of the repository."""
 SCENE_TOPICS = (TOPIC_STATIC, TOPIC_OBSTACLES, TOPIC_PLANS, TOPIC_SCAN, TOPIC_GOAL)
 """What the 3D panels draw (the frame tree on `/tf` places them)."""
 
@@ -117,13 +120,19 @@ def referenced_topics(layout: dict) -> set[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description="Print (or --write) the Foxglove layout for DynaBARN recordings.")
-    parser.add_argument("--write", action="store_true", help=f"write it to {LAYOUT_FILE}")
+    parser = argparse.ArgumentParser(description="Print (or --out) the Foxglove layout for DynaBARN recordings.")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="write it to this file (default: print it; the checkout's copy is assets/foxglove/dynabarn.json)",
+    )
     args = parser.parse_args(argv)
-    if args.write:
-        LAYOUT_FILE.parent.mkdir(parents=True, exist_ok=True)
-        LAYOUT_FILE.write_text(layout_json())
-        print(f"wrote {LAYOUT_FILE}")
+    if args.out is not None:
+        from dynabarn.files import write_atomically
+
+        write_atomically(args.out, layout_json())
+        print(f"wrote {args.out}")
     else:
         print(layout_json(), end="")
     return 0
