@@ -184,7 +184,8 @@ def test_a_tampered_world_attachment_is_refused(dwa_recording):
 
 def test_the_shipped_foxglove_layout_is_current_and_names_recorded_topics():
     shipped = LAYOUT_FILE.read_text()
-    assert shipped == layout_json(), "regenerate it: python -m dynabarn.recording.layout --out assets/foxglove/dynabarn.json"
+    regenerate = "python -m dynabarn.recording.layout --out assets/foxglove/dynabarn.json"
+    assert shipped == layout_json(), f"regenerate it: {regenerate}"
     layout = json.loads(shipped)
     names = referenced_topics(layout)
     assert {"/scan", "/world/obstacles", "/planner/plans", "/episode/result", "/cmd_vel"} <= names

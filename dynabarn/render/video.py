@@ -195,12 +195,12 @@ def render_recording(
                 for flag in _OFF:
                     scene.flags[flag] = 0
                 marks.geom(mujoco.mjtGeom.mjGEOM_CYLINDER, [tol, 0.005, 0], [goal[0], goal[1], 0.006], _GOAL_RGBA)
-                # The robot, legible from 27 m up: a disc under it and an arrow along its heading.
-                marks.geom(mujoco.mjtGeom.mjGEOM_CYLINDER, [0.7, 0.004, 0], [x, y, 0.008], _ROBOT_DISC_RGBA)
-                c, s = math.cos(yaw), math.sin(yaw)
-                # An arrow's z axis is its direction: columns (x, y, z) = (-sin, cos, 0), (0, 0, 1), (cos, sin, 0).
-                heading = np.array([-s, 0.0, c, c, 0.0, s, 0.0, 1.0, 0.0])
-                marks.geom(mujoco.mjtGeom.mjGEOM_ARROW, [0.15, 0.15, 4 * length], [x, y, 0.3], _ARROW_RGBA, heading)
+                if camera == "top":  # the robot, legible from 31 m up: a disc under it, an arrow ahead
+                    marks.geom(mujoco.mjtGeom.mjGEOM_CYLINDER, [0.7, 0.004, 0], [x, y, 0.008], _ROBOT_DISC_RGBA)
+                    c, s = math.cos(yaw), math.sin(yaw)
+                    # An arrow points along its z: columns (x, y, z) = (-sin, cos, 0), (0, 0, 1), (cos, sin, 0).
+                    heading = np.array([-s, 0.0, c, c, 0.0, s, 0.0, 1.0, 0.0])
+                    marks.geom(mujoco.mjtGeom.mjGEOM_ARROW, [0.15, 0.15, 4 * length], [x, y, 0.3], _ARROW_RGBA, heading)
                 marks.polyline(tracks.robot[: k + 1 : path_every, :2], 0.03, 0.07, _PATH_RGBA)
                 for i in range(n_obs):
                     marks.polyline(tracks.trails[k, :, i], 0.02, 0.06, _TRAIL_RGBA)
