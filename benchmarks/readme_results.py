@@ -22,7 +22,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
-from dynabarn.bench import DIFFICULTIES, PAPER_FIG5, read_results, summarise
+from dynabarn.bench import DIFFICULTIES, PAPER_FIG5, paper_worlds, read_results, summarise
 from dynabarn.bench.results import RESULTS, WORLDS
 from dynabarn.bench.summary import FLOOR, plot_fig5
 
@@ -62,7 +62,7 @@ def _skill(s: dict) -> str:
 def load(folder: str) -> tuple[list[dict], list[dict]]:
     """(rows, summary) of one results folder; empty when it is absent."""
     rows = [r for r in read_results(RESULTS_DIR / folder / RESULTS) if not r.get("retry")]
-    return rows, summarise(rows) if rows else []
+    return rows, summarise(rows, paper_worlds(RESULTS_DIR / folder)) if rows else []
 
 
 def _by(summary: list[dict]) -> dict[tuple[str, str], dict]:

@@ -206,6 +206,26 @@ def parse_ids(text: str | None) -> list[int] | None:
     return list(ids)
 
 
+PAPER_SET = "paper60"
+"""The index set of the worlds whose provenance is the paper's."""
+
+
+def paper_world_ids(index: dict) -> set[int]:
+    """Ids of an index's worlds whose provenance is the paper's, the only ones compared with
+    the paper's Fig. 5: the `paper60` subset of worlds generated with the paper's Table I
+    profiles and nothing beyond the paper (shapes, static fields, behaviours), or imported
+    worlds the importer recognised as the release's (it lists them as `paper60`)."""
+    ids = set(index.get("sets", {}).get(PAPER_SET, []))
+    generator = index.get("generator")
+    if generator == "dynabarn import":
+        return ids
+    profile_set = index.get("profile_set")
+    plain = not any(k in index for k in ("shapes", "static_field", "behavior"))
+    if generator == "dynabarn" and isinstance(profile_set, dict) and profile_set.get("name") == "table1" and plain:
+        return ids
+    return set()
+
+
 def world_set(name: str, ids: list[int] | None = None) -> list[tuple[int, str, str]]:
     """(world id, file, difficulty) for `paper60`, `dynabarn300`, or a folder/index.json."""
     if name in ("paper60", "dynabarn300"):

@@ -234,7 +234,9 @@ def test_presets_run_as_their_own_rows(tmp_path, capsys):
     authors = rows["dwa@dwa_dynabarn_authors"]["planner_config"]
     assert authors["max_vel_x"] == 0.5 and authors["costmap"]["resolution"] == 0.05
     assert rows["dwa"]["planner_config"]["max_vel_x"] == 2.0
-    summary = {(s["planner"], s["difficulty"]): s for s in bench.summarise(list(rows.values()))}
+    summary = {
+        (s["planner"], s["difficulty"]): s for s in bench.summarise(list(rows.values()), bench.paper_worlds(out))
+    }
     assert summary[("dwa@dwa_dynabarn_authors", "easy")]["paper"] == 0.78
     assert bench_main(["--planner", "dwa@nope", "--worlds", "0", "--out", str(tmp_path / "x")]) == 2
     assert "unknown planner preset" in capsys.readouterr().err

@@ -15,6 +15,7 @@ from dynabarn.bench.results import (
     jsonable_args,
     locked,
     metadata,
+    paper_worlds,
     read_results,
     write_worlds,
 )
@@ -43,6 +44,7 @@ __all__ = [
     "locked",
     "make_jobs",
     "metadata",
+    "paper_worlds",
     "plot_fig5",
     "read_results",
     "run_job",

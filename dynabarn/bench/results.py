@@ -154,9 +154,10 @@ def jsonable_args(args) -> dict:
 
 def write_worlds(out_dir: Path, jobs: list[Job]) -> Path:
     """`OUT/worlds.json`: each world of the sweep with its index entry's difficulty class,
-    obstacle count and measured difficulty, so results can be related to the worlds
-    without their folder (the imported release worlds are not part of a checkout)."""
-    from dynabarn.worldset import read_index
+    obstacle count and measured difficulty, and whether its provenance is the paper's
+    (`worldset.paper_world_ids`), so results can be related to the worlds without their
+    folder (the imported release worlds are not part of a checkout)."""
+    from dynabarn.worldset import paper_world_ids, read_index
 
     path = Path(out_dir) / WORLDS
     old = {}
@@ -169,9 +170,10 @@ def write_worlds(out_dir: Path, jobs: list[Job]) -> Path:
     files = {(Path(j.world_file).parent, Path(j.world_file).name) for j in jobs}  # once, not per entry
     for folder in sorted({folder for folder, _ in files}):
         try:
-            entries = read_index(folder)["worlds"]
+            index = read_index(folder)
         except DynabarnError:
             continue
+        entries, paper = index["worlds"], paper_world_ids(index)
         for e in entries:
             name = e.get("name") or Path(e["file"]).stem
             if (folder, e["file"]) in files:
@@ -182,8 +184,19 @@ def write_worlds(out_dir: Path, jobs: list[Job]) -> Path:
                     "n_obstacles": e.get("n_obstacles"),
                     "measured": e.get("measured"),
                     "sha256": e.get("sha256"),
+                    "paper": e["id"] in paper,
                 }
     if worlds != old:
         text = json.dumps({"worlds": [worlds[k] for k in sorted(worlds)]}, indent=1, sort_keys=True) + "\n"
         write_atomically(path, text)
     return path
+
+
+def paper_worlds(out_dir: Path) -> set[str]:
+    """Names of the results folder's worlds whose provenance is the paper's (empty without
+    a `worlds.json` that says so: then nothing is compared with the paper)."""
+    path = Path(out_dir) / WORLDS
+    try:
+        return {w["name"] for w in json.loads(path.read_text())["worlds"] if w.get("paper") is True}
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError, RecursionError, KeyError, TypeError):
+        return set()

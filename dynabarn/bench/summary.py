@@ -81,8 +81,10 @@ def _mean(values: list[float]) -> float:
 PAPER_PROTOCOLS = ("barn", "paper2022")
 
 
-def summarise(rows: list[dict]) -> list[dict]:
-    """One summary row per (planner, difficulty), plus 'all' per planner."""
+def summarise(rows: list[dict], paper_worlds: set[str] = frozenset()) -> list[dict]:
+    """One summary row per (planner, difficulty), plus 'all' per planner. The paper's Fig. 5
+    value is given only where every episode ran under one of the paper's protocols in a
+    world of `paper_worlds` (whose provenance is the paper's: `results.paper_worlds`)."""
     groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
     for r in rows:
         groups[(r["planner"], r["difficulty"])].append(r)
@@ -110,9 +112,9 @@ def summarise(rows: list[dict]) -> list[dict]:
                 "score": _mean([r.get("score", 0.0) for r in rs]),
                 "spl": _mean([r.get("spl", 0.0) for r in rs]),
                 "min_clearance": _mean([r.get("min_clearance") for r in rs]),
-                # The paper's Fig. 5 only compares with runs in DynaBARN worlds under its protocols.
+                # The paper's Fig. 5 only compares with runs in the paper's worlds under its protocols.
                 "paper": PAPER_FIG5.get(planner.split("@")[0], {}).get(difficulty)
-                if all(r.get("protocol") in PAPER_PROTOCOLS for r in rs)
+                if all(r.get("protocol") in PAPER_PROTOCOLS and r.get("world") in paper_worlds for r in rs)
                 else None,
                 **(
                     none | skill_over_floor(rs, groups[(FLOOR, difficulty)])

@@ -14,7 +14,7 @@ from dynabarn.cli.common import (
     run_command,
     subcommands,
 )
-from dynabarn.errors import DynabarnError
+from dynabarn.errors import DynabarnError, ImportFormatError
 
 
 # Over 80 lines on purpose: the declarations of the four subcommands' options, one after
@@ -91,6 +91,12 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
     )
     im.add_argument("--out", type=Path, default=Path("imported_worlds"), help="output directory")
     im.add_argument(
+        "--name",
+        default=None,
+        help="the set's name, the start of every world's name (<name>_<id>), so two imported sets never "
+        "collide in a results table (default: the file's name without .json)",
+    )
+    im.add_argument(
         "--declared-obstacles",
         action="store_true",
         help="use the plugins the world files name instead of `effective_obstacles` (what Gazebo ran)",
@@ -149,7 +155,7 @@ def _worlds_generate(args: argparse.Namespace) -> int:
 
 
 def _worlds_import(args: argparse.Namespace) -> int:
-    from dynabarn.worldset import write_worlds
+    from dynabarn.worldset import PAPER_SET, write_worlds
 
     if args.format == "barn-static":
         from dynabarn.worlds.importers.barn import import_barn_static, load_barn_json
@@ -158,17 +164,43 @@ def _worlds_import(args: argparse.Namespace) -> int:
     else:
         from dynabarn.worlds.importers.release import import_release, load_release_json
 
-        worlds = import_release(load_release_json(args.file), use_effective=not args.declared_obstacles)
+        data = load_release_json(args.file)
+        name = args.name if args.name is not None else args.file.stem
+        try:
+            worlds = import_release(data, name=name, use_effective=not args.declared_obstacles)
+        except ImportFormatError as exc:
+            raise ImportFormatError(f"{args.file}:\n  " + str(exc).replace("\n", "\n  ")) from None
     sets = {
         "all": [w.world_id for w in worlds],
         "easy": [w.world_id for w in worlds if w.difficulty == "easy"],
         "medium": [w.world_id for w in worlds if w.difficulty == "medium"],
         "hard": [w.world_id for w in worlds if w.difficulty == "hard"],
     }
+    paper = [w.world_id for w in worlds if (w.provenance or {}).get("paper_set")]
+    if paper:
+        sets[PAPER_SET] = paper
     meta = {"generator": "dynabarn import", "source_format": args.format, "source_file": args.file.name}
     index = write_worlds(worlds, args.out, meta=meta, sets=sets, progress=progress_bar("importing", len(worlds)))
     print(f"imported {len(worlds)} worlds into {args.out} (index {index})")
+    for line in count_notes(worlds):
+        print(f"note: {line}")
     return 0
+
+
+def count_notes(worlds) -> list[str]:
+    """One line per count class outside the paper's low (5-9) and high (10-19) branches."""
+    from dynabarn.worlds.profiles import CountClass
+
+    notes = []
+    for cls, what in ((CountClass.BELOW_LOW, "fewer than 5"), (CountClass.ABOVE_HIGH, "more than 19")):
+        outside = [w for w in worlds if w.count_class is cls]
+        if outside:
+            counts = sorted({len(w.obstacles) for w in outside})
+            notes.append(
+                f"{len(outside)} world(s) with {what} obstacles ({', '.join(map(str, counts))}): count class "
+                f"{cls.value}, outside the paper's branches (Fig. 2 difficulty as the nearer branch)"
+            )
+    return notes
 
 
 def _worlds_show(args: argparse.Namespace) -> int:

@@ -73,8 +73,7 @@ class RerunLive:
         s = self.stream
         s.set_time(TIMELINE, duration=tick.time)
         x, y, yaw = tick.pose.tolist()
-        ox, oy = self.info.laser_offset.tolist()
-        lx, ly = x + math.cos(yaw) * ox - math.sin(yaw) * oy, y + math.sin(yaw) * ox + math.cos(yaw) * oy
+        lx, ly, _ = tick.laser_pose.tolist()
         r = tick.scan
         hit = returns(r, self.info.laser_range[1])
         a = self.info.laser_angles[hit] + yaw

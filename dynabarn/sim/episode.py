@@ -200,12 +200,15 @@ class Episode:
     def tick_record(self, debug: dict) -> Tick:
         """The last observation and command (as received, on its grid), for observers."""
         obs, sim = self._obs, self.sim
-        laser_xy = sim.data.site_xpos[sim.laser.site]
         pose = obs.pose
+        # The laser where it was when the scan was cast (the robot's pose then and the
+        # laser's mounting), not where the physics steps since have carried it.
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        ox, oy = self.info.laser_offset.tolist()
         return Tick(
             time=obs.time,
             scan=obs.scan,
-            laser_pose=np.array([laser_xy[0], laser_xy[1], pose[2]]),
+            laser_pose=np.array([pose[0] + c * ox - s * oy, pose[1] + s * ox + c * oy, pose[2]]),
             pose=pose,
             velocity=obs.velocity,
             command=self.prev_cmd.copy(),

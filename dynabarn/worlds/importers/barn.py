@@ -43,7 +43,7 @@ def path_xy(path_rc: np.ndarray) -> np.ndarray:
 
 
 def load_barn_json(path: Path | str) -> dict:
-    data = read_import_json(path)
+    data, _ = read_import_json(path)
     if (
         not isinstance(data, dict)
         or not isinstance(data.get("worlds"), list)
