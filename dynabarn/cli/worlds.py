@@ -110,15 +110,15 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
 
     st = sub.add_parser(
         "stats",
-        help="per-difficulty means of a world set's measured difficulty and obstacle motion",
+        help="per-difficulty means of world sets' measured difficulty and obstacle motion, side by side",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     st.add_argument(
-        "folder",
-        nargs="?",
-        type=Path,
-        default=None,
-        help=f"a folder of worlds with index.json (default: ${WORLDS_ENV}, else the shipped 300 worlds)",
+        "sets",
+        nargs="*",
+        default=[],
+        help="world sets to compare side by side: paper60, dynabarn300, or folders with index.json "
+        f"(default: ${WORLDS_ENV}, else the shipped 300 worlds)",
     )
     st.add_argument("--worlds", default=None, help="only these world ids, e.g. 0-19,200-219 (None: all)")
 
@@ -223,6 +223,15 @@ def _worlds_show(args: argparse.Namespace) -> int:
     )
     if world.layout.cylinders:
         print(f"  static cylinders: {len(world.layout.cylinders)}")
+    for line in count_notes([world]):
+        print(f"  note: {line}")
+    provenance = world.provenance or {}
+    if provenance.get("source_file"):
+        paper = "one of the paper's" if provenance.get("paper_set") else "not one of the paper's worlds"
+        print(
+            f"  imported from {provenance['source_file']} (sha256 {str(provenance.get('source_sha256'))[:12]}...), "
+            f"set {provenance.get('set')}, {paper}; recommended protocol {provenance.get('recommended_protocol')}"
+        )
     print(
         f"  {'obstacle':<14}{'profile':<9}{'order':>6}{'wpts':>6}{'duration':>10}{'speed min-max':>16}"
         f"  {'shape':<26}{'behavior'}"
@@ -249,49 +258,67 @@ def _worlds_show(args: argparse.Namespace) -> int:
     return 0
 
 
+STATS_COLUMNS = (
+    ("obstacles", "obst", 5, 1),
+    ("outside", "outside", 8, 0),
+    ("static", "static", 7, 0),
+    ("corridor_blocked", "blocked", 8, 2),
+    ("corridor_occupancy", "occup.", 7, 2),
+    ("crossings_per_minute", "cross/min", 10, 1),
+    ("time_in_corridor", "in corr.", 9, 3),
+    ("speed", "speed", 6, 2),
+    ("loop_duration", "loop s", 7, 1),
+    ("y_span", "y span", 7, 1),
+    ("y_zero_crossings", "y=0 x", 6, 1),
+)
+"""(measure, title, width, digits); `outside`: worlds whose count is outside the paper's 5-19."""
+
+
+def _set_measures(name: str, ids: list[int] | None) -> dict[str, list[dict]]:
+    """Per difficulty, each world's obstacle counts and measured difficulty."""
+    from dynabarn.mjcf import read_world
+    from dynabarn.worlds.difficulty import world_measures
+    from dynabarn.worlds.profiles import CountClass
+    from dynabarn.worldset import world_set
+
+    rows: dict[str, list[dict]] = {}
+    chosen = world_set(name, ids)
+    for _, file, difficulty in progress_bar(f"measuring {name}", len(chosen))(chosen):
+        world = read_world(file)
+        row = {"obstacles": len(world.obstacles), "static": len(world.layout.cylinders)}
+        row["outside"] = world.count_class in (CountClass.BELOW_LOW, CountClass.ABOVE_HIGH)
+        row |= world_measures(world)
+        rows.setdefault(difficulty, []).append(row)
+    return rows
+
+
 def _worlds_stats(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from dynabarn.mjcf import read_world
     from dynabarn.provenance import worlds_dir
-    from dynabarn.worlds.difficulty import world_measures
-    from dynabarn.worldset import entry_path, parse_ids, read_index
+    from dynabarn.worldset import parse_ids
 
-    args.folder = args.folder if args.folder is not None else worlds_dir()
-    index = read_index(args.folder)
-    entries = index["worlds"]
-    if args.worlds:
-        wanted = set(parse_ids(args.worlds))
-        entries = [e for e in entries if e["id"] in wanted]
-    if not entries:
-        raise DynabarnError(f"{args.folder}: no worlds selected")
-    rows: dict[str, list[dict]] = {}
-    for e in progress_bar("measuring", len(entries))(entries):
-        world = read_world(entry_path(Path(args.folder), e))
-        row = {"obstacles": len(world.obstacles), "static": len(world.layout.cylinders)}
-        row |= world_measures(world)
-        rows.setdefault(e["difficulty"], []).append(row)
-    columns = [
-        ("obstacles", "obst", 5, 1),
-        ("static", "static", 7, 0),
-        ("corridor_blocked", "blocked", 8, 2),
-        ("corridor_occupancy", "occup.", 7, 2),
-        ("crossings_per_minute", "cross/min", 10, 1),
-        ("time_in_corridor", "in corr.", 9, 3),
-        ("speed", "speed", 6, 2),
-        ("loop_duration", "loop s", 7, 1),
-        ("y_span", "y span", 7, 1),
-        ("y_zero_crossings", "y=0 x", 6, 1),
-    ]
-    print(f"{args.folder}: means per difficulty (difficulty from the schedules over 60 s; motion per obstacle)")
-    print(f"{'difficulty':<11}{'worlds':>7}" + "".join(f"{title:>{width}}" for _, title, width, _ in columns))
+    names = [str(f) for f in args.sets] or [str(worlds_dir())]
+    ids = parse_ids(args.worlds) if args.worlds else None
+    measured = {name: _set_measures(name, ids) for name in names}
+    width = max(11, *(len(n) + 2 for n in names))
+    print(
+        "means per difficulty (difficulty from the schedules over 60 s; motion per obstacle; "
+        "outside: worlds with fewer than 5 or more than 19 obstacles)"
+    )
+    head = f"{'difficulty':<11}{'set':<{width}}{'worlds':>7}"
+    print(head + "".join(f"{title:>{w}}" for _, title, w, _ in STATS_COLUMNS))
     for difficulty in ("easy", "medium", "hard"):
-        rs = rows.get(difficulty, [])
-        if rs:
+        for k, name in enumerate(names):
+            rs = measured[name].get(difficulty, [])
+            if not rs:
+                continue
             cells = "".join(
-                f"{np.mean([r.get(key, np.nan) for r in rs]):>{width}.{digits}f}" for key, _, width, digits in columns
+                f"{(np.sum if key == 'outside' else np.mean)([r.get(key, np.nan) for r in rs]):>{w}.{digits}f}"
+                for key, _, w, digits in STATS_COLUMNS
             )
-            print(f"{difficulty:<11}{len(rs):>7}" + cells)
+            label = difficulty if k == 0 or not measured[names[0]].get(difficulty) else ""
+            print(f"{label:<11}{name:<{width}}{len(rs):>7}" + cells)
     return 0
 
 
