@@ -285,7 +285,7 @@ BAD_INPUTS: list[tuple[str, list[str], str]] = [
     ("run", ["--world", "0", "--no-log", "--dt", "0.0001", "--protocol", "{bad}/p_hour.json"], "at most 5,000,000"),
     ("run", ["--world", "0", "--log", "{bad}/a_folder"], "a folder, not a recording file"),
     ("run", ["--world", "0", "--log", "{bad}/a_file/r.mcap"], "cannot record to"),
-    ("run", ["--world", "0", "--no-log", "--video", "{bad}/v.avi"], "--video must end in .mp4 or .gif"),
+    ("run", ["--world", "0", "--no-log", "--video", "{bad}/v.avi"], "video must end in .mp4 or .gif"),
     ("run", ["--no-log"], "--world"),
     ("bench", ["--out", "{bad}/a_file", "--worlds", "0", "--trials", "1"], "exists and is not a folder"),
     ("bench", ["--out", "{bad}/o1", "--jobs", "0"], "--jobs: 0 is not in [1, 256]"),

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.errors import ImportFormatError
-from dynabarn.worlds.profiles import CountClass, Difficulty, MotionClass, count_class_of, difficulty_of
+from dynabarn.worlds.classes import CountClass, Difficulty, MotionClass, count_class_of, difficulty_of
 from dynabarn.worlds.spec import EndBehavior, Interpolation, Layout, Obstacle, WorldSpec
 from dynabarn.worlds.trajectory import Trajectory
 
