@@ -35,3 +35,23 @@ def barn_json() -> dict:
     if not path.is_file():
         pytest.skip("reference data ../shared/reference/barn300_static.json not present")
     return json.loads(path.read_text())
+
+
+@pytest.fixture
+def display():
+    """An Xvfb display of its own (1280x800), for tests of real windows; skips without Xvfb."""
+    import shutil
+    import subprocess
+    import time
+
+    if not (shutil.which("Xvfb") and shutil.which("xdotool")):
+        pytest.skip("Xvfb and xdotool are installed by `make system-deps`")
+    number = next(n for n in range(90, 200) if not Path(f"/tmp/.X11-unix/X{n}").exists())
+    xvfb = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1280x800x24"], stderr=subprocess.DEVNULL)
+    for _ in range(50):
+        if Path(f"/tmp/.X11-unix/X{number}").exists():
+            break
+        time.sleep(0.1)
+    yield f":{number}"
+    xvfb.terminate()
+    xvfb.wait(timeout=10)

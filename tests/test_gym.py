@@ -5,10 +5,8 @@ the viewer window in human mode (Xvfb)."""
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -128,11 +126,10 @@ def test_sb3_ppo_trains_on_subprocess_envs_and_evaluates():
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not (shutil.which("Xvfb") and shutil.which("xdotool")), reason="make system-deps installs Xvfb")
-def test_human_mode_opens_the_viewer_on_a_display(tmp_path):
-    number = 80 + os.getpid() % 9
-    xvfb = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1280x800x24"], stderr=subprocess.DEVNULL)
-    env = {**os.environ, "DISPLAY": f":{number}"}
+def test_human_mode_opens_the_viewer_on_a_display(tmp_path, display):
+    from tests.xwindow import find_window
+
+    env = {**os.environ, "DISPLAY": display}
     env.pop("MUJOCO_GL", None)  # the viewer uses GLFW on the X display
     script = (
         "import gymnasium as gym, numpy as np, dynabarn.learn, time\n"
@@ -144,22 +141,10 @@ def test_human_mode_opens_the_viewer_on_a_display(tmp_path):
         "time.sleep(3)\n"
         "env.close()\n"
     )
-    try:
-        time.sleep(1.0)
-        proc = subprocess.Popen([sys.executable, "-c", script], env=env, stdout=subprocess.PIPE, text=True)
-        window = ""
-        for _ in range(60):
-            window = subprocess.run(
-                ["xdotool", "search", "--name", "MuJoCo"], env=env, capture_output=True, text=True
-            ).stdout.split()
-            if window:
-                break
-            time.sleep(0.25)
-        out, _ = proc.communicate(timeout=120)
-        assert window, "no MuJoCo viewer window appeared"
-        assert proc.returncode == 0
-        # 30 control steps of 0.1 s shown at real time.
-        assert 2.5 <= float(out.split()[-1]) <= 6.0
-    finally:
-        xvfb.terminate()
-        xvfb.wait(timeout=10)
+    proc = subprocess.Popen([sys.executable, "-c", script], env=env, stdout=subprocess.PIPE, text=True)
+    window = find_window(env)
+    out, _ = proc.communicate(timeout=120)
+    assert window, "no MuJoCo viewer window appeared"
+    assert proc.returncode == 0
+    # 30 control steps of 0.1 s shown at real time.
+    assert 2.5 <= float(out.split()[-1]) <= 6.0

@@ -8,7 +8,6 @@ import base64
 import json
 import os
 import re
-import shutil
 import socket
 import struct
 import subprocess
@@ -17,7 +16,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pytest
 from mcap.records import Schema
 from mcap_protobuf.decoder import DecoderFactory
 
@@ -187,35 +185,15 @@ def test_bad_live_options_are_one_line(tmp_path):
     assert out.returncode == 2 and "needs a display" in out.stderr
 
 
-@pytest.fixture
-def display():
-    if not (shutil.which("Xvfb") and shutil.which("xdotool")):
-        pytest.skip("Xvfb and xdotool are installed by `make system-deps`")
-    number = 80 + os.getpid() % 9
-    xvfb = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1280x800x24"], stderr=subprocess.DEVNULL)
-    time.sleep(1.0)
-    yield f":{number}"
-    xvfb.terminate()
-    xvfb.wait(timeout=10)
-
-
 def test_viewer_shows_the_robot_and_obstacles_and_closing_ends_cleanly(display, tmp_path):
-    sys.path.insert(0, str(Path(__file__).parent))
-    from xwindow import close_window, screenshot
+    from tests.xwindow import close_window, find_window, screenshot
 
     env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
     env["DISPLAY"] = display
     log = tmp_path / "viewer.mcap"
     proc = _run("--world 0 --planner dwa --viewer --rate 1 --log", log, env=env)
     try:
-        window = ""
-        for _ in range(120):
-            window = subprocess.run(
-                ["xdotool", "search", "--name", "MuJoCo"], env=env, capture_output=True, text=True
-            ).stdout.split()
-            if window:
-                break
-            time.sleep(0.25)
+        window = find_window(env)
         assert window, "the viewer window never appeared"
         time.sleep(4.0)  # a few seconds of the episode, at real time
         shot = screenshot(display).astype(int)
@@ -228,7 +206,7 @@ def test_viewer_shows_the_robot_and_obstacles_and_closing_ends_cleanly(display, 
         # The camera follows the robot: it stays near the window's middle.
         w = np.nonzero(shot.sum(axis=2) > 0)[1]
         assert abs(xs.mean() - (w.min() + w.max()) / 2) < 0.25 * (w.max() - w.min())
-        close_window(display, int(window[0]))
+        close_window(display, window)
         out, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:

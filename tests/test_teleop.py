@@ -2,7 +2,6 @@
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -10,21 +9,7 @@ import time
 import pytest
 
 from dynabarn.recording import read_recording
-
-pytestmark = pytest.mark.skipif(
-    not (shutil.which("Xvfb") and shutil.which("xdotool")),
-    reason="Xvfb and xdotool are installed by `make system-deps`",
-)
-
-
-@pytest.fixture
-def display():
-    number = 90 + os.getpid() % 9
-    xvfb = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1280x800x24"], stderr=subprocess.DEVNULL)
-    time.sleep(1.0)
-    yield f":{number}"
-    xvfb.terminate()
-    xvfb.wait(timeout=10)
+from tests.xwindow import find_window
 
 
 def _xdotool(env, *args) -> str:
@@ -54,14 +39,9 @@ def test_keyboard_drives_the_robot_and_escape_ends_cleanly(display, tmp_path):
         text=True,
     )
     try:
-        window = ""
-        for _ in range(60):
-            window = _xdotool(env, "search", "--name", "MuJoCo").split()
-            if window:
-                break
-            time.sleep(0.5)
-        assert window, "the viewer window never appeared"
-        wid = window[0]
+        wid = find_window(env)
+        assert wid, "the viewer window never appeared"
+        wid = str(wid)
         time.sleep(1.5)
         for _ in range(6):  # slow mode: 6 x 0.1 m/s
             _xdotool(env, "key", "--window", wid, "Up")

@@ -6,6 +6,21 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import subprocess
+import time
+
+
+def find_window(env: dict, name: str = "MuJoCo", timeout: float = 30.0) -> int | None:
+    """The id of the first window whose name has `name`, waiting up to `timeout` seconds."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        found = subprocess.run(
+            ["xdotool", "search", "--name", name], env=env, capture_output=True, text=True, timeout=30
+        ).stdout.split()
+        if found:
+            return int(found[0])
+        time.sleep(0.25)
+    return None
 
 
 class _ClientMessage(ctypes.Structure):

@@ -13,6 +13,19 @@ from dynabarn.errors import DynabarnError
 LIVE_TARGETS = ("foxglove", "rerun")
 
 
+def exit_code(code: int) -> int:
+    """A command's exit code, leaving at once once MuJoCo's viewer has been open: everything
+    is written and closed by then, and some Mesa GLX drivers crash (or hang) in the
+    interpreter's teardown after the viewer's thread has used them (exit 139 for a clean run)."""
+    from dynabarn.live.viewer import viewer_was_opened
+
+    if viewer_was_opened():
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
 def add_live_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("watching it run (paced to --rate times real time)")
     group.add_argument(

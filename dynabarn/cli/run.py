@@ -17,7 +17,7 @@ from dynabarn.cli.common import (
     run_command,
 )
 from dynabarn.cli.episode import exit_status, print_result, run_recorded
-from dynabarn.cli.live import LiveOutputs, add_live_options
+from dynabarn.cli.live import LiveOutputs, add_live_options, exit_code
 from dynabarn.cli.render import add_video_options, render_video, video_settings
 
 
@@ -54,19 +54,7 @@ def run_main(argv: Sequence[str] | None = None) -> int:
     add_video_options(parser, prefix="--video: ")
     add_live_options(parser)
     args = parser.parse_args(argv)
-    code = run_command(_run_episode, args)
-    from dynabarn.live.viewer import viewer_was_opened
-
-    if viewer_was_opened():
-        # Everything is written and closed by now; some Mesa GLX drivers crash (or hang) in
-        # the interpreter's teardown after MuJoCo's viewer thread has used them.
-        import os
-        import sys
-
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
-    return code
+    return exit_code(run_command(_run_episode, args))
 
 
 def _run_episode(args: argparse.Namespace) -> int:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -16,6 +15,7 @@ from dynabarn.cli.common import (
     ranged,
     run_command,
 )
+from dynabarn.cli.live import exit_code
 from dynabarn.errors import DynabarnError
 
 
@@ -37,19 +37,7 @@ def teleop_main(argv: Sequence[str] | None = None) -> int:
         "--speed", type=ranged(float, 0.1, 10.0), default=1.0, help="simulated seconds per wall-clock second"
     )
     args = parser.parse_args(argv)
-    code = run_command(_teleop, args)
-    from dynabarn.live.viewer import viewer_was_opened
-
-    if viewer_was_opened():
-        # Everything is written and closed by now. Some Mesa GLX drivers crash (or hang) in
-        # the interpreter's teardown after MuJoCo's viewer thread has used them, which would
-        # turn a clean session into exit code 139: leave without that teardown.
-        import os
-
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
-    return code
+    return exit_code(run_command(_teleop, args))
 
 
 def _teleop(args: argparse.Namespace) -> int:
