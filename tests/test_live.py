@@ -8,6 +8,7 @@ import base64
 import json
 import os
 import re
+import signal
 import socket
 import struct
 import subprocess
@@ -139,8 +140,13 @@ def test_watching_does_not_change_the_recording(tmp_path):
 def test_rerun_live_stream_is_received(tmp_path):
     port = _free_port()
     rrd = tmp_path / "live.rrd"
+    # Its own process group: `rerun` is a Python wrapper around the real binary, and Ctrl-C
+    # must reach both.
     server = subprocess.Popen(
-        [RERUN, "--port", str(port), "--save", str(rrd)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        [RERUN, "--port", str(port), "--save", str(rrd)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
     )
     try:
         for _ in range(100):
@@ -154,11 +160,11 @@ def test_rerun_live_stream_is_received(tmp_path):
         assert proc.returncode == 0, err
         time.sleep(1.0)
     finally:
-        server.send_signal(2)  # Ctrl-C: rerun finishes the file
+        os.killpg(server.pid, signal.SIGINT)  # Ctrl-C: rerun finishes the file
         try:
             server.wait(timeout=90)
         except subprocess.TimeoutExpired:  # a loaded machine: what was streamed is on disk already
-            server.kill()
+            os.killpg(server.pid, signal.SIGKILL)
             server.wait(timeout=30)
     printed = subprocess.run([RERUN, "rrd", "print", str(rrd)], capture_output=True, text=True, check=True).stdout
     entities = ("/runs/live/scan", "/runs/live/robot", "/runs/live/obstacles", "/world/walls", "/metrics/v/runs/live")
