@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 from mcap.records import Schema
 from mcap_protobuf.decoder import DecoderFactory
 
@@ -222,3 +223,29 @@ def test_viewer_shows_the_robot_and_obstacles_and_closing_ends_cleanly(display, 
     rec = read_recording(log)
     assert not rec.truncated and rec.result["reason"] == "the viewer window was closed"
     assert 2.0 < rec.result["sim_time"] < 30.0
+
+
+def test_a_paused_pacer_holds_the_episode_until_resumed():
+    """Space in the viewer pauses: the episode waits between ticks, and the pause does not
+    count as time to catch up afterwards."""
+    import threading
+    from types import SimpleNamespace
+
+    from dynabarn.live.pacing import Pacer
+
+    waited = []
+    pacer = Pacer(rate=1000.0, while_waiting=lambda: waited.append(1))
+    pacer.on_start(None)
+    pacer.toggle_pause()
+    ticking = threading.Thread(target=pacer.on_tick, args=(SimpleNamespace(time=0.1),))
+    ticking.start()
+    ticking.join(timeout=0.5)
+    assert ticking.is_alive() and waited, "a paused episode went on"
+    pacer.toggle_pause()
+    ticking.join(timeout=10)
+    assert not ticking.is_alive()
+    done = threading.Event()
+    threading.Thread(target=lambda: (pacer.on_tick(SimpleNamespace(time=0.2)), done.set())).start()
+    assert done.wait(10), "after the pause the clock restarts from the paused tick"
+    with pytest.raises(ValueError):
+        Pacer(rate=0.0)
