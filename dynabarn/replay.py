@@ -115,7 +115,10 @@ def log_static_world(meta: dict, stream: rr.RecordingStream) -> None:
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
 
 
-def log_obstacles(stream: rr.RecordingStream, run: str, world: WorldSpec, t: np.ndarray, xy: np.ndarray) -> None:
+def log_obstacles(
+    stream: rr.RecordingStream, run: str, world: WorldSpec, t: np.ndarray, xy: np.ndarray, *, style: bool = True
+) -> None:
+    """The obstacles at times t (T,), centres xy (T, n, 2); `style`: also their colour and fill (static, once)."""
     index = [_time_column(t)]
     red = [(215, 40, 30)]
     shapes = np.array([o.shape for o in world.obstacles])
@@ -155,7 +158,8 @@ def log_obstacles(stream: rr.RecordingStream, run: str, world: WorldSpec, t: np.
             )
             archetype = rr.Capsules3D
         stream.send_columns(f"{run}/{entity}", indexes=index, columns=columns.partition([len(sel)] * n))
-        stream.log(f"{run}/{entity}", archetype.from_fields(colors=red, fill_mode="solid"), static=True)
+        if style:
+            stream.log(f"{run}/{entity}", archetype.from_fields(colors=red, fill_mode="solid"), static=True)
 
 
 # Over 80 lines on purpose: one short section per rerun entity (poses, scan, obstacles, path,

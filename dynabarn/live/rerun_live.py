@@ -79,7 +79,7 @@ class RerunLive:
         a = self.info.laser_angles[hit] + yaw
         pts = np.column_stack([lx + r[hit] * np.cos(a), ly + r[hit] * np.sin(a), np.full(int(hit.sum()), 0.3)])
         s.log(f"{RUN}/scan", rr.Points3D(pts))
-        log_obstacles(s, RUN, self.world, np.array([tick.time]), tick.obstacles[None])
+        log_obstacles(s, RUN, self.world, np.array([tick.time]), tick.obstacles[None], style=self.ticks == 0)
         self._path.append((x, y))
         path = np.asarray(self._path[:: max(1, len(self._path) // PATH_VERTICES)])
         s.log(f"{RUN}/robot_path", rr.LineStrips3D([np.column_stack([path, np.full(len(path), 0.02)])]))

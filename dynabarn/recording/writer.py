@@ -129,7 +129,7 @@ class McapRecorder:
         self.live = live
         self._writer = None
         self._open = False
-        self._json: dict[str, _Fanout] = {}
+        self._json: dict[str, _Fanout | foxglove.Channel] = {}
         self.latched: dict[str, list[tuple[bytes, int]]] = {}
         """What was written on the LATCHED topics: (message, log time [ns])."""
         self.stopped: str | None = None
@@ -174,13 +174,14 @@ class McapRecorder:
 
         self._by_context: dict[int, dict[str, foxglove.Channel]] = {id(c): {} for c in contexts}
 
-        def fanout(topic: str, schema: foxglove.Schema, encoding: str) -> _Fanout:
+        def fanout(topic: str, schema: foxglove.Schema, encoding: str) -> _Fanout | foxglove.Channel:
             channels = []
             for c in contexts:
                 channel = foxglove.Channel(topic, schema=schema, message_encoding=encoding, context=c)
                 self._by_context[id(c)][topic] = channel
                 channels.append(channel)
-            return _Fanout(channels)
+            # One context (the usual file-only case): the channel itself, no call in between.
+            return channels[0] if len(channels) == 1 else _Fanout(channels)
 
         def proto(topic: str, message_type) -> _Fanout:
             return fanout(topic, message_type.get_schema(), "protobuf")

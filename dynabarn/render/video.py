@@ -28,7 +28,7 @@ import numpy as np
 
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import OUTCOME_MESSAGES, Outcome
-from dynabarn.recording import Recording, recorded_world
+from dynabarn.recording import Recording, pose_track, recorded_world
 from dynabarn.render.frames import frame_tracks
 from dynabarn.render.model import CAMERAS, place_camera, recorded_model
 from dynabarn.render.overlay import LASER, Overlay, draw_dots, project
@@ -159,8 +159,6 @@ def render_recording(
             model.geom_matid[floor] = -1
             model.geom_rgba[floor] = (0.8, 0.8, 0.78, 1.0)
     data = mujoco.MjData(model)
-
-    from dynabarn.recording import pose_track
 
     duration = float(pose_track(rec)[0][-1])
     n_frames = math.floor(duration * fps + 1e-9) + 1
