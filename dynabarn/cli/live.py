@@ -41,7 +41,7 @@ def add_live_options(parser: argparse.ArgumentParser) -> None:
         default=[],
         help="stream the episode as it runs: foxglove (a WebSocket server on 127.0.0.1:--port; open "
         "ws://127.0.0.1:PORT in Foxglove with assets/foxglove/dynabarn.json), rerun (a spawned viewer, or "
-        "--connect); may be given twice",
+        "--connect); may be given twice (default: none)",
     )
     group.add_argument(
         "--rate",
@@ -49,7 +49,12 @@ def add_live_options(parser: argparse.ArgumentParser) -> None:
         default=1.0,
         help="simulated seconds per wall-clock second while watched (1: real time)",
     )
-    group.add_argument("--port", type=ranged(int, 0, 65535), default=8765, help="--live foxglove: the server's port")
+    group.add_argument(
+        "--port",
+        type=ranged(int, 0, 65535),
+        default=8765,
+        help="--live foxglove: the server's port (0: any free one, printed)",
+    )
     group.add_argument(
         "--wait",
         type=ranged(float, 0.0, 3600.0),
