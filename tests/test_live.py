@@ -213,6 +213,17 @@ def test_viewer_shows_the_robot_and_obstacles_and_closing_ends_cleanly(display, 
         # The camera follows the robot: it stays near the window's middle.
         w = np.nonzero(shot.sum(axis=2) > 0)[1]
         assert abs(xs.mean() - (w.min() + w.max()) / 2) < 0.25 * (w.max() - w.min())
+        # Space pauses: the picture stands still; running, the obstacles move.
+        time.sleep(1.0)
+        moving = np.abs(screenshot(display).astype(int) - shot).sum(axis=2) > 60
+        key = ["xdotool", "key", "--window", str(window), "space"]
+        subprocess.run(key, env=env, check=True, timeout=30)
+        time.sleep(1.0)
+        paused = screenshot(display).astype(int)
+        time.sleep(1.5)
+        still = np.abs(screenshot(display).astype(int) - paused).sum(axis=2) > 60
+        assert moving.sum() > 20 * max(1, still.sum()), (moving.sum(), still.sum())
+        subprocess.run(key, env=env, check=True, timeout=30)
         close_window(display, window)
         out, err = proc.communicate(timeout=60)
     finally:
