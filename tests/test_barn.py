@@ -68,7 +68,7 @@ def test_cli_import_barn_static(barn_json, tmp_path, capsys):
         )
         == 0
     )
-    assert len(list(tmp_path.glob("barn_*.xml"))) == 300
+    assert len(list(tmp_path.glob("barn300_static_*.xml"))) == 300  # named after the file by default
     bad = tmp_path / "bad.json"
     bad.write_text('{"worlds": [{"no": 1}]}')
     assert worlds_main(["import", str(bad), "--format", "barn-static", "--out", str(tmp_path / "o")]) == 2

@@ -157,15 +157,15 @@ def _worlds_generate(args: argparse.Namespace) -> int:
 def _worlds_import(args: argparse.Namespace) -> int:
     from dynabarn.worldset import PAPER_SET, write_worlds
 
+    name = args.name if args.name is not None else args.file.stem
     if args.format == "barn-static":
         from dynabarn.worlds.importers.barn import import_barn_static, load_barn_json
 
-        worlds = import_barn_static(load_barn_json(args.file))
+        worlds = import_barn_static(load_barn_json(args.file), name=name)
     else:
         from dynabarn.worlds.importers.release import import_release, load_release_json
 
         data = load_release_json(args.file)
-        name = args.name if args.name is not None else args.file.stem
         try:
             worlds = import_release(data, name=name, use_effective=not args.declared_obstacles)
         except ImportFormatError as exc:

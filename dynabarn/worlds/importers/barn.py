@@ -54,7 +54,12 @@ def load_barn_json(path: Path | str) -> dict:
     return data
 
 
-def import_barn_static(data: dict) -> list[WorldSpec]:
+def import_barn_static(data: dict, *, name: str = "barn") -> list[WorldSpec]:
+    """The static BARN worlds, named `<name>_<id>`."""
+    from dynabarn.worlds.importers.release import SET_NAME
+
+    if not SET_NAME.match(name):
+        raise ImportFormatError(f"set name {name!r}: use a letter, then letters, digits, _ or - (at most 41)")
     worlds = []
     for index, w in enumerate(data["worlds"]):
         try:
@@ -69,7 +74,7 @@ def import_barn_static(data: dict) -> list[WorldSpec]:
         difficulty = Difficulty.EASY if wid < 100 else Difficulty.MEDIUM if wid < 200 else Difficulty.HARD
         worlds.append(
             WorldSpec(
-                name=f"barn_{wid:03d}",
+                name=f"{name}_{wid:03d}",
                 world_id=wid,
                 difficulty=difficulty,
                 obstacles=(),
