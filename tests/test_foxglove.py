@@ -62,6 +62,7 @@ def test_every_message_decodes_with_foxglove_schemas_and_json_schemas(dwa_record
                 assert channel.message_encoding == "json" and schema.encoding == "jsonschema"
                 doc = json.loads(schema.data)
                 assert doc.get("title") == schema.name and doc.get("properties"), f"{channel.topic}: a placeholder"
+                jsonschema.Draft202012Validator.check_schema(doc)  # a valid schema itself
                 jsonschema.Draft202012Validator(doc).validate(json.loads(message.data))
     assert set(counts) == {t.name for t in TOPICS}
 
