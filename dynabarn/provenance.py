@@ -154,3 +154,8 @@ def machine() -> dict:
         out["torch_cpu_capability"] = torch.backends.cpu.get_cpu_capability()
         out["torch_threads"] = torch.get_num_threads()
     return out
+
+
+def has_display() -> bool:
+    """Whether windows can open here (an X display, Xvfb included, or Wayland)."""
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))

@@ -9,6 +9,7 @@ import sys
 
 from dynabarn.cli.common import ranged
 from dynabarn.errors import DynabarnError
+from dynabarn.provenance import has_display
 
 LIVE_TARGETS = ("foxglove", "rerun")
 
@@ -112,7 +113,7 @@ class LiveOutputs:
         from dynabarn.live.rerun_live import RerunLive
 
         if self.args.connect is None:
-            if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+            if not has_display():
                 raise DynabarnError("--live rerun spawns a viewer and needs a display; or --connect to a running one")
             self._rerun = RerunLive()
         else:
@@ -124,7 +125,7 @@ class LiveOutputs:
         return self._rerun
 
     def _open_viewer(self):
-        if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+        if not has_display():
             raise DynabarnError("--viewer needs a display (or Xvfb); none is set")
         if os.environ.get("MUJOCO_GL") not in (None, "", "glfw"):
             raise DynabarnError(f"--viewer needs MuJoCo's windowed GL; MUJOCO_GL={os.environ['MUJOCO_GL']} is set")

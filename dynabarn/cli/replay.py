@@ -13,6 +13,7 @@ from dynabarn.cli.common import (
     run_command,
 )
 from dynabarn.errors import DynabarnError
+from dynabarn.provenance import has_display
 
 
 def replay_main(argv: Sequence[str] | None = None) -> int:
@@ -70,7 +71,7 @@ def _replay(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     save = args.save
-    if save is None and not (args.web or args.connect) and not _display():
+    if save is None and not (args.web or args.connect) and not has_display():
         save = args.recordings[0].with_suffix(".rrd")
         print(f"no display: saving to {save} instead (open it with `rerun {save}`, or use --web)", file=sys.stderr)
     t0 = time.perf_counter()
@@ -89,12 +90,6 @@ def _replay(args: argparse.Namespace) -> int:
         return 0
     spawn_viewer(recs)
     return 0
-
-
-def _display() -> bool:
-    import os
-
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
 def _serve_web(recs: list, args: argparse.Namespace) -> int:

@@ -17,6 +17,7 @@ from dynabarn.cli.common import (
 )
 from dynabarn.cli.live import exit_code
 from dynabarn.errors import DynabarnError
+from dynabarn.provenance import has_display
 
 
 def teleop_main(argv: Sequence[str] | None = None) -> int:
@@ -41,7 +42,6 @@ def teleop_main(argv: Sequence[str] | None = None) -> int:
 
 
 def _teleop(args: argparse.Namespace) -> int:
-    import os
 
     from dynabarn.demos.teleop import append_manifest, next_demo_path, run_teleop
     from dynabarn.metrics import Outcome
@@ -49,7 +49,7 @@ def _teleop(args: argparse.Namespace) -> int:
     from dynabarn.protocol import get_protocol
     from dynabarn.worldset import resolve_world
 
-    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+    if not has_display():
         raise DynabarnError("dynabarn-teleop needs a display (or Xvfb); none is set")
     if args.speed <= 0:
         raise DynabarnError("--speed must be positive")

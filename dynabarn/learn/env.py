@@ -74,7 +74,6 @@ imported, or by `import dynabarn` once gymnasium is imported; from a fresh inter
 from __future__ import annotations
 
 import math
-import os
 import threading
 from typing import Any, ClassVar
 
@@ -87,6 +86,7 @@ from dynabarn.metrics import Outcome
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.learned.spaces import action_to_command, policy_input
 from dynabarn.protocol import get_protocol
+from dynabarn.provenance import has_display
 from dynabarn.render import CAMERAS, place_camera
 from dynabarn.robot import JACKAL
 from dynabarn.sim import Episode, SimConfig, Simulation
@@ -100,10 +100,6 @@ REWARD_SUCCESS = 20.0
 PAPER_SETS = ("paper60", "dynabarn300")
 
 
-def _has_display() -> bool:
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-
-
 def episode_step_limit(protocol: str = "barn") -> int:
     """The most control steps an episode can take under `protocol` (`longest_episode`)."""
     return math.ceil(get_protocol(protocol).longest_episode / SimConfig().control_period - 1e-9)
@@ -114,7 +110,7 @@ class DynaBARNEnv(gymnasium.Env):
 
     # "human" only where a window can open: MuJoCo's viewer ends the process without one.
     metadata: ClassVar[dict] = {
-        "render_modes": ["rgb_array", "human"] if _has_display() else ["rgb_array"],
+        "render_modes": ["rgb_array", "human"] if has_display() else ["rgb_array"],
         "render_fps": 10,
     }
 
@@ -131,7 +127,7 @@ class DynaBARNEnv(gymnasium.Env):
         width: int = 640,
         height: int = 480,
     ) -> None:
-        if render_mode == "human" and not _has_display():
+        if render_mode == "human" and not has_display():
             raise ValueError("render_mode 'human' needs a display (DISPLAY is not set); use 'rgb_array'")
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode {render_mode!r}: use None, 'rgb_array' or 'human'")
