@@ -82,6 +82,14 @@ class LiveOutputs:
             raise DynabarnError("--connect is for --live rerun")
 
     def __enter__(self) -> LiveOutputs:
+        try:
+            self._open()
+        except BaseException:  # close what did open (a Foxglove server before a failed --connect)
+            self.__exit__(None, None, None)
+            raise
+        return self
+
+    def _open(self) -> None:
         args = self.args
         observers = []
         if "foxglove" in args.live:
@@ -103,7 +111,6 @@ class LiveOutputs:
 
             observers.append(Pacer(args.rate))
         self.observers = tuple(observers)
-        return self
 
     def attach(self, recorder) -> None:
         if self._foxglove is not None:

@@ -52,7 +52,6 @@ class FoxgloveLive:
         self.subscribed = threading.Event()
         self.recorder: McapRecorder | None = None
         self._lock = threading.Lock()
-        self._channels: dict[str, foxglove.Channel] = {}
         self.server = foxglove.start_server(
             name=name,
             host=HOST,

@@ -16,7 +16,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from dynabarn.determinism import snap_array
-from dynabarn.recording.schemas import DEBUG_SCHEMA, METADATA_SCHEMA, document, obj, result_schema
+from dynabarn.recording.schemas import (
+    DEBUG_SCHEMA,
+    METADATA_SCHEMA,
+    document,
+    nullable_number,
+    number,
+    obj,
+    result_schema,
+)
 from dynabarn.sim.events import Tick
 
 DEBUG_RESOLUTION = 1e-4
@@ -51,14 +59,6 @@ class Topic:
     @property
     def encoding(self) -> str:
         return "protobuf" if self.json_schema is None else "json"
-
-
-def _number(doc: str) -> dict:
-    return {"type": "number", "description": doc}
-
-
-def _nullable(doc: str) -> dict:
-    return {"type": ["number", "null"], "description": doc}
 
 
 def _command(tick: Tick) -> dict:
@@ -140,10 +140,10 @@ CMD = Topic(
         obj(
             "the command of one control tick",
             {
-                "v": _number("forward speed sent [m/s]"),
-                "w": _number("yaw rate sent [rad/s]"),
-                "raw_v": _number("planner output before limits [m/s]"),
-                "raw_w": _number("planner output before limits [rad/s]"),
+                "v": number("forward speed sent [m/s]"),
+                "w": number("yaw rate sent [rad/s]"),
+                "raw_v": number("planner output before limits [m/s]"),
+                "raw_w": number("planner output before limits [rad/s]"),
             },
             ("v", "w", "raw_v", "raw_w"),
             closed=True,
@@ -162,10 +162,10 @@ METRICS = Topic(
         obj(
             "what was measured at one control tick",
             {
-                "v": _number("measured forward speed [m/s]"),
-                "w": _number("measured yaw rate [rad/s]"),
-                "clearance": _nullable("footprint to the nearest obstacle's surface [m] (null: no obstacles)"),
-                "distance_to_goal": _number("robot centre to the goal [m]"),
+                "v": number("measured forward speed [m/s]"),
+                "w": number("measured yaw rate [rad/s]"),
+                "clearance": nullable_number("footprint to the nearest obstacle's surface [m] (null: no obstacles)"),
+                "distance_to_goal": number("robot centre to the goal [m]"),
             },
             ("v", "w", "clearance", "distance_to_goal"),
             closed=True,

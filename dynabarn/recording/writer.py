@@ -130,6 +130,8 @@ class McapRecorder:
         self._writer = None
         self._open = False
         self._json: dict[str, _Fanout | foxglove.Channel] = {}
+        self._by_context: dict[int, dict[str, foxglove.Channel]] = {}
+        """id(context) -> topic -> channel (the live server resends latched messages on it)."""
         self.latched: dict[str, list[tuple[bytes, int]]] = {}
         """What was written on the LATCHED topics: (message, log time [ns])."""
         self.stopped: str | None = None
@@ -172,7 +174,7 @@ class McapRecorder:
         self._contexts = contexts  # a context dropped closes its channels
         self._open = True
 
-        self._by_context: dict[int, dict[str, foxglove.Channel]] = {id(c): {} for c in contexts}
+        self._by_context = {id(c): {} for c in contexts}
 
         def fanout(topic: str, schema: foxglove.Schema, encoding: str) -> _Fanout | foxglove.Channel:
             channels = []
@@ -204,10 +206,8 @@ class McapRecorder:
         self._obstacle_block, self._obstacle_order = scene.obstacle_block(start.world.obstacles)
         self.log_json(TOPIC_METADATA, 0.0, self._metadata(start))
         static_update, goal_pose = scene.static_scene(start.world, start.protocol.goal_tolerance)
-        self.latched[TOPIC_STATIC] = [(static_update, 0)]
-        self.latched[TOPIC_GOAL] = [(goal_pose, 0)]
-        self._static.log(static_update, log_time=0)
-        self._goal.log(goal_pose, log_time=0)
+        self._log(self._static, TOPIC_STATIC, static_update, 0)
+        self._log(self._goal, TOPIC_GOAL, goal_pose, 0)
 
     def on_tick(self, tick: Tick) -> None:
         if not self._open:
@@ -262,14 +262,17 @@ class McapRecorder:
         if not self._open:
             return
         body = json.dumps(_jsonable(payload), sort_keys=True, separators=(",", ":"), allow_nan=False).encode()
-        ns = _ns(t)
+        self._log(self._json[topic], topic, body, _ns(t))
+
+    def _log(self, channel, topic: str, data: bytes, ns: int) -> None:
+        """Log one message; those of the topics written once (LATCHED) are kept for late subscribers."""
         if topic in LATCHED:
-            self.latched.setdefault(topic, []).append((body, ns))
-        self._json[topic].log(body, log_time=ns)
+            self.latched.setdefault(topic, []).append((data, ns))
+        channel.log(data, log_time=ns)
 
     def live_channels(self, context: foxglove.Context) -> dict[str, foxglove.Channel]:
         """topic -> this recorder's channel in one of its live contexts (empty before the start)."""
-        return dict(getattr(self, "_by_context", {}).get(id(context), {}))
+        return dict(self._by_context.get(id(context), {}))
 
     def close(self) -> None:
         self._open = False
