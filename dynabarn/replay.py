@@ -38,11 +38,11 @@ from dynabarn.recording import (
     TOPIC_POSE,
     TOPIC_SCAN,
     Recording,
-    laser_poses,
     obstacle_pose,
     obstacle_track,
     recorded_world,
-    returns,
+    returns_in_world,
+    scan_lasers,
 )
 from dynabarn.recording.topics import plotted
 from dynabarn.worlds.spec import WorldSpec
@@ -52,7 +52,7 @@ TIMELINE = "sim_time"
 PATH_VERTICES = 400
 BEAM_STRIDE = 4
 
-_COLORS = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (148, 103, 189), (140, 86, 75), (227, 119, 194)]
+COLORS = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (148, 103, 189), (140, 86, 75), (227, 119, 194)]
 
 
 @dataclass(frozen=True, slots=True)
@@ -115,6 +115,30 @@ def log_static_world(meta: dict, stream: rr.RecordingStream) -> None:
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
 
 
+def log_robot_poses(stream: rr.RecordingStream, run: str, t: np.ndarray, xy: np.ndarray, yaw: np.ndarray) -> None:
+    """The robot's poses at times t (T,): centres xy (T, 2), headings yaw (T,)."""
+    stream.send_columns(
+        f"{run}/robot",
+        indexes=[_time_column(t)],
+        columns=rr.Transform3D.columns(translation=np.column_stack([xy, np.zeros(len(t))]), quaternion=_quat_z(yaw)),
+    )
+
+
+def log_robot_body(stream: rr.RecordingStream, run: str, footprint: tuple[float, float], color) -> None:
+    """The robot's footprint box and heading arrow, static under its pose."""
+    length, width = footprint
+    stream.log(
+        f"{run}/robot/body",
+        rr.Boxes3D(
+            half_sizes=[[length / 2, width / 2, 0.125]], centers=[[0, 0, 0.125]], colors=[color], fill_mode="solid"
+        ),
+        static=True,
+    )
+    stream.log(
+        f"{run}/robot/heading", rr.Arrows3D(origins=[[0, 0, 0.26]], vectors=[[0.5, 0, 0]], colors=[color]), static=True
+    )
+
+
 def log_obstacles(
     stream: rr.RecordingStream, run: str, world: WorldSpec, t: np.ndarray, xy: np.ndarray, *, style: bool = True
 ) -> None:
@@ -169,7 +193,7 @@ def log_recording(
 ) -> ReplayCounts:
     """Send one recording's time series under entity `run` (and `metrics/run`)."""
     meta = rec.metadata or {}
-    color = _COLORS[color_index % len(_COLORS)]
+    color = COLORS[color_index % len(COLORS)]
     robot = meta.get("robot", {})
     length, width = robot.get("footprint", [0.508, 0.430])
 
@@ -179,53 +203,29 @@ def log_recording(
     pxy = np.array([[m.pose.position.x, m.pose.position.y] for _, m in poses]).reshape(-1, 2)
     pyaw = np.array([2.0 * math.atan2(m.pose.orientation.z, m.pose.orientation.w) for _, m in poses])
     if len(pt):
-        stream.send_columns(
-            f"{run}/robot",
-            indexes=[_time_column(pt)],
-            columns=rr.Transform3D.columns(
-                translation=np.column_stack([pxy, np.zeros(len(pt))]), quaternion=_quat_z(pyaw)
-            ),
-        )
-    stream.log(
-        f"{run}/robot/body",
-        rr.Boxes3D(
-            half_sizes=[[length / 2, width / 2, 0.125]], centers=[[0, 0, 0.125]], colors=[color], fill_mode="solid"
-        ),
-        static=True,
-    )
-    stream.log(
-        f"{run}/robot/heading", rr.Arrows3D(origins=[[0, 0, 0.26]], vectors=[[0.5, 0, 0]], colors=[color]), static=True
-    )
+        log_robot_poses(stream, run, pt, pxy, pyaw)
+    log_robot_body(stream, run, (length, width), color)
 
     # Scans: returns (not max-range) as points in the world, every fourth beam as a line.
     # The scan is in the `laser` frame, placed by the robot's pose and the laser's mounting
     # (recordings before /tf carried the laser's world pose in the scan itself).
     scans = rec.topic(TOPIC_SCAN)
-    st = _times(scans)
-    in_world = bool(scans) and scans[0][1].frame_id == "world"
-    if scans and not in_world:
-        laser = laser_poses(rec, st)
+    st, lasers = scan_lasers(rec)
     laser_z = robot.get("laser_z", 0.3)
     pts_all, beams_all, n_pts, n_beams = [], [], [], []
-    for k, (_, m) in enumerate(scans):
-        r = np.asarray(m.ranges)
-        a = np.linspace(m.start_angle, m.end_angle, len(r))
-        if in_world:
-            ox, oy, oz = m.pose.position.x, m.pose.position.y, m.pose.position.z
-            yaw = 2.0 * math.atan2(m.pose.orientation.z, m.pose.orientation.w)
-        else:
-            (ox, oy, yaw), oz = laser[k], laser_z
-        hit = returns(r, robot.get("laser_range", [0.1, 30.0])[1])
-        ang = a[hit] + yaw
-        xy = np.column_stack([ox + r[hit] * np.cos(ang), oy + r[hit] * np.sin(ang)])
-        pts_all.append(np.column_stack([xy, np.full(len(xy), oz)]))
+    if scans:
+        first = scans[0][1]
+        angles = np.linspace(first.start_angle, first.end_angle, len(first.ranges))
+        ranges = np.array([np.asarray(m.ranges) for _, m in scans])
+        hits = returns_in_world(ranges, angles, lasers, robot.get("laser_range", [0.1, 30.0])[1])
+    for (ox, oy, _), xy in zip(lasers.tolist(), hits if scans else [], strict=True):
+        pts_all.append(np.column_stack([xy, np.full(len(xy), laser_z)]))
         n_pts.append(len(xy))
-        sel = slice(None, None, BEAM_STRIDE)
-        bxy = xy[sel]
-        origin = np.array([ox, oy, oz])
+        bxy = xy[::BEAM_STRIDE]
+        origin = np.array([ox, oy, laser_z])
         beams_all.append(
             np.stack(
-                [np.broadcast_to(origin, (len(bxy), 3)), np.column_stack([bxy, np.full(len(bxy), origin[2])])], axis=1
+                [np.broadcast_to(origin, (len(bxy), 3)), np.column_stack([bxy, np.full(len(bxy), laser_z)])], axis=1
             )
         )
         n_beams.append(len(bxy))

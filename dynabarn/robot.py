@@ -258,3 +258,12 @@ def to_robot_frame(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
     c, s = math.cos(pose[2]), math.sin(pose[2])
     d = np.asarray(points) - pose[:2]
     return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+
+
+def mounted_pose(pose: np.ndarray, offset) -> np.ndarray:
+    """Pose (x, y, yaw) of a part mounted at `offset` (x, y) in the robot frame, for robot
+    poses (3,) or (n, 3): e.g. the laser, `laser_x` ahead of the centre."""
+    pose = np.asarray(pose, dtype=np.float64)
+    c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
+    ox, oy = float(offset[0]), float(offset[1])
+    return np.stack([pose[..., 0] + c * ox - s * oy, pose[..., 1] + s * ox + c * oy, pose[..., 2]], axis=-1)

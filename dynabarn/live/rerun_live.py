@@ -13,16 +13,20 @@ import math
 import numpy as np
 import rerun as rr
 
-from dynabarn.recording import returns
+from dynabarn.recording import returns_in_world
 from dynabarn.recording.topics import plotted
 from dynabarn.replay import (
     APP_ID,
+    COLORS,
     PATH_VERTICES,
     TIMELINE,
     blueprint,
     log_obstacles,
+    log_robot_body,
+    log_robot_poses,
     log_static_world,
 )
+from dynabarn.robot import JACKAL
 
 RUN = "runs/live"
 
@@ -50,13 +54,7 @@ class RerunLive:
         self.info = start.info
         meta = {"world": start.world.metadata(), "protocol": start.protocol.to_dict()}
         log_static_world(meta, s)
-        length, width = start.info.footprint
-        s.log(
-            f"{RUN}/robot/body",
-            rr.Boxes3D(half_sizes=[[length / 2, width / 2, 0.125]], centers=[[0, 0, 0.125]], fill_mode="solid"),
-            static=True,
-        )
-        s.log(f"{RUN}/robot/heading", rr.Arrows3D(origins=[[0, 0, 0.26]], vectors=[[0.5, 0, 0]]), static=True)
+        log_robot_body(s, RUN, start.info.footprint, COLORS[0])
         s.log(f"{RUN}/scan", rr.Points3D.from_fields(colors=[(230, 0, 230)], radii=[0.04]), static=True)
         s.log(
             "description",
@@ -72,13 +70,9 @@ class RerunLive:
     def on_tick(self, tick) -> None:
         s = self.stream
         s.set_time(TIMELINE, duration=tick.time)
-        x, y, yaw = tick.pose.tolist()
-        lx, ly, _ = tick.laser_pose.tolist()
-        r = tick.scan
-        hit = returns(r, self.info.laser_range[1])
-        a = self.info.laser_angles[hit] + yaw
-        pts = np.column_stack([lx + r[hit] * np.cos(a), ly + r[hit] * np.sin(a), np.full(int(hit.sum()), 0.3)])
-        s.log(f"{RUN}/scan", rr.Points3D(pts))
+        x, y, _ = tick.pose.tolist()
+        (xy,) = returns_in_world(tick.scan, self.info.laser_angles, tick.laser_pose, self.info.laser_range[1])
+        s.log(f"{RUN}/scan", rr.Points3D(np.column_stack([xy, np.full(len(xy), JACKAL.laser_z)])))
         log_obstacles(s, RUN, self.world, np.array([tick.time]), tick.obstacles[None], style=self.ticks == 0)
         self._path.append((x, y))
         path = np.asarray(self._path[:: max(1, len(self._path) // PATH_VERTICES)])
@@ -95,16 +89,7 @@ class RerunLive:
         self.ticks += 1
 
     def on_poses(self, times, poses) -> None:
-        self.stream.send_columns(
-            f"{RUN}/robot",
-            indexes=[rr.TimeColumn(TIMELINE, duration=times)],
-            columns=rr.Transform3D.columns(
-                translation=np.column_stack([poses[:, :2], np.zeros(len(times))]),
-                quaternion=np.column_stack(
-                    [np.zeros(len(times)), np.zeros(len(times)), np.sin(poses[:, 2] / 2), np.cos(poses[:, 2] / 2)]
-                ),
-            ),
-        )
+        log_robot_poses(self.stream, RUN, times, poses[:, :2], poses[:, 2])
 
     def on_end(self, result) -> None:
         self.stream.log(

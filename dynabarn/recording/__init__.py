@@ -13,6 +13,8 @@ from dynabarn.recording.reader import (
     read_recording,
     recorded_world,
     returns,
+    returns_in_world,
+    scan_lasers,
 )
 from dynabarn.recording.scene import obstacle_pose
 from dynabarn.recording.schemas import MACHINE_FIELDS, WALL_CLOCK_FIELDS
@@ -75,4 +77,6 @@ __all__ = [
     "read_recording",
     "recorded_world",
     "returns",
+    "returns_in_world",
+    "scan_lasers",
 ]

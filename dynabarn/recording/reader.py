@@ -16,7 +16,7 @@ import numpy as np
 
 from dynabarn.errors import DynabarnError
 from dynabarn.recording.topics import TOPIC_METADATA, TOPIC_OBSTACLES, TOPIC_RESULT
-from dynabarn.robot import JACKAL
+from dynabarn.robot import JACKAL, mounted_pose
 from dynabarn.worlds.spec import WorldSpec
 
 
@@ -118,9 +118,39 @@ def laser_poses(rec: Recording, times: np.ndarray) -> np.ndarray:
     between the 50 Hz poses) composed with the laser's mounting, as `/tf` says."""
     t, track = pose_track(rec)
     robot = np.column_stack([np.interp(times, t, track[:, k]) for k in range(3)])
-    ox, oy = ((rec.metadata or {}).get("robot", {}).get("laser_offset") or [0.0, 0.0])[:2]
-    c, s = np.cos(robot[:, 2]), np.sin(robot[:, 2])
-    return np.column_stack([robot[:, 0] + c * ox - s * oy, robot[:, 1] + s * ox + c * oy, robot[:, 2]])
+    return mounted_pose(robot, ((rec.metadata or {}).get("robot", {}).get("laser_offset") or [0.0, 0.0]))
+
+
+def scan_lasers(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
+    """Times (S,) of the recorded scans and the laser's (x, y, yaw) (S, 3) at each: from
+    the frame tree (the scan is in the `laser` frame), or for recordings from before it,
+    the laser's world pose the scan itself carried."""
+    from dynabarn.recording.topics import TOPIC_SCAN
+
+    scans = rec.topic(TOPIC_SCAN)
+    t = np.array([s[0] for s in scans], dtype=np.float64)
+    if not scans:
+        return t, np.zeros((0, 3))
+    if scans[0][1].frame_id == "world":
+        return t, np.array(
+            [
+                [m.pose.position.x, m.pose.position.y, 2 * math.atan2(m.pose.orientation.z, m.pose.orientation.w)]
+                for _, m in scans
+            ]
+        )
+    return t, laser_poses(rec, t)
+
+
+def returns_in_world(ranges: np.ndarray, angles: np.ndarray, lasers: np.ndarray, range_max: float) -> list[np.ndarray]:
+    """Per scan, its returns (m, 2) in the world: ranges (S, B) at beam angles (B,) in the
+    laser's frame, cast from laser poses (S, 3); beams without a return left out."""
+    ranges = np.atleast_2d(ranges)
+    lasers = np.atleast_2d(lasers)
+    hit = returns(ranges, range_max)
+    heading = lasers[:, 2:3] + np.asarray(angles)[None, :]
+    x = lasers[:, 0:1] + ranges * np.cos(heading)
+    y = lasers[:, 1:2] + ranges * np.sin(heading)
+    return [np.column_stack([x[k, hit[k]], y[k, hit[k]]]) for k in range(len(ranges))]
 
 
 def returns(ranges: np.ndarray, range_max: float) -> np.ndarray:

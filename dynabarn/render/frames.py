@@ -10,7 +10,6 @@ pose (interpolated between the 50 Hz poses).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,10 +19,10 @@ from dynabarn.recording import (
     TOPIC_METRICS,
     TOPIC_SCAN,
     Recording,
-    laser_poses,
     obstacle_track,
     pose_track,
-    returns,
+    returns_in_world,
+    scan_lasers,
 )
 from dynabarn.worlds.schedule import SchedulePlayer
 from dynabarn.worlds.spec import WorldSpec
@@ -66,28 +65,15 @@ def _last_at_or_before(t: np.ndarray, at: np.ndarray) -> np.ndarray:
 def scan_returns(rec: Recording) -> tuple[np.ndarray, list[np.ndarray]]:
     """Times (S,) of the scans and each scan's returns (m, 2) in the world, every
     SCAN_STRIDE-th beam, placed by the laser's pose as `/tf` gives it."""
+    t, lasers = scan_lasers(rec)
+    if not len(t):
+        return t, []
     scans = rec.topic(TOPIC_SCAN)
-    if not scans:
-        return np.zeros(0), []
-    t = np.array([s[0] for s in scans])
     first = scans[0][1]
-    if first.frame_id == "world":  # recordings from before /tf carried the laser's world pose
-        lasers = np.array(
-            [
-                [m.pose.position.x, m.pose.position.y, 2 * math.atan2(m.pose.orientation.z, m.pose.orientation.w)]
-                for _, m in scans
-            ]
-        )
-    else:
-        lasers = laser_poses(rec, t)
     ranges = np.array([np.asarray(m.ranges)[::SCAN_STRIDE] for _, m in scans])  # (S, B)
     angles = np.linspace(first.start_angle, first.end_angle, len(first.ranges))[::SCAN_STRIDE]
     range_max = ((rec.metadata or {}).get("robot", {}).get("laser_range") or [0.1, 30.0])[1]
-    hit = returns(ranges, range_max)
-    heading = lasers[:, 2:3] + angles[None, :]
-    x = lasers[:, 0:1] + ranges * np.cos(heading)
-    y = lasers[:, 1:2] + ranges * np.sin(heading)
-    return t, [np.column_stack([x[k, hit[k]], y[k, hit[k]]]) for k in range(len(t))]
+    return t, returns_in_world(ranges, angles, lasers, range_max)
 
 
 def frame_tracks(rec: Recording, world: WorldSpec, frame_times: np.ndarray) -> FrameTracks:

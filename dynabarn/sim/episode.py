@@ -19,7 +19,7 @@ from dynabarn.metrics import (
     footprint_clearance_at,
 )
 from dynabarn.protocol import EvalProtocol
-from dynabarn.robot import JACKAL, to_robot_frame
+from dynabarn.robot import JACKAL, mounted_pose, to_robot_frame
 from dynabarn.sim.behaviors import ReactiveObstacles
 from dynabarn.sim.config import MAX_CLOCK_OFFSET
 from dynabarn.sim.events import Tick
@@ -201,14 +201,11 @@ class Episode:
         """The last observation and command (as received, on its grid), for observers."""
         obs, sim = self._obs, self.sim
         pose = obs.pose
-        # The laser where it was when the scan was cast (the robot's pose then and the
-        # laser's mounting), not where the physics steps since have carried it.
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        ox, oy = self.info.laser_offset.tolist()
         return Tick(
             time=obs.time,
             scan=obs.scan,
-            laser_pose=np.array([pose[0] + c * ox - s * oy, pose[1] + s * ox + c * oy, pose[2]]),
+            # Where the laser was when the scan was cast, not where the physics since carried it.
+            laser_pose=mounted_pose(pose, self.info.laser_offset),
             pose=pose,
             velocity=obs.velocity,
             command=self.prev_cmd.copy(),
