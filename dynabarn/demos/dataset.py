@@ -33,8 +33,8 @@ import numpy as np
 from dynabarn.files import save_atomically
 from dynabarn.errors import DynabarnError
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.recording import TOPIC_CMD, TOPIC_SCAN, Recording, pose_track, read_recording
-from dynabarn.robot import to_robot_frame
+from dynabarn.recording import TOPIC_CMD, TOPIC_SCAN, Recording, read_recording, scan_lasers
+from dynabarn.robot import mounted_pose, to_robot_frame
 
 DATASET_FORMAT = "dynabarn-demos-v1"
 DEFAULT_LOOKAHEAD = 2.0
@@ -69,26 +69,6 @@ def find_recordings(inputs: list[Path]) -> list[Path]:
     return files
 
 
-def _robot_at_scans(rec: Recording, scans: list, offset: np.ndarray) -> list[tuple[float, float, float]]:
-    """The robot's (x, y, yaw) when each scan was cast: its recorded pose at that time (the
-    scan is in the `laser` frame); recordings from before the frame tree carried the
-    laser's pose in the scan, with the robot's centre `laser_offset` behind it."""
-    if scans and scans[0][1].frame_id == "world":
-        out = []
-        for _, scan in scans:
-            yaw = 2.0 * math.atan2(scan.pose.orientation.z, scan.pose.orientation.w)
-            c, s = math.cos(yaw), math.sin(yaw)
-            x = scan.pose.position.x - c * offset[0] + s * offset[1]
-            y = scan.pose.position.y - s * offset[0] - c * offset[1]
-            out.append((x, y, yaw))
-        return out
-    if not scans:
-        return []
-    t_pose, track = pose_track(rec)
-    at = np.array([t for t, _ in scans])
-    return [tuple(row) for row in np.column_stack([np.interp(at, t_pose, track[:, k]) for k in range(3)]).tolist()]
-
-
 def episode_rows(rec: Recording, *, lookahead: float = DEFAULT_LOOKAHEAD) -> Episode:
     """The BC rows of one recording, one per control tick with both a scan and a command."""
     meta = rec.metadata
@@ -107,7 +87,8 @@ def episode_rows(rec: Recording, *, lookahead: float = DEFAULT_LOOKAHEAD) -> Epi
     cmds = {round(t, 6): m for t, m in rec.topic(TOPIC_CMD)}
     scans, goals, actions, times = [], [], [], []
     scan_msgs = rec.topic(TOPIC_SCAN)
-    robot = _robot_at_scans(rec, scan_msgs, offset)
+    # The robot when each scan was cast: the laser's pose then, less its mounting.
+    robot = mounted_pose(scan_lasers(rec)[1], -offset).tolist()
     for k, (t, scan) in enumerate(scan_msgs):
         cmd = cmds.get(round(t, 6))
         if cmd is None:
