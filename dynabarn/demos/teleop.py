@@ -26,26 +26,23 @@ import numpy as np
 
 from dynabarn.planners.base import EndEpisode, EpisodeInfo, Observation, Planner
 from dynabarn.recording import McapRecorder, Topic
-from dynabarn.recording.schemas import document, number, obj
+from dynabarn.recording.schemas import number, obj
 
 INPUT = Topic(
     "/teleop/input",
     "dynabarn.TeleopInput",
     "10 Hz",
     "the operator's input: keys pressed since the last tick, the command set, the mode, a gamepad's axes",
-    json_schema=document(
-        "dynabarn.TeleopInput",
-        obj(
-            "the operator's input at one control tick",
-            {
-                "keys": {"type": "array", "items": {"type": "string"}},
-                "v": number("forward speed set [m/s]"),
-                "w": number("yaw rate set [rad/s]"),
-                "mode": {"enum": ["slow", "fast"]},
-                "gamepad": {"type": ["object", "null"], "description": "axes and buttons, null without a gamepad"},
-            },
-            ("keys", "v", "w", "mode", "gamepad"),
-        ),
+    json_schema=obj(
+        "the operator's input at one control tick",
+        {
+            "keys": {"type": "array", "items": {"type": "string"}},
+            "v": number("forward speed set [m/s]"),
+            "w": number("yaw rate set [rad/s]"),
+            "mode": {"enum": ["slow", "fast"]},
+            "gamepad": {"type": ["object", "null"], "description": "axes and buttons, null without a gamepad"},
+        },
+        ("keys", "v", "w", "mode", "gamepad"),
     ),
 )
 TOPIC_INPUT = INPUT.name

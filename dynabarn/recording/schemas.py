@@ -48,7 +48,8 @@ def points_xy(doc: str) -> dict:
 
 
 def document(title: str, schema: dict) -> dict:
-    """A top-level schema: the dialect and a title (Foxglove shows the title)."""
+    """A topic's schema as written: the dialect and its schema name as the title (Foxglove
+    shows the title)."""
     return {"$schema": DIALECT, "title": title, **schema}
 
 
@@ -67,10 +68,7 @@ def result_schema() -> dict:
         else:
             properties[f.name] = {"type": _JSON_TYPES[kind]}
     required = [f.name for f in dataclasses.fields(EpisodeResult) if f.name in properties]
-    return document(
-        "dynabarn.EpisodeResult",
-        obj("the episode's outcome and metrics (dynabarn.metrics.EpisodeResult)", properties, tuple(required)),
-    )
+    return obj("the episode's outcome and metrics (dynabarn.metrics.EpisodeResult)", properties, tuple(required))
 
 
 _OBSTACLE = obj(
@@ -84,61 +82,55 @@ _OBSTACLE = obj(
     ("name",),
 )
 
-METADATA_SCHEMA = document(
-    "dynabarn.EpisodeStart",
-    obj(
-        "everything needed to rebuild and judge the episode",
-        {
-            "world": obj(
-                "the world's description (dynabarn.worlds.WorldSpec.metadata())",
-                {
-                    "name": {"type": "string"},
-                    "layout": obj(
-                        "walls, goal, static cylinders",
-                        {"goal": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}},
-                    ),
-                    "obstacles": {"type": "array", "items": _OBSTACLE},
-                },
-                ("name", "layout", "obstacles"),
-            ),
-            "world_file": {"type": "string", "description": "the world file, relative to the project when inside it"},
-            "world_sha256": {"type": "string", "pattern": "^[0-9a-f]{64}$"},
-            "protocol": obj("the evaluation protocol (dynabarn.protocol)", {"name": {"type": "string"}}, ("name",)),
-            "planner": {"type": "string", "description": "planner name, NAME@PRESET for a shipped preset"},
-            "planner_config": {"type": "object"},
-            "seed": {"type": "integer"},
-            "clock_offset": number("the obstacles' clock offset drawn from the seed [s]"),
-            "sim_config": obj("physics step and control rate", {"dt": number("[s]")}),
-            "versions": {"type": "object", "additionalProperties": {"type": "string"}},
-            "robot": obj(
-                "the Jackal as the planner sees it",
-                {
-                    "footprint": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2},
-                    "laser_angles": {"type": "array", "description": "[first, last, count]"},
-                    "laser_range": {"type": "array", "items": {"type": "number"}},
-                    "laser_offset": {"type": "array", "items": {"type": "number"}},
-                    "laser_z": number("[m]"),
-                },
-            ),
-            "keyframes": {
-                "type": "object",
-                "description": "obstacle name -> [[t, x, y], ...]",
-                "additionalProperties": {"type": "array", "items": {"type": "array", "items": {"type": "number"}}},
+METADATA_SCHEMA = obj(
+    "everything needed to rebuild and judge the episode",
+    {
+        "world": obj(
+            "the world's description (dynabarn.worlds.WorldSpec.metadata())",
+            {
+                "name": {"type": "string"},
+                "layout": obj(
+                    "walls, goal, static cylinders",
+                    {"goal": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2}},
+                ),
+                "obstacles": {"type": "array", "items": _OBSTACLE},
             },
-            "source": {"enum": ["human", "oracle", "planner"]},
-            "synthetic": {"type": "boolean"},
+            ("name", "layout", "obstacles"),
+        ),
+        "world_file": {"type": "string", "description": "the world file, relative to the project when inside it"},
+        "world_sha256": {"type": "string", "pattern": "^[0-9a-f]{64}$"},
+        "protocol": obj("the evaluation protocol (dynabarn.protocol)", {"name": {"type": "string"}}, ("name",)),
+        "planner": {"type": "string", "description": "planner name, NAME@PRESET for a shipped preset"},
+        "planner_config": {"type": "object"},
+        "seed": {"type": "integer"},
+        "clock_offset": number("the obstacles' clock offset drawn from the seed [s]"),
+        "sim_config": obj("physics step and control rate", {"dt": number("[s]")}),
+        "versions": {"type": "object", "additionalProperties": {"type": "string"}},
+        "robot": obj(
+            "the Jackal as the planner sees it",
+            {
+                "footprint": {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2},
+                "laser_angles": {"type": "array", "description": "[first, last, count]"},
+                "laser_range": {"type": "array", "items": {"type": "number"}},
+                "laser_offset": {"type": "array", "items": {"type": "number"}},
+                "laser_z": number("[m]"),
+            },
+        ),
+        "keyframes": {
+            "type": "object",
+            "description": "obstacle name -> [[t, x, y], ...]",
+            "additionalProperties": {"type": "array", "items": {"type": "array", "items": {"type": "number"}}},
         },
-        ("world", "world_sha256", "protocol", "planner", "seed", "clock_offset", "versions", "robot", "keyframes"),
-    ),
+        "source": {"enum": ["human", "oracle", "planner"]},
+        "synthetic": {"type": "boolean"},
+    },
+    ("world", "world_sha256", "protocol", "planner", "seed", "clock_offset", "versions", "robot", "keyframes"),
 )
 
-DEBUG_SCHEMA = document(
-    "dynabarn.PlannerDebug",
-    obj(
-        "planner internals, on the 0.1 mm debug grid; planners may add fields of their own",
-        {
-            "local_plan": points_xy("the local plan (DWA's best rollout, TEB's band, the oracle's)"),
-            "global_plan": points_xy("the global plan the local planner follows, from the robot onward"),
-        },
-    ),
+DEBUG_SCHEMA = obj(
+    "planner internals, on the 0.1 mm debug grid; planners may add fields of their own",
+    {
+        "local_plan": points_xy("the local plan (DWA's best rollout, TEB's band, the oracle's)"),
+        "global_plan": points_xy("the global plan the local planner follows, from the robot onward"),
+    },
 )

@@ -60,6 +60,11 @@ class Topic:
     def encoding(self) -> str:
         return "protobuf" if self.json_schema is None else "json"
 
+    @property
+    def schema_document(self) -> dict | None:
+        """The JSON schema as written to the file: the dialect, and the schema name as its title."""
+        return None if self.json_schema is None else document(self.schema, self.json_schema)
+
 
 def _command(tick: Tick) -> dict:
     v, w = tick.command.tolist()
@@ -135,19 +140,16 @@ CMD = Topic(
     "dynabarn.Command",
     "10 Hz",
     "v, w sent; raw_v, raw_w from the planner (on the 1 um/s command grid)",
-    json_schema=document(
-        "dynabarn.Command",
-        obj(
-            "the command of one control tick",
-            {
-                "v": number("forward speed sent [m/s]"),
-                "w": number("yaw rate sent [rad/s]"),
-                "raw_v": number("planner output before limits [m/s]"),
-                "raw_w": number("planner output before limits [rad/s]"),
-            },
-            ("v", "w", "raw_v", "raw_w"),
-            closed=True,
-        ),
+    json_schema=obj(
+        "the command of one control tick",
+        {
+            "v": number("forward speed sent [m/s]"),
+            "w": number("yaw rate sent [rad/s]"),
+            "raw_v": number("planner output before limits [m/s]"),
+            "raw_w": number("planner output before limits [rad/s]"),
+        },
+        ("v", "w", "raw_v", "raw_w"),
+        closed=True,
     ),
     per_tick=_command,
     plots=("v", "w"),
@@ -157,19 +159,16 @@ METRICS = Topic(
     "dynabarn.StepMetrics",
     "10 Hz",
     "measured v, w, clearance, distance to goal",
-    json_schema=document(
-        "dynabarn.StepMetrics",
-        obj(
-            "what was measured at one control tick",
-            {
-                "v": number("measured forward speed [m/s]"),
-                "w": number("measured yaw rate [rad/s]"),
-                "clearance": nullable_number("footprint to the nearest obstacle's surface [m] (null: no obstacles)"),
-                "distance_to_goal": number("robot centre to the goal [m]"),
-            },
-            ("v", "w", "clearance", "distance_to_goal"),
-            closed=True,
-        ),
+    json_schema=obj(
+        "what was measured at one control tick",
+        {
+            "v": number("measured forward speed [m/s]"),
+            "w": number("measured yaw rate [rad/s]"),
+            "clearance": nullable_number("footprint to the nearest obstacle's surface [m] (null: no obstacles)"),
+            "distance_to_goal": number("robot centre to the goal [m]"),
+        },
+        ("v", "w", "clearance", "distance_to_goal"),
+        closed=True,
     ),
     per_tick=_step_metrics,
     plots=("clearance", "distance_to_goal"),

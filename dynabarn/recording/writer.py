@@ -196,7 +196,7 @@ class McapRecorder:
         self._obstacles = proto(TOPIC_OBSTACLES, SceneUpdate)
         self._plans = proto(TOPIC_PLANS, SceneUpdate)
         for t in (*(t for t in TOPICS if t.json_schema is not None), *self.extra_channels):
-            schema = foxglove.Schema(name=t.schema, encoding="jsonschema", data=json.dumps(t.json_schema).encode())
+            schema = foxglove.Schema(name=t.schema, encoding="jsonschema", data=json.dumps(t.schema_document).encode())
             self._json[t.name] = fanout(t.name, schema, "json")
         info = start.info
         self._start_angle = float(info.laser_angles[0])
