@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import foxglove.layouts as fl
@@ -131,7 +132,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.out is not None:
         from dynabarn.files import write_atomically
 
-        write_atomically(args.out, layout_json())
+        try:
+            write_atomically(args.out, layout_json())
+        except OSError as exc:
+            print(f"error: cannot write {args.out}: {exc.strerror or exc}", file=sys.stderr)
+            return 2
         print(f"wrote {args.out}")
     else:
         print(layout_json(), end="")
