@@ -193,7 +193,7 @@ def test_bad_live_options_are_one_line(tmp_path):
 
 
 def test_viewer_shows_the_robot_and_obstacles_and_closing_ends_cleanly(display, tmp_path):
-    from tests.xwindow import close_window, find_window, screenshot
+    from tests.xwindow import close_window, find_window, screenshot, xdotool
 
     env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
     env["DISPLAY"] = display
@@ -216,14 +216,13 @@ def test_viewer_shows_the_robot_and_obstacles_and_closing_ends_cleanly(display, 
         # Space pauses: the picture stands still; running, the obstacles move.
         time.sleep(1.0)
         moving = np.abs(screenshot(display).astype(int) - shot).sum(axis=2) > 60
-        key = ["xdotool", "key", "--window", str(window), "space"]
-        subprocess.run(key, env=env, check=True, timeout=30)
+        xdotool(env, "key", "--window", str(window), "space")
         time.sleep(1.0)
         paused = screenshot(display).astype(int)
         time.sleep(1.5)
         still = np.abs(screenshot(display).astype(int) - paused).sum(axis=2) > 60
         assert moving.sum() > 20 * max(1, still.sum()), (moving.sum(), still.sum())
-        subprocess.run(key, env=env, check=True, timeout=30)
+        xdotool(env, "key", "--window", str(window), "space")
         close_window(display, window)
         out, err = proc.communicate(timeout=60)
     finally:

@@ -9,11 +9,7 @@ import time
 import pytest
 
 from dynabarn.recording import read_recording
-from tests.xwindow import find_window
-
-
-def _xdotool(env, *args) -> str:
-    return subprocess.run(["xdotool", *args], env=env, capture_output=True, text=True, timeout=30).stdout
+from tests.xwindow import find_window, xdotool
 
 
 def test_keyboard_drives_the_robot_and_escape_ends_cleanly(display, tmp_path):
@@ -44,11 +40,11 @@ def test_keyboard_drives_the_robot_and_escape_ends_cleanly(display, tmp_path):
         wid = str(wid)
         time.sleep(1.5)
         for _ in range(6):  # slow mode: 6 x 0.1 m/s
-            _xdotool(env, "key", "--window", wid, "Up")
+            xdotool(env, "key", "--window", wid, "Up")
             time.sleep(0.15)
-        _xdotool(env, "key", "--window", wid, "Left")
+        xdotool(env, "key", "--window", wid, "Left")
         time.sleep(2.5)
-        _xdotool(env, "key", "--window", wid, "Escape")
+        xdotool(env, "key", "--window", wid, "Escape")
         out, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:

@@ -10,13 +10,16 @@ import subprocess
 import time
 
 
+def xdotool(env: dict, *args: str, check: bool = True) -> str:
+    """Run xdotool on the display of `env`; its output (a failure raises unless `check` is False)."""
+    return subprocess.run(["xdotool", *args], env=env, capture_output=True, text=True, timeout=30, check=check).stdout
+
+
 def find_window(env: dict, name: str = "MuJoCo", timeout: float = 30.0) -> int | None:
     """The id of the first window whose name has `name`, waiting up to `timeout` seconds."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        found = subprocess.run(
-            ["xdotool", "search", "--name", name], env=env, capture_output=True, text=True, timeout=30
-        ).stdout.split()
+        found = xdotool(env, "search", "--name", name, check=False).split()  # exit 1: none yet
         if found:
             return int(found[0])
         time.sleep(0.25)
