@@ -41,7 +41,8 @@ def add_live_options(parser: argparse.ArgumentParser) -> None:
         choices=LIVE_TARGETS,
         default=[],
         help="stream the episode as it runs: foxglove (a WebSocket server on 127.0.0.1:--port; open "
-        "ws://127.0.0.1:PORT in Foxglove with assets/foxglove/dynabarn.json), rerun (a spawned viewer, or "
+        "ws://127.0.0.1:PORT in Foxglove with the layout assets/foxglove/dynabarn.json, which "
+        "`python -m dynabarn.recording.layout` prints from an installed package), rerun (a spawned viewer, or "
         "--connect); may be given twice (default: none)",
     )
     group.add_argument(
