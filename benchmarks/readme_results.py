@@ -1,9 +1,11 @@
-"""The README's result tables and figures, generated from the committed results folder.
+"""The result tables and figures of the README and the documentation, generated from the
+committed results folder.
 
-`python benchmarks/readme_results.py` (`make readme`) rewrites every block of README.md
-between `<!-- results:NAME -->` and `<!-- /results:NAME -->` from `results/` and redraws
-the figures in `assets/readme/`; `--check` only compares and exits 1 when the README is
-not what the results say (a test runs it). The results come from `dynabarn-bench` sweeps
+`python benchmarks/readme_results.py` (`make readme`) rewrites every block between
+`<!-- results:NAME -->` and `<!-- /results:NAME -->` of the pages in `PAGES` (README.md,
+docs/results.md, docs/tutorials/training.md) from `results/` and redraws the figures in
+`docs/assets/`; `--check` only compares and exits 1 when a page is not what the results
+say (a test runs it). The results come from `dynabarn-bench` sweeps
 (README "Comparison with the paper" gives the commands); nothing here runs an episode.
 
 results/
@@ -29,7 +31,8 @@ from dynabarn.bench.summary import FLOOR, plot_fig5
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS_DIR = ROOT / "results"
 README = ROOT / "README.md"
-FIGURES = ROOT / "assets" / "readme"
+DOCS = ROOT / "docs"
+FIGURES = DOCS / "assets"
 TD3_TRAINING = RESULTS_DIR / "td3_training" / "training.json"
 
 SETS = {
@@ -164,7 +167,23 @@ def td3_training() -> str:
     )
 
 
+def headline_table(summaries: dict[str, list[dict]]) -> str:
+    """The README's one table: the paper's bars, the floor and our planners on both world sets."""
+    header = "| planner | paper: easy / medium / hard | paper60: easy | medium | hard | release's 60: hard |"
+    lines = [header, "|---|---|---|---|---|---|"]
+    paper60, original = _by(summaries.get("paper60_barn", [])), _by(summaries.get("original60_barn", []))
+    for planner in (FLOOR, "dwa", "teb", "bc", "td3"):
+        if (planner, "all") not in paper60:
+            continue
+        paper = " / ".join(f"{PAPER_FIG5[planner][d]:.2f}" for d in DIFFICULTIES) if planner in PAPER_FIG5 else "-"
+        cells = [_ci(paper60[(planner, d)]) if (planner, d) in paper60 else "-" for d in DIFFICULTIES]
+        hard = _ci(original[(planner, "hard")]) if (planner, "hard") in original else "-"
+        lines.append(f"| {PLANNERS[planner]} | {paper} | " + " | ".join(cells) + f" | {hard} |")
+    return "\n".join(lines)
+
+
 BLOCKS = {
+    "headline": lambda f, s: headline_table(s),
     "fig5": lambda f, s: fig5_table(s),
     "skill": lambda f, s: skill_table(s),
     "floor": lambda f, s: floor_table(f),
@@ -172,14 +191,22 @@ BLOCKS = {
 }
 
 
-def render(readme: str, folders: dict, summaries: dict) -> str:
-    for name, make in BLOCKS.items():
+PAGES = {
+    README: ("headline",),
+    DOCS / "results.md": ("fig5", "skill", "floor"),
+    DOCS / "tutorials" / "training.md": ("td3-training",),
+}
+"""Each page and the blocks it must hold (every block of BLOCKS is on some page)."""
+
+
+def render(page: str, folders: dict, summaries: dict, blocks: tuple[str, ...] = tuple(BLOCKS)) -> str:
+    for name in blocks:
         pattern = re.compile(rf"(<!-- results:{name} -->\n).*?(<!-- /results:{name} -->)", re.S)
-        if not pattern.search(readme):
-            raise SystemExit(f"README.md has no block <!-- results:{name} --> ... <!-- /results:{name} -->")
-        text = make(folders, summaries) + "\n"
-        readme = pattern.sub(lambda m, text=text: m.group(1) + text + m.group(2), readme)
-    return readme
+        if not pattern.search(page):
+            raise SystemExit(f"the page has no block <!-- results:{name} --> ... <!-- /results:{name} -->")
+        text = BLOCKS[name](folders, summaries) + "\n"
+        page = pattern.sub(lambda m, text=text: m.group(1) + text + m.group(2), page)
+    return page
 
 
 def draw(summaries: dict[str, list[dict]]) -> None:
@@ -191,21 +218,27 @@ def draw(summaries: dict[str, list[dict]]) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--check", action="store_true", help="compare only; exit 1 when README.md differs")
+    parser.add_argument("--check", action="store_true", help="compare only; exit 1 when a page differs")
     args = parser.parse_args(argv)
     folders = {folder: load(folder) for folder in SETS}
     summaries = {folder: s for folder, (_, s) in folders.items()}
-    text = README.read_text()
-    new = render(text, folders, summaries)
-    if args.check:
+    stale = []
+    for page, blocks in PAGES.items():
+        text = page.read_text()
+        new = render(text, folders, summaries, blocks)
         if new != text:
-            print("README.md's result tables differ from results/: run `make readme`", file=sys.stderr)
+            stale.append(page)
+            if not args.check:
+                page.write_text(new)
+    names = ", ".join(str(p.relative_to(ROOT)) for p in stale)
+    if args.check:
+        if stale:
+            print(f"the result tables of {names} differ from results/: run `make readme`", file=sys.stderr)
             return 1
-        print("README.md's result tables match results/")
+        print("the result tables of the README and the documentation match results/")
         return 0
-    README.write_text(new)
     draw(summaries)
-    print(f"rewrote the result blocks of {README} and the figures in {FIGURES}")
+    print(f"rewrote the result blocks of {names or 'no page'} and the figures in {FIGURES}")
     return 0
 
 

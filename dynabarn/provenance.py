@@ -123,11 +123,11 @@ def _blas() -> list[dict]:
         from threadpoolctl import threadpool_info
     except ImportError:
         return []
-    return [
-        {k: info.get(k) for k in ("internal_api", "version", "architecture", "num_threads", "prefix")}
-        for info in threadpool_info()
-        if info.get("user_api") == "blas"
-    ]
+    keys = ("internal_api", "version", "architecture", "num_threads", "prefix")
+    found = [{k: info.get(k) for k in keys} for info in threadpool_info() if info.get("user_api") == "blas"]
+    # threadpoolctl lists libraries in the order the loader happened to map them (numpy's and
+    # scipy's OpenBLAS swap places from run to run): sorted, the same episode's rows are equal.
+    return sorted(found, key=lambda d: tuple(str(d[k]) for k in keys))
 
 
 @functools.cache

@@ -40,7 +40,9 @@ class Browser:
     """One headless Chromium with one page; use as a context manager."""
 
     def __init__(self) -> None:
-        from websockets.sync.client import connect
+        from tests.conftest import require
+
+        connect = require("websockets.sync.client", "test").connect
 
         self._profile = tempfile.TemporaryDirectory(prefix="dynabarn-chromium-")
         exe = chromium()
@@ -77,6 +79,10 @@ class Browser:
 
     def open(self, url: str) -> None:
         self.call("Page.navigate", url=url)
+
+    def evaluate(self, expression: str):
+        """The value of a JavaScript expression in the page."""
+        return self.call("Runtime.evaluate", expression=expression, returnByValue=True).get("result", {}).get("value")
 
     def screenshot(self) -> bytes:
         return base64.b64decode(self.call("Page.captureScreenshot", format="png")["data"])

@@ -12,6 +12,7 @@ from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_FIELDS
 from dynabarn.sim import run_episode
 from dynabarn.worldset import resolve_world
+from tests.conftest import require
 
 WALL_CLOCK = set(MACHINE_FIELDS)
 BARN = get_protocol("barn")
@@ -143,7 +144,7 @@ def test_bad_input(tmp_path, capsys, argv, message):
 
 
 def test_ray_backend_gives_identical_results(tmp_path):
-    pytest.importorskip("ray", reason="the ray extra is not installed")
+    require("ray", "ray")
     jobs = _jobs(worlds="0,150", trials=2)
     local = bench.run_sweep(jobs, tmp_path / "local", n_workers=2)
     ray = bench.run_sweep(jobs, tmp_path / "ray", backend="ray", n_workers=2)
@@ -240,3 +241,18 @@ def test_presets_run_as_their_own_rows(tmp_path, capsys):
     assert summary[("dwa@dwa_dynabarn_authors", "easy")]["paper"] == 0.78
     assert bench_main(["--planner", "dwa@nope", "--worlds", "0", "--out", str(tmp_path / "x")]) == 2
     assert "unknown planner preset" in capsys.readouterr().err
+
+
+def test_fig5_draws_only_the_difficulties_that_ran(tmp_path):
+    """A sweep of hard worlds only: one group in the figure, not two empty ones beside it."""
+    from dynabarn.bench.summary import FLOOR, fig5_groups, plot_fig5
+
+    def row(planner, difficulty, success):
+        return {"planner": planner, "difficulty": difficulty, "success": success, "success_lo": success - 0.1,
+                "success_hi": success + 0.1, "paper": None}  # fmt: skip
+
+    hard_only = [row("dwa", "hard", 0.3), row(FLOOR, "hard", 0.1), row("dwa", "all", 0.3), row(FLOOR, "all", 0.1)]
+    assert fig5_groups(hard_only) == ["hard"]
+    assert fig5_groups([*hard_only, row("dwa", "easy", 0.8)]) == ["easy", "hard"]
+    path = plot_fig5(hard_only, tmp_path / "fig5.png")
+    assert path.stat().st_size > 1000

@@ -148,3 +148,35 @@ def test_shipped_presets_load_into_their_planners():
     # The BARN Challenge's DWA never samples standing still (TrajectoryPlannerROS min_vel_x 0.1).
     barn = _planner_config("dwa_barn_challenge")
     assert (barn["min_vel_x"], barn["max_vel_x"], barn["sim_time"]) == (0.1, 0.5, 2.0)
+
+
+def test_the_same_episode_in_two_processes_gives_the_same_row_but_for_timings(tmp_path):
+    """Every field of `--json`, the machine block included (its BLAS libraries came in
+    either order from process to process), but the wall-clock ones."""
+    timings = {"planner_ms_mean", "planner_ms_p95", "rtf", "wall_time"}
+    rows = []
+    for _ in range(2):
+        proc = subprocess.run(
+            [sys.executable, "-m", "dynabarn", "run", "--world", "137", "--planner", "straight", "--seed", "3",
+             "--json", "--no-log"],
+            capture_output=True, text=True, cwd=tmp_path, timeout=300,
+        )  # fmt: skip
+        assert proc.returncode == 0, proc.stderr
+        rows.append(json.loads(proc.stdout))
+    first, second = ({k: v for k, v in row.items() if k not in timings} for row in rows)
+    assert set(rows[0]) - set(first) == timings  # the only fields left out
+    assert first["machine"]["blas"], "threadpoolctl sees numpy's and scipy's BLAS"
+    assert first == second
+
+
+def test_json_keys_in_help_are_the_printed_keys(tmp_path, capsys):
+    """`--help` lists the keys of `--json` (read off EpisodeResult): exactly those printed."""
+    from dynabarn.cli.common import result_keys
+
+    assert run_main(["--world", "0", "--planner", "stop", "--no-log", "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert list(printed) == sorted(result_keys())
+    with pytest.raises(SystemExit):
+        run_main(["--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "its keys: " + ", ".join(result_keys()) in help_text

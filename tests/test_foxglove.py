@@ -10,7 +10,6 @@ import shutil
 import subprocess
 import sys
 
-import jsonschema
 import numpy as np
 import pytest
 from foxglove import messages as fm
@@ -25,6 +24,7 @@ from dynabarn.recording.layout import LAYOUT_FILE, layout_json, referenced_topic
 from dynabarn.recording.topics import FRAMES, TOPICS
 from dynabarn.sim import run_episode
 from dynabarn.worldset import resolve_world
+from tests.conftest import require
 
 BARN = get_protocol("barn")
 SDK_TYPES = {f"foxglove.{name}": getattr(fm, name) for name in ("LaserScan", "PoseInFrame", "SceneUpdate")}
@@ -47,6 +47,7 @@ def _sdk_decoder(schema_name: str):
 
 
 def test_every_message_decodes_with_foxglove_schemas_and_json_schemas(dwa_recording):
+    jsonschema = require("jsonschema", "test")
     path, _, _ = dwa_recording
     decoders = {name: _sdk_decoder(name) for name in SDK_TYPES}
     counts: dict[str, int] = {}

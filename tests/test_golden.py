@@ -17,7 +17,7 @@ from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_METADATA, McapRecorder, read_recording
 from dynabarn.sim import run_episode
-from tests.conftest import REFERENCE
+from tests.conftest import REFERENCE, require
 
 pytestmark = pytest.mark.slow  # minutes of episodes: `make test` runs them, `-m "not slow"` skips them
 
@@ -52,6 +52,7 @@ EMULATED = {
 
 @pytest.mark.parametrize("name", list(EMULATED))
 def test_golden_set_is_identical(name):
+    require("torch", "learn")  # the golden set runs bc and td3 too
     env = EMULATED[name]
     if "NPY_DISABLE_CPU_FEATURES" in env and not env["NPY_DISABLE_CPU_FEATURES"]:
         pytest.skip("numpy dispatches no optional SIMD target on this CPU")
@@ -71,6 +72,7 @@ def test_golden_set_is_identical(name):
 
 
 def test_golden_set_with_numpy_transcendentals_one_ulp_off():
+    require("torch", "learn")  # the golden set runs bc and td3 too
     """As on a CPU whose numpy sin, cos, exp, ... round differently (AVX-512's SVML)."""
     run = subprocess.run(
         [sys.executable, str(REPO / "tests" / "emulate_ulp.py"), "--reference", str(REFERENCE)],
@@ -123,6 +125,7 @@ def test_bad_golden_file_is_one_line(tmp_path, capsys):
 
 
 def test_results_and_recordings_carry_versions_and_the_machine(tmp_path):
+    require("torch", "learn")  # the golden set runs bc and td3 too
     path = tmp_path / "r.mcap"
     result = run_episode(
         REPO / "generated_worlds" / "world_000.xml",

@@ -11,8 +11,10 @@ import sys
 import numpy as np
 import pytest
 
-gymnasium = pytest.importorskip("gymnasium")
-pytest.importorskip("torch")
+from tests.conftest import require
+
+gymnasium = require("gymnasium", "learn")
+require("torch", "learn")
 
 from dynabarn.learn.env import episode_step_limit  # noqa: E402
 
@@ -48,7 +50,7 @@ def test_is_success_and_rgb_frames():
 
 
 def test_record_video_writes_an_episode(tmp_path):
-    pytest.importorskip("moviepy")
+    require("moviepy", "test")
     env = gymnasium.make("dynabarn/DynaBARN-v0", world_set="dynabarn300", worlds=[0], render_mode="rgb_array")
     env = gymnasium.wrappers.RecordVideo(env, str(tmp_path), episode_trigger=lambda k: True, disable_logger=True)
     env.reset(seed=0, options={"trial_seed": 0})
@@ -101,7 +103,7 @@ def test_worlds_override_the_default_set():
 
 
 def test_sb3_ppo_trains_on_subprocess_envs_and_evaluates():
-    sb3 = pytest.importorskip("stable_baselines3")
+    sb3 = require("stable_baselines3", "test")
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.evaluation import evaluate_policy
     from stable_baselines3.common.vec_env import SubprocVecEnv
@@ -148,3 +150,24 @@ def test_human_mode_opens_the_viewer_on_a_display(tmp_path, display):
     assert proc.returncode == 0
     # 30 control steps of 0.1 s shown at real time.
     assert 2.5 <= float(out.split()[-1]) <= 6.0
+
+
+def test_rgb_array_on_a_machine_without_an_opengl_platform_says_what_to_set():
+    """Headless and no MUJOCO_GL: MuJoCo would die in its renderer (FatalError); the
+    environment says what to set instead, in one line, when it is made."""
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import gymnasium, dynabarn.learn\n"
+        "try:\n"
+        "    gymnasium.make('dynabarn/DynaBARN-v0', world_set='dynabarn300', worlds=[0], render_mode='rgb_array')\n"
+        "except ValueError as e:\n"
+        "    print('ValueError:', e)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("ValueError: render_mode 'rgb_array': offscreen rendering needs an OpenGL platform")
+    assert "MUJOCO_GL=egl" in out.stdout and out.stdout.count("\n") == 1

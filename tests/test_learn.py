@@ -5,8 +5,10 @@ import json
 import numpy as np
 import pytest
 
-gymnasium = pytest.importorskip("gymnasium")
-torch = pytest.importorskip("torch")
+from tests.conftest import require
+
+gymnasium = require("gymnasium", "learn")
+torch = require("torch", "learn")
 
 import dynabarn.learn  # noqa: E402  (registers DynaBARN-v0)
 from dynabarn.cli import demos_main, train_main  # noqa: E402

@@ -54,7 +54,9 @@ def _foxglove_url(proc: subprocess.Popen) -> str:
 def _foxglove_client(url: str, topics: set[str], until_topic: str = "/episode/result", timeout: float = 120):
     """Subscribe to `topics` as Foxglove does; returns the advertised channels and, per
     topic, the (receive time, log time, payload) of every message."""
-    from websockets.sync.client import connect
+    from tests.conftest import require
+
+    connect = require("websockets.sync.client", "test").connect
 
     channels: dict[int, dict] = {}
     subscriptions: dict[int, str] = {}

@@ -22,16 +22,74 @@ def test_importing_the_package_changes_no_global_state():
     assert out.stdout.split() == ["False", "False", "WorldSpec"]
 
 
-def test_readme_python_examples_run(tmp_path, monkeypatch, capsys):
-    """Every ```python block of the README runs as written."""
-    import re
+def _pages() -> list:
     from pathlib import Path
 
-    readme = (Path(dynabarn.__file__).parent.parent / "README.md").read_text()
-    blocks = re.findall(r"```python\n(.*?)```", readme, flags=re.S)
-    assert len(blocks) >= 2
+    root = Path(dynabarn.__file__).parent.parent
+    return [root / "README.md", *sorted((root / "docs").rglob("*.md"))]
+
+
+def _blocks(text: str) -> list[tuple[str, str]]:
+    """The fenced code blocks of a markdown page: (language, code)."""
+    blocks, lang, lines = [], None, []
+    for line in text.splitlines():
+        if lang is None and line.startswith("```"):
+            lang, lines = line[3:].strip(), []
+        elif lang is not None and line.startswith("```"):
+            blocks.append((lang, "\n".join(lines) + "\n"))
+            lang = None
+        elif lang is not None:
+            lines.append(line)
+    assert lang is None, "a code block is not closed"
+    return blocks
+
+
+def test_every_python_block_of_the_readme_and_the_docs_runs(tmp_path, monkeypatch, capsys):
+    """Every ```python block of the README and of the documentation runs as written, page by
+    page (a page's blocks share one namespace, as a reader would run them in order)."""
+    from tests.conftest import require
+
+    ran = 0
     monkeypatch.chdir(tmp_path)
-    for code in blocks:
-        exec(compile(code, "README.md", "exec"), {"__name__": "__readme__"})
+    for page in _pages():
+        blocks = [code for lang, code in _blocks(page.read_text()) if lang == "python"]
+        if any("gymnasium" in code for code in blocks):
+            require("gymnasium", "learn")
+        namespace = {"__name__": f"__{page.stem}__"}
+        for code in blocks:
+            exec(compile(code, str(page), "exec"), namespace)
+            ran += 1
+    assert ran >= 7
     out = capsys.readouterr().out
     assert "my_world | dwa | barn | seed 0:" in out and (tmp_path / "my_world.xml").is_file()
+    assert "world_137 | wander | barn | seed 0:" in out
+
+
+def test_every_command_line_of_the_readme_and_the_docs_parses():
+    """Every `dynabarn-*` line of a shell (or plain) code block is one the command's parser
+    accepts: the pages show no option a command does not have."""
+    import shlex
+
+    from dynabarn.cli.dispatch import COMMANDS
+
+    checked, wrong = 0, []
+    for page in _pages():
+        for _, block in (b for b in _blocks(page.read_text()) if b[0] in ("", "bash")):
+            for line in block.replace("\\\n", " ").splitlines():
+                if not line.lstrip().startswith("dynabarn-"):
+                    continue
+                words = shlex.split(line, comments=True)
+                ends = [k for k, w in enumerate(words) if w in ("&&", "||", ";", "|")]
+                words = words[: ends[0]] if ends else words  # the first command of a chain
+                name = words[0].removeprefix("dynabarn-")
+                checked += 1
+                if name not in COMMANDS:
+                    wrong.append(f"{page.parent.name}/{page.name}: unknown command: {line.strip()}")
+                    continue
+                module = __import__(f"dynabarn.cli.{name}", fromlist=["build_parser"])
+                try:
+                    module.build_parser().parse_args(words[1:])
+                except SystemExit:
+                    wrong.append(f"{page.parent.name}/{page.name}: does not parse: {line.strip()}")
+    assert not wrong, "\n".join(wrong)
+    assert checked >= 30

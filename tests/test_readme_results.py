@@ -1,4 +1,5 @@
-"""The README's result tables are what the committed results say (`make readme`)."""
+"""The result tables of the README and the documentation are what the committed results say
+(`make readme`)."""
 
 import json
 import subprocess
@@ -34,7 +35,7 @@ def test_every_planner_shares_the_floors_episodes():
 
 
 def test_the_check_fails_when_a_table_is_edited(tmp_path):
-    """The check can fail: a README whose table was edited by hand is caught."""
+    """The check can fail: a page whose table was edited by hand is caught."""
     sys.path.insert(0, str(SCRIPT.parent))
     try:
         import readme_results
@@ -42,9 +43,15 @@ def test_the_check_fails_when_a_table_is_edited(tmp_path):
         sys.path.remove(str(SCRIPT.parent))
     folders = {f: readme_results.load(f) for f in readme_results.SETS}
     summaries = {f: s for f, (_, s) in folders.items()}
-    text = (ROOT / "README.md").read_text()
-    assert readme_results.render(text, folders, summaries) == text
+    pages = readme_results.PAGES
+    assert {b for blocks in pages.values() for b in blocks} == set(readme_results.BLOCKS)
+    results_page = ROOT / "docs" / "results.md"
+    text = results_page.read_text()
+    blocks = pages[results_page]
+    assert readme_results.render(text, folders, summaries, blocks) == text
     edited = text.replace("<!-- results:skill -->\n", "<!-- results:skill -->\n| made up |\n", 1)
-    assert readme_results.render(edited, folders, summaries) == text
+    assert readme_results.render(edited, folders, summaries, blocks) == text
     with pytest.raises(SystemExit, match="no block"):
-        readme_results.render(text.replace("<!-- results:floor -->", ""), folders, summaries)
+        readme_results.render(text.replace("<!-- results:floor -->", ""), folders, summaries, blocks)
+    readme = (ROOT / "README.md").read_text()
+    assert readme_results.render(readme, folders, summaries, pages[ROOT / "README.md"]) == readme

@@ -76,8 +76,8 @@ def test_topic_table_is_what_is_recorded_and_what_the_readme_says(tmp_path):
         summary = make_reader(f).get_summary()
     recorded = {c.topic: (summary.schemas[c.schema_id].name, c.message_encoding) for c in summary.channels.values()}
     assert recorded == {t.name: (t.schema, t.encoding) for t in TOPICS}
-    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
-    assert markdown_table() in readme, "README's topic table: regenerate it from recording.topics.markdown_table()"
+    page = (Path(__file__).resolve().parent.parent / "docs" / "concepts" / "recordings.md").read_text()
+    assert markdown_table() in page, "docs/concepts/recordings.md's topic table: regenerate it from markdown_table()"
 
 
 def result_obstacles(rec):

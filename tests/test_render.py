@@ -139,3 +139,25 @@ def test_size_is_honoured_exactly(recording, tmp_path):
     out = tmp_path / "v.mp4"
     assert render_main([str(recording), "--out", str(out), "--fps", "1", "--size", "642x362"]) == 0
     assert iio.imread(out, index=None).shape[1:3] == (362, 642)
+
+
+def test_a_renderer_without_an_opengl_platform_is_one_clear_line():
+    """A library user on a headless machine who did not set MUJOCO_GL: one line naming it,
+    not MuJoCo's FatalError (dynabarn-render chooses EGL itself)."""
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import mujoco\n"
+        "from dynabarn.errors import DynabarnError\n"
+        "from dynabarn.render import offscreen_renderer\n"
+        "try:\n"
+        "    offscreen_renderer(mujoco.MjModel.from_xml_string('<mujoco/>'), 64, 64)\n"
+        "except DynabarnError as e:\n"
+        "    print(e)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("offscreen rendering needs an OpenGL platform") and "MUJOCO_GL=egl" in out.stdout

@@ -21,16 +21,19 @@ from pathlib import Path
 
 import pytest
 
+from tests.conftest import require
+
 REPO = Path(__file__).resolve().parent.parent
 SKIP_IN_COPY = shutil.ignore_patterns(
     ".venv*", ".git", "build", "dist", "*.egg-info", "runs", ".golden_worlds", "__pycache__", ".pytest_cache",
-    ".ruff_cache", "*.rrd", "out", "demos", "imported_worlds", "mixed_worlds", "MUJOCO_LOG.TXT",
+    ".ruff_cache", "*.rrd", "out", "demos", "imported_worlds", "mixed_worlds", "MUJOCO_LOG.TXT", "site",
 )  # fmt: skip
 
 
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory) -> dict:
     """A fresh venv with the wheel installed; returns its paths and a clean environment."""
+    require("setuptools", "test")  # the wheel is built without build isolation
     tmp = tmp_path_factory.mktemp("wheel")
     src = tmp / "src"
     shutil.copytree(REPO, src, ignore=SKIP_IN_COPY)
@@ -135,9 +138,6 @@ def test_quickstart_from_outside_the_repository(installed):
     show = _run(installed, "dynabarn-worlds", "show", "world_137")
     assert show.returncode == 0 and show.stdout.startswith("world_137"), show.stderr
 
-    bc = _run(installed, "python", "-m", "dynabarn", "run", "--world", "137", "--planner", "bc", "--no-log")
-    assert bc.returncode == 0 and "world_137 | bc | barn" in bc.stdout, bc.stderr
-
     # MuJoCo opens an installed world on its own (the robot reference resolves in the wheel).
     viewer_load = _run(
         installed,
@@ -148,17 +148,6 @@ def test_quickstart_from_outside_the_repository(installed):
     )
     assert viewer_load.returncode == 0, viewer_load.stderr
     assert viewer_load.stdout.split() == ["720", "5"]
-
-    gym = _run(
-        installed,
-        "python",
-        "-c",
-        "import gymnasium as gym, dynabarn; env = gym.make('dynabarn/DynaBARN-v0'); "
-        "obs, info = env.reset(seed=0); print(obs.shape, env.spec.max_episode_steps, info['world'])",
-    )
-    assert gym.returncode == 0, gym.stderr
-    shape, limit, world = gym.stdout.split()
-    assert (shape, limit) == ("(722,)", "2000") and world.startswith("world_")
 
     # Generated worlds go to the current directory with their robot, and open in MuJoCo.
     gen = _run(installed, "dynabarn-worlds", "generate")
@@ -180,3 +169,22 @@ def test_quickstart_from_outside_the_repository(installed):
 
     # Nothing was written into the installed package.
     assert _snapshot(installed["site"] / "dynabarn") == before
+
+
+def test_learned_planners_and_the_environment_from_the_wheel(installed):
+    """The learn extra's part of the quickstart: the shipped policies and DynaBARN-v0."""
+    require("torch", "learn")
+    require("gymnasium", "learn")
+    bc = _run(installed, "python", "-m", "dynabarn", "run", "--world", "137", "--planner", "bc", "--no-log")
+    assert bc.returncode == 0 and "world_137 | bc | barn" in bc.stdout, bc.stderr
+
+    gym = _run(
+        installed,
+        "python",
+        "-c",
+        "import gymnasium as gym, dynabarn; env = gym.make('dynabarn/DynaBARN-v0'); "
+        "obs, info = env.reset(seed=0); print(obs.shape, env.spec.max_episode_steps, info['world'])",
+    )
+    assert gym.returncode == 0, gym.stderr
+    shape, limit, world = gym.stdout.split()
+    assert (shape, limit) == ("(722,)", "2000") and world.startswith("world_")

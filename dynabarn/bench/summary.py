@@ -177,6 +177,13 @@ def write_summary(summary: list[dict], out_dir: Path, *, title: str = "") -> dic
     return paths
 
 
+def fig5_groups(summary: list[dict]) -> list[str]:
+    """The difficulties Fig. 5 draws: those with episodes (a sweep of hard worlds only is one
+    group, not two empty ones beside it)."""
+    present = {s["difficulty"] for s in summary}
+    return [d for d in DIFFICULTIES if d in present]
+
+
 def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
     """Bars of success per difficulty with 95% intervals, the paper's values as hatched bars."""
     # A Figure of its own, not pyplot: no global backend switch, no figure registry.
@@ -184,21 +191,22 @@ def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
     from matplotlib import colormaps
     from matplotlib.figure import Figure
 
+    groups = fig5_groups(summary)
     planners = sorted({s["planner"] for s in summary}, key=lambda p: (p != FLOOR, p))  # the floor first
     fig = Figure(figsize=(2.2 + 2.4 * len(planners), 4.0), dpi=120)
     ax = fig.subplots()
     width = 0.8 / (2 * len(planners))
     colors = colormaps.get_cmap("tab10")
-    x = np.arange(len(DIFFICULTIES))
+    x = np.arange(len(groups))
     for k, planner in enumerate(planners):
         rows = {s["difficulty"]: s for s in summary if s["planner"] == planner}
-        ours = [rows[d]["success"] if d in rows else np.nan for d in DIFFICULTIES]
+        ours = [rows[d]["success"] if d in rows else np.nan for d in groups]
         err = np.array(
             [
                 [rows[d]["success"] - rows[d]["success_lo"], rows[d]["success_hi"] - rows[d]["success"]]
                 if d in rows
                 else [0, 0]
-                for d in DIFFICULTIES
+                for d in groups
             ]
         ).T
         pos = x - 0.4 + width * (2 * k + 0.5)
@@ -208,12 +216,12 @@ def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
         if planner == FLOOR:  # the floor as a line across each difficulty's group
             for xi, value in zip(x, ours, strict=True):
                 ax.hlines(value, xi - 0.42, xi + 0.42, colors="0.3", linestyles="--", linewidth=1)
-        paper = [rows[d]["paper"] if d in rows and rows[d]["paper"] is not None else np.nan for d in DIFFICULTIES]
+        paper = [rows[d]["paper"] if d in rows and rows[d]["paper"] is not None else np.nan for d in groups]
         if not all(np.isnan(paper)):
             ax.bar(
                 pos + width, paper, width, color="white", edgecolor=colors(k), hatch="//", label=f"{planner} (paper)"
             )
-    ax.set_xticks(x, DIFFICULTIES)
+    ax.set_xticks(x, groups)
     ax.set_ylim(0, 1.05)
     ax.set_ylabel("success rate")
     ax.grid(axis="y", alpha=0.3)

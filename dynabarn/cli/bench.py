@@ -20,7 +20,8 @@ from dynabarn.cli.common import (
 from dynabarn.errors import DynabarnError
 
 
-def bench_main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """`dynabarn-bench`'s parser (its `--help`, and the documentation's page of the command)."""
     from dynabarn.planners import planner_presets
 
     parser = make_parser(
@@ -89,6 +90,11 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
         help="folder with the reference data the imported golden worlds need (dynabarn60.json, barn300_static.json); "
         "default: ../shared/reference beside the repository; cases that need it are skipped without it",
     )
+    return parser
+
+
+def bench_main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     if args.verify_golden or args.update_golden:
         return run_command(_golden, args)

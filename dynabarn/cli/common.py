@@ -134,7 +134,17 @@ def add_trial_seed(p: argparse.ArgumentParser) -> None:
     )
 
 
-def add_recording(p: argparse.ArgumentParser, planner: str = "<planner>") -> None:
+def result_keys(extra: tuple[str, ...] = ()) -> list[str]:
+    """The keys of `--json`'s result, read off `EpisodeResult` (so `--help` and the
+    documentation list exactly what is printed)."""
+    from dataclasses import fields
+
+    from dynabarn.metrics import EpisodeResult
+
+    return [f.name for f in fields(EpisodeResult)] + ["recording", *extra]
+
+
+def add_recording(p: argparse.ArgumentParser, planner: str = "<planner>", extra_keys: tuple[str, ...] = ()) -> None:
     """--log / --no-log / --runs-dir / --json: where one episode is recorded and how it is printed."""
     from pathlib import Path
 
@@ -147,7 +157,11 @@ def add_recording(p: argparse.ArgumentParser, planner: str = "<planner>") -> Non
     )
     log.add_argument("--no-log", action="store_true", help="do not record")
     p.add_argument("--runs-dir", type=Path, default=Path("runs"), help="folder of default recordings")
-    p.add_argument("--json", action="store_true", help="print the full result as JSON instead of one line")
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="print the full result as JSON instead of one line; its keys: " + ", ".join(result_keys(extra_keys)),
+    )
 
 
 def add_jobs(p: argparse.ArgumentParser) -> None:

@@ -18,7 +18,8 @@ from dynabarn.cli.common import (
 from dynabarn.errors import DynabarnError
 
 
-def demos_main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """`dynabarn-demos`'s parser (its `--help`, and the documentation's page of the command)."""
     from dynabarn.demos.dataset import DEFAULT_LOOKAHEAD
 
     parser = make_parser("dynabarn-demos", "Collect synthetic demonstrations and export datasets for learning.")
@@ -49,6 +50,11 @@ def demos_main(argv: Sequence[str] | None = None) -> int:
     co.add_argument("--planner", default="oracle", help="demonstrator planner")
     add_jobs(co)
     co.add_argument("--out", type=Path, default=Path("demos"), help="folder of demonstrations")
+    return parser
+
+
+def demos_main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     return run_command(_demos_export if args.command == "export" else _demos_collect, args)
 

@@ -12,7 +12,8 @@ from dynabarn.cli.common import make_parser, run_command
 from dynabarn.errors import DynabarnError
 
 
-def export_main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """`dynabarn-export`'s parser (its `--help`, and the documentation's page of the command)."""
     parser = make_parser(
         "dynabarn-export",
         "Write a recording as a ROS bag with ROS message types (sensor_msgs/LaserScan, nav_msgs/Odometry, "
@@ -29,6 +30,11 @@ def export_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--out", type=Path, default=None, help="bag to write (default: the recording's name with .bag, or _rosbag2)"
     )
+    return parser
+
+
+def export_main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     return run_command(_export, args)
 

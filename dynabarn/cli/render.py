@@ -15,7 +15,8 @@ from dynabarn.cli.common import (
 from dynabarn.errors import DynabarnError
 
 
-def render_main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """`dynabarn-render`'s parser (its `--help`, and the documentation's page of the command)."""
     parser = make_parser(
         "dynabarn-render",
         "Render a recorded episode to a video offscreen with MuJoCo (EGL or OSMesa, no GPU needed).",
@@ -23,6 +24,11 @@ def render_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("recording", type=Path, help="MCAP recording (from dynabarn-run)")
     parser.add_argument("--out", type=Path, required=True, help="video file, .mp4 or .gif")
     add_video_options(parser)
+    return parser
+
+
+def render_main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     return run_command(_render, args)
 

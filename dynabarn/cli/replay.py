@@ -16,7 +16,8 @@ from dynabarn.errors import DynabarnError
 from dynabarn.provenance import has_display
 
 
-def replay_main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """`dynabarn-replay`'s parser (its `--help`, and the documentation's page of the command)."""
     from dynabarn.web_viewer import DEFAULT_BIND, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
 
     parser = make_parser(
@@ -46,6 +47,11 @@ def replay_main(argv: Sequence[str] | None = None) -> int:
     )
     web.add_argument("--port", type=int, default=DEFAULT_WEB_PORT, help="port of the web page")
     web.add_argument("--grpc-port", type=int, default=DEFAULT_GRPC_PORT, help="port the page loads the data from")
+    return parser
+
+
+def replay_main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     return run_command(_replay, args)
 

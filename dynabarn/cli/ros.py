@@ -20,7 +20,8 @@ from dynabarn.cli.episode import exit_status, print_result, run_recorded
 from dynabarn.errors import DynabarnError
 
 
-def ros_main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """`dynabarn-ros`'s parser (its `--help`, and the documentation's page of the command)."""
     parser = make_parser(
         "dynabarn-ros",
         "Let a ROS 1 navigation stack drive the Jackal in a DynaBARN world: the bridge publishes /clock, "
@@ -72,7 +73,12 @@ def ros_main(argv: Sequence[str] | None = None) -> int:
         metavar="FROM:=TO",
         help="rename a bridge topic, e.g. /front/scan:=/scan (repeatable)",
     )
-    add_recording(parser, planner="ros")
+    add_recording(parser, planner="ros", extra_keys=("bridge_ms_per_tick",))
+    return parser
+
+
+def ros_main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     return run_command(_ros_episode, args)
 

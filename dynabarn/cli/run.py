@@ -21,7 +21,8 @@ from dynabarn.cli.live import LiveOutputs, add_live_options, exit_code
 from dynabarn.cli.render import add_video_options, render_video, video_settings
 
 
-def run_main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """`dynabarn-run`'s parser (its `--help`, and the documentation's page of the command)."""
     from dynabarn.planners import available_planners, planner_presets
 
     parser = make_parser(
@@ -53,6 +54,11 @@ def run_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--video", type=Path, default=None, help="also render the episode to this .mp4 or .gif")
     add_video_options(parser, prefix="--video: ")
     add_live_options(parser)
+    return parser
+
+
+def run_main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     return exit_code(run_command(_run_episode, args))
 

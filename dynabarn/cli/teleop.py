@@ -20,7 +20,8 @@ from dynabarn.errors import DynabarnError
 from dynabarn.provenance import has_display
 
 
-def teleop_main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """`dynabarn-teleop`'s parser (its `--help`, and the documentation's page of the command)."""
     parser = make_parser(
         "dynabarn-teleop",
         "Drive the Jackal yourself in MuJoCo's viewer and record a demonstration. Keys: Up/Down speed, "
@@ -37,6 +38,11 @@ def teleop_main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--speed", type=ranged(float, 0.1, 10.0), default=1.0, help="simulated seconds per wall-clock second"
     )
+    return parser
+
+
+def teleop_main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     return exit_code(run_command(_teleop, args))
 

@@ -65,7 +65,8 @@ TD3_OPTIONS = (
 )
 
 
-def train_main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """`dynabarn-train`'s parser (its `--help`, and the documentation's page of the command)."""
     parser = make_parser(
         "dynabarn-train",
         f"Train the learned baselines (needs {LEARN_EXTRA}).",
@@ -93,6 +94,11 @@ def train_main(argv: Sequence[str] | None = None) -> int:
             "--" + name.replace("_", "-"), type=ranged(kind, lo, hi), default=getattr(TD3_DEFAULTS, name), help=text
         )
     td.add_argument("--out", type=Path, required=True, help="folder for checkpoints, policy.pt and the learning curve")
+    return parser
+
+
+def train_main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     return run_command(_train, args)
 

@@ -19,7 +19,8 @@ from dynabarn.errors import DynabarnError, ImportFormatError
 
 # Over 80 lines on purpose: the declarations of the four subcommands' options, one after
 # the other, as `--help` shows them.
-def worlds_main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """`dynabarn-worlds`'s parser (its `--help`, and the documentation's page of the command)."""
     from dynabarn.provenance import WORLDS_ENV
     from dynabarn.sim.behaviors import available_behaviors, get_behavior
     from dynabarn.worlds.generate import DEFAULT_BASE_SEED
@@ -122,6 +123,11 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
     )
     st.add_argument("--worlds", default=None, help="only these world ids, e.g. 0-19,200-219 (None: all)")
 
+    return parser
+
+
+def worlds_main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     return run_command(_WORLD_COMMANDS[args.command], args)
 

@@ -74,6 +74,7 @@ imported, or by `import dynabarn` once gymnasium is imported; from a fresh inter
 from __future__ import annotations
 
 import math
+import os
 import threading
 from typing import Any, ClassVar
 
@@ -87,7 +88,7 @@ from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.learned.spaces import action_to_command, policy_input
 from dynabarn.protocol import get_protocol
 from dynabarn.provenance import has_display
-from dynabarn.render import CAMERAS, place_camera
+from dynabarn.render import CAMERAS, NO_GL_PLATFORM, offscreen_renderer, place_camera
 from dynabarn.robot import JACKAL
 from dynabarn.sim import Episode, SimConfig, Simulation
 from dynabarn.worlds.profiles import Difficulty
@@ -131,6 +132,8 @@ class DynaBARNEnv(gymnasium.Env):
             raise ValueError("render_mode 'human' needs a display (DISPLAY is not set); use 'rgb_array'")
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode {render_mode!r}: use None, 'rgb_array' or 'human'")
+        if render_mode == "rgb_array" and not has_display() and not os.environ.get("MUJOCO_GL"):
+            raise ValueError(f"render_mode 'rgb_array': {NO_GL_PLATFORM}")
         if camera not in CAMERAS:
             raise ValueError(f"camera {camera!r}: use one of {', '.join(CAMERAS)}")
         if not (isinstance(width, int) and isinstance(height, int) and 16 <= width <= 4096 and 16 <= height <= 4096):
@@ -271,7 +274,11 @@ class DynaBARNEnv(gymnasium.Env):
         if renderer is None:
             sim.model.vis.global_.offwidth = max(sim.model.vis.global_.offwidth, self.width)
             sim.model.vis.global_.offheight = max(sim.model.vis.global_.offheight, self.height)
-            renderer = self._renderers[self._file] = mujoco.Renderer(sim.model, self.height, self.width)
+            try:
+                renderer = offscreen_renderer(sim.model, self.height, self.width)
+            except DynabarnError as e:  # Gymnasium's callers (check_env, RecordVideo) expect a plain error
+                raise RuntimeError(str(e)) from None
+            self._renderers[self._file] = renderer
             self._camera_view = mujoco.MjvCamera()
             self._scene_option = mujoco.MjvOption()
             self._scene_option.sitegroup[:] = 0  # laser sites would clutter the picture

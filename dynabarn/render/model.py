@@ -8,9 +8,28 @@ from pathlib import Path
 
 import mujoco
 
+from dynabarn.errors import DynabarnError
 from dynabarn.mjcf import load_model, write_world
 from dynabarn.recording import Recording, attached_world
 from dynabarn.worlds.spec import WorldSpec
+
+NO_GL_PLATFORM = (
+    "offscreen rendering needs an OpenGL platform for MuJoCo and none is loaded (there is no display): "
+    "set MUJOCO_GL=egl (or osmesa) before anything imports mujoco"
+)
+
+
+def offscreen_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
+    """MuJoCo's offscreen renderer, or one line saying what to set where MuJoCo has no
+    OpenGL platform (MuJoCo picks it once, when first imported: without a display and
+    without MUJOCO_GL it picks GLFW, which cannot open a context)."""
+    try:
+        return mujoco.Renderer(model, height, width)
+    except mujoco.FatalError as e:
+        if "OpenGL platform" not in str(e):
+            raise
+        raise DynabarnError(NO_GL_PLATFORM) from None
+
 
 CAMERAS = ("top", "follow")
 """top: the whole arena from above; follow: behind and above the robot."""

@@ -30,7 +30,7 @@ from dynabarn.errors import DynabarnError
 from dynabarn.metrics import OUTCOME_MESSAGES, Outcome
 from dynabarn.recording import Recording, pose_track, recorded_world
 from dynabarn.render.frames import frame_tracks
-from dynabarn.render.model import CAMERAS, place_camera, recorded_model
+from dynabarn.render.model import CAMERAS, offscreen_renderer, place_camera, recorded_model
 from dynabarn.render.overlay import LASER, Overlay, draw_dots, project
 
 QUALITIES = ("fast", "high")
@@ -180,7 +180,7 @@ def render_recording(
     writer = _writer(out, fps)
     frames = range(n_frames) if progress is None else progress(range(n_frames))
     try:
-        with mujoco.Renderer(model, height, width) as renderer:
+        with offscreen_renderer(model, height, width) as renderer:
             scene = renderer.scene
             marks = _SceneMarks(scene)
             for k in frames:

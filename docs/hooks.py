@@ -1,0 +1,109 @@
+"""MkDocs hooks (`hooks:` in mkdocs.yml): the command pages' option reference, generated from
+the commands' own argparse parsers at build time, so the site never says what `--help` does
+not.
+
+A page asks for it with a line `<!-- cli: run -->` (the command's name, as in
+`dynabarn-run`); the hook puts the usage line and one table per (sub)command there.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import re
+
+MARKER = re.compile(r"^<!-- cli: (\w+) -->$", re.M)
+API_MARKER = "<!-- api -->"
+
+
+def _cell(text: str) -> str:
+    """Table-safe text: pipes escaped, whitespace folded."""
+    return " ".join(text.split()).replace("|", "\\|")
+
+
+def _default(action: argparse.Action) -> str:
+    if action.required or action.nargs == 0 or any(action.default is v for v in (None, False, argparse.SUPPRESS)):
+        return ""
+    if isinstance(action.default, list | tuple):
+        return ", ".join(f"`{v}`" for v in action.default) if action.default else ""
+    return f"`{action.default}`"
+
+
+def _name(action: argparse.Action) -> str:
+    if not action.option_strings:
+        return f"`{action.metavar or action.dest}`"
+    names = ", ".join(f"`{s}`" for s in action.option_strings)
+    if action.nargs != 0:
+        metavar = action.metavar or (("{" + ",".join(map(str, action.choices)) + "}") if action.choices else None)
+        names += f" `{metavar or action.dest.upper()}`"
+    return names
+
+
+def _help(action: argparse.Action) -> str:
+    text = action.help or ""
+    if "%(" in text:
+        text = text % {**vars(action), "prog": "", "default": action.default}
+    return _cell(text)
+
+
+def _usage(parser: argparse.ArgumentParser) -> str:
+    """The usage lines without argparse's "usage: " and its indentation."""
+    lines = parser.format_usage().strip().removeprefix("usage: ").splitlines()
+    return "\n".join([lines[0], *(line.removeprefix(" " * len("usage: ")) for line in lines[1:])])
+
+
+def _table(parser: argparse.ArgumentParser) -> str:
+    rows = ["| option | default | meaning |", "|---|---|---|"]
+    for action in parser._actions:
+        if isinstance(action, argparse._HelpAction | argparse._VersionAction | argparse._SubParsersAction):
+            continue
+        if action.help == argparse.SUPPRESS:
+            continue
+        rows.append(f"| {_name(action)} | {_default(action)} | {_help(action)} |")
+    return "\n".join(rows)
+
+
+def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return dict(action.choices)
+    return {}
+
+
+def command_reference(name: str) -> str:
+    """The markdown reference of `dynabarn-<name>`, from its `build_parser()`."""
+    module = importlib.import_module(f"dynabarn.cli.{name}")
+    parser: argparse.ArgumentParser = module.build_parser()
+    parts = ["## Options", "", f"Generated from `dynabarn-{name} --help`.", ""]
+    subs = _subparsers(parser)
+    if not subs:
+        parts += ["```", _usage(parser), "```", "", _table(parser)]
+        return "\n".join(parts) + "\n"
+    parts += [_cell(parser.description or ""), ""]
+    for sub_name, sub in subs.items():
+        parts += [f"### `dynabarn-{name} {sub_name}`", "", _cell(sub.description or ""), ""]
+        parts += ["```", _usage(sub), "```", "", _table(sub), ""]
+    return "\n".join(parts) + "\n"
+
+
+def api_reference() -> str:
+    """mkdocstrings blocks for every name `dynabarn` exports, grouped by where it is defined,
+    so the API page lists exactly `dynabarn.__all__`."""
+    import dynabarn
+
+    where = dynabarn._WHERE
+    modules: dict[str, list[str]] = {}
+    for name in dynabarn.__all__:
+        modules.setdefault(where[name], []).append(name)
+    parts = []
+    for module, names in modules.items():
+        parts += [f"## `{module}`", ""]
+        for name in names:
+            parts += [f"::: {module}.{name}", "    options:", "      heading_level: 3", ""]
+    return "\n".join(parts)
+
+
+def on_page_markdown(markdown: str, page, config, files) -> str:
+    if API_MARKER in markdown:
+        markdown = markdown.replace(API_MARKER, api_reference())
+    return MARKER.sub(lambda m: command_reference(m[1]), markdown)

@@ -1,0 +1,130 @@
+"""The documentation site: `mkdocs build --strict` (what `make docs` runs) builds it, a
+broken link fails the build, and a real browser (headless Chromium, as for the web viewer)
+shows its pages with their figures, option tables and API reference."""
+
+from __future__ import annotations
+
+import functools
+import http.server
+import io
+import os
+import shutil
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.browser import Browser, chromium
+from tests.conftest import require
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def _build(config: Path, site: Path) -> subprocess.CompletedProcess:
+    require("mkdocs", "docs")
+    require("material", "docs")
+    require("mkdocstrings_handlers.python", "docs")
+    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
+    return subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--config-file", str(config), "--site-dir", str(site)],
+        capture_output=True,
+        text=True,
+        cwd=config.parent,
+        env=env,
+        timeout=600,
+    )
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory) -> Path:
+    site = tmp_path_factory.mktemp("docs") / "site"
+    build = _build(REPO / "mkdocs.yml", site)
+    assert build.returncode == 0, build.stderr
+    return site
+
+
+def test_every_command_has_a_page_with_its_generated_options(site):
+    from dynabarn.cli.dispatch import COMMANDS
+
+    for name in COMMANDS:
+        page = (site / "commands" / f"{name}.html").read_text()
+        assert f"Generated from <code>dynabarn-{name} --help</code>" in page, name
+        # Every option of the parser is in the page's table.
+        module = __import__(f"dynabarn.cli.{name}", fromlist=["build_parser"])
+        parser = module.build_parser()
+        actions = [a for p in [parser, *_subparsers(parser)] for a in p._actions]
+        for action in actions:
+            for flag in action.option_strings:
+                if flag not in ("-h", "--help", "--version"):
+                    assert f"<code>{flag}</code>" in page, (name, flag)
+
+
+def _subparsers(parser):
+    import argparse
+
+    return [p for a in parser._actions if isinstance(a, argparse._SubParsersAction) for p in a.choices.values()]
+
+
+def test_the_api_page_documents_every_export(site):
+    import dynabarn
+
+    page = (site / "api.html").read_text()
+    for name in dynabarn.__all__:
+        assert f'id="{dynabarn._WHERE[name]}.{name}"' in page, name
+
+
+def test_a_broken_link_fails_the_build(tmp_path):
+    """Strict, so a page that links nowhere stops `make docs` (and CI)."""
+    copy = tmp_path / "repo"
+    shutil.copytree(REPO / "docs", copy / "docs")
+    shutil.copy(REPO / "mkdocs.yml", copy / "mkdocs.yml")
+    shutil.copy(REPO / "CHANGELOG.md", copy / "CHANGELOG.md")
+    page = copy / "docs" / "speed.md"
+    page.write_text(page.read_text() + "\nSee [the missing page](nowhere.md).\n")
+    build = _build(copy / "mkdocs.yml", tmp_path / "site")
+    assert build.returncode != 0 and "nowhere.md" in build.stderr, build.stderr
+
+
+@pytest.mark.skipif(chromium() is None, reason="chromium is installed by `make system-deps`")
+def test_the_results_page_renders_with_its_figure_in_chromium(site, tmp_path):
+    iio = require("imageio.v3", "test")
+    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(site))
+    handler.log_message = lambda *args: None  # quiet
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        url = f"http://127.0.0.1:{server.server_address[1]}/results.html"
+        with Browser() as browser:
+            browser.open(url)
+            state: dict = {}
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline:
+                time.sleep(0.5)
+                state = browser.evaluate(
+                    "(() => { const img = document.querySelector('img[src$=\"fig5_paper60_barn.png\"]');"
+                    " return {title: document.title, loaded: document.readyState,"
+                    " figure: img ? img.naturalWidth : -1, rows: document.querySelectorAll('table tr').length,"
+                    " copy: document.querySelectorAll('.md-code__button').length,"
+                    " nav: document.querySelectorAll('.md-nav__link').length}; })()"
+                )
+                if state.get("loaded") == "complete" and state.get("figure", -1) > 0 and state.get("copy", 0) > 0:
+                    break
+            browser.call("Runtime.evaluate", expression="document.querySelector('img[src$=\"fig5_paper60_barn.png\"]')"
+                         ".scrollIntoView()")  # fmt: skip
+            time.sleep(0.5)
+            shot = browser.screenshot()
+        (tmp_path / "results.png").write_bytes(shot)
+    finally:
+        server.shutdown()
+        server.server_close()
+    assert state["title"].startswith("Results"), state
+    assert state["figure"] > 500, f"the Fig. 5 image did not load: {state}"
+    assert state["rows"] > 30 and state["nav"] > 20, state  # the tables and the site's navigation
+    assert state["copy"] > 0, "Material's JavaScript ran (code blocks got copy buttons)"
+    # The figure is on screen: its bars are coloured, not the page's white and grey text.
+    pixels = iio.imread(io.BytesIO(shot))[..., :3].astype(int)
+    coloured = (pixels.max(axis=-1) - pixels.min(axis=-1)) > 80
+    assert coloured.sum() > 5000, f"no figure in the screenshot; see {tmp_path}/results.png"
