@@ -86,6 +86,28 @@ def command_reference(name: str) -> str:
     return "\n".join(parts) + "\n"
 
 
+API_ORDER = (
+    "dynabarn.planners",  # what a user writes first: a planner, and what it observes
+    "dynabarn.sim",
+    "dynabarn.protocol",
+    "dynabarn.metrics",
+    "dynabarn.worldset",
+    "dynabarn.worlds.spec",
+    "dynabarn.worlds.generate",
+    "dynabarn.worlds.trajectory",
+    "dynabarn.worlds.profiles",
+    "dynabarn.worlds.schedule",
+    "dynabarn.mjcf",
+    "dynabarn.recording",
+    "dynabarn.errors",
+)
+"""The API page's sections in the order a newcomer meets them; a module not listed comes last."""
+
+
+def _api_rank(module: str) -> tuple[int, str]:
+    return (API_ORDER.index(module) if module in API_ORDER else len(API_ORDER), module)
+
+
 def api_reference() -> str:
     """mkdocstrings blocks for every name `dynabarn` exports, grouped by where it is defined,
     so the API page lists exactly `dynabarn.__all__`."""
@@ -96,7 +118,7 @@ def api_reference() -> str:
     for name in dynabarn.__all__:
         modules.setdefault(where[name], []).append(name)
     parts = []
-    for module, names in modules.items():
+    for module, names in sorted(modules.items(), key=lambda item: _api_rank(item[0])):
         parts += [f"## `{module}`", ""]
         for name in names:
             parts += [f"::: {module}.{name}", "    options:", "      heading_level: 3", ""]

@@ -30,13 +30,12 @@ import numpy as np
 from dynabarn.errors import WorldError
 from dynabarn.files import write_atomically
 from dynabarn.provenance import DATA_ROOT
-from dynabarn.robot import JACKAL_REL, JACKAL_XML, GeomGroup, build_jackal_spec
+from dynabarn.robot import JACKAL_REL, JACKAL_XML, PHYSICS_TIMESTEP, GeomGroup, build_jackal_spec
 from dynabarn.worlds.spec import WorldSpec
 
 METADATA_TEXT = "dynabarn_world"
 ROBOT_PREFIX = "jackal/"
 STATIC_FIELD_BODY = "static_obstacles"
-PHYSICS_TIMESTEP = 0.005
 
 
 def keyframes_numeric_name(obstacle_name: str) -> str:

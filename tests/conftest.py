@@ -30,6 +30,16 @@ def require(module: str, extra: str):
     return pytest.importorskip(module, reason=f"needs {module}: pip install -e '.[{extra}]' (make test installs it)")
 
 
+def run_headless(code: str):
+    """`code` in a fresh interpreter as on a machine without a display, where nobody set
+    MUJOCO_GL (the tests' own choice of EGL is taken away)."""
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item, call):
     outcome = yield
@@ -70,7 +80,7 @@ def display():
     import subprocess
 
     if not (shutil.which("Xvfb") and shutil.which("xdotool")):
-        pytest.skip("Xvfb and xdotool are installed by `make system-deps`")
+        pytest.skip("needs Debian's Xvfb and xdotool: sudo make system-deps")
     # Xvfb picks a free display itself and writes its number to the pipe once it listens
     # (tests running in parallel never race for the same number).
     read_end, write_end = os.pipe()

@@ -77,6 +77,7 @@ def test_cli_import_barn_static(barn_json, tmp_path, capsys):
         import_barn_static({"worlds": [{"cells": "x"}]})
 
 
+@pytest.mark.slow
 def test_barn_challenge_dwa_configuration_threads_the_static_worlds(barn_json, tmp_path):
     """With the BARN Challenge's own DWA configuration (preset `dwa_barn_challenge`), DWA
     crosses most static worlds; BARN's published example reports 0.88."""

@@ -143,6 +143,7 @@ def test_bad_input(tmp_path, capsys, argv, message):
     assert message in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_ray_backend_gives_identical_results(tmp_path):
     require("ray", "ray")
     jobs = _jobs(worlds="0,150", trials=2)

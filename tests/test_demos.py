@@ -16,6 +16,7 @@ from dynabarn.worldset import resolve_world
 HARD_AND_MEDIUM = "150,155,200,201,205,210,215"
 
 
+@pytest.mark.slow
 def test_oracle_succeeds_clearly_more_often_than_dwa(tmp_path):
     worlds = worldset.world_set("dynabarn300", worldset.parse_ids(HARD_AND_MEDIUM))
     jobs = bench.make_jobs([("oracle", {}), ("dwa", {})], worlds, get_protocol("barn"), 2)

@@ -88,7 +88,8 @@ def test_a_broken_link_fails_the_build(tmp_path):
     assert build.returncode != 0 and "nowhere.md" in build.stderr, build.stderr
 
 
-@pytest.mark.skipif(chromium() is None, reason="chromium is installed by `make system-deps`")
+@pytest.mark.slow
+@pytest.mark.skipif(chromium() is None, reason="needs Debian's chromium: sudo make system-deps")
 def test_the_results_page_renders_with_its_figure_in_chromium(site, tmp_path):
     iio = require("imageio.v3", "test")
     handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(site))

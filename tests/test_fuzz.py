@@ -400,6 +400,7 @@ def _sweep_jobs(ids, trials=1, planner="straight", **kwargs):
     return bench.make_jobs([(planner, {})], worlds, get_protocol("barn"), trials, **kwargs)
 
 
+@pytest.mark.slow
 def test_a_killed_worker_is_noticed_and_its_episodes_run_again(tmp_path, monkeypatch):
     """`kill -9` of a pool worker: the sweep neither hangs nor loses rows; the episodes of
     the dead pool run again, and one that kills its worker every time ends as a retry row."""
@@ -450,6 +451,30 @@ def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path):
     assert proc.returncode == 2
     assert f"is being written by another dynabarn-bench (pid {os.getpid()})" in proc.stderr
     assert not (out / "results.jsonl").exists()
+    # Released, the lock leaves nothing behind, and the folder can be written again.
+    assert not (out / ".lock").exists()
+    code, err = _call("bench", ["--planner", "straight", "--worlds", "0", *out_arg])
+    assert code == 0, err
+    assert (out / "results.jsonl").is_file() and not [p.name for p in out.iterdir() if p.name.startswith(".")]
+
+
+def test_a_lock_whose_file_was_removed_meanwhile_is_taken_anew(tmp_path):
+    """A writer that waited on a lock file its holder then removed must not think it holds
+    the folder: it locks the file that is at the path now."""
+    import fcntl
+
+    from dynabarn import bench
+
+    out = tmp_path / "out"
+    out.mkdir()
+    stale = os.open(out / ".lock", os.O_RDWR | os.O_CREAT)
+    fcntl.flock(stale, fcntl.LOCK_EX)
+    (out / ".lock").unlink()  # as a finishing holder does, still holding it
+    with bench.locked(out):  # not refused: the removed file's lock guards nothing
+        assert (out / ".lock").is_file()
+        assert os.stat(out / ".lock").st_ino != os.fstat(stale).st_ino
+    os.close(stale)
+    assert not (out / ".lock").exists()
 
 
 def test_duplicate_jobs_run_once(tmp_path):

@@ -49,6 +49,7 @@ def test_is_success_and_rgb_frames():
     env.close()
 
 
+@pytest.mark.slow
 def test_record_video_writes_an_episode(tmp_path):
     require("moviepy", "test")
     env = gymnasium.make("dynabarn/DynaBARN-v0", world_set="dynabarn300", worlds=[0], render_mode="rgb_array")
@@ -102,6 +103,7 @@ def test_worlds_override_the_default_set():
     env.close()
 
 
+@pytest.mark.slow
 def test_sb3_ppo_trains_on_subprocess_envs_and_evaluates():
     sb3 = require("stable_baselines3", "test")
     from stable_baselines3.common.env_util import make_vec_env
@@ -155,9 +157,7 @@ def test_human_mode_opens_the_viewer_on_a_display(tmp_path, display):
 def test_rgb_array_on_a_machine_without_an_opengl_platform_says_what_to_set():
     """Headless and no MUJOCO_GL: MuJoCo would die in its renderer (FatalError); the
     environment says what to set instead, in one line, when it is made."""
-    import os
-    import subprocess
-    import sys
+    from tests.conftest import run_headless
 
     code = (
         "import gymnasium, dynabarn.learn\n"
@@ -166,8 +166,7 @@ def test_rgb_array_on_a_machine_without_an_opengl_platform_says_what_to_set():
         "except ValueError as e:\n"
         "    print('ValueError:', e)\n"
     )
-    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    out = run_headless(code)
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith("ValueError: render_mode 'rgb_array': offscreen rendering needs an OpenGL platform")
     assert "MUJOCO_GL=egl" in out.stdout and out.stdout.count("\n") == 1

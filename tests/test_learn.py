@@ -148,6 +148,7 @@ TD3_ARGV = [
 ]
 
 
+@pytest.mark.slow
 def test_short_td3_run_trains_saves_and_resumes(tmp_path, capsys):
     """Demonstrations, behaviour cloning, critic warm-up, TD3, checkpoints with the whole
     state; running the same command again resumes (no new demonstrations, no new steps)."""

@@ -140,6 +140,7 @@ def test_watching_does_not_change_the_recording(tmp_path):
     assert message_digest(watched) == message_digest(plain)
 
 
+@pytest.mark.slow
 def test_rerun_live_stream_is_received(tmp_path):
     port = _free_port()
     rrd = tmp_path / "live.rrd"
@@ -194,6 +195,7 @@ def test_bad_live_options_are_one_line(tmp_path):
     assert out.returncode == 2 and "needs a display" in out.stderr
 
 
+@pytest.mark.slow
 def test_viewer_shows_the_robot_and_obstacles_and_closing_ends_cleanly(display, tmp_path):
     from tests.xwindow import close_window, find_window, screenshot, xdotool
 

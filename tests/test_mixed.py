@@ -100,6 +100,7 @@ def test_dwa_crosses_the_static_field(tmp_path):
     assert all(0 < r.min_clearance < 0.5 for r in crossed), "it passed close to the field's cylinders"
 
 
+@pytest.mark.slow
 def test_cli_generates_mixed_worlds_with_shapes(tmp_path, capsys):
     out = tmp_path / "mixed"
     assert worlds_main(["generate", "--shapes", "mixed", "--static", "barn-grid", "--out", str(out)]) == 0

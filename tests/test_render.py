@@ -144,9 +144,7 @@ def test_size_is_honoured_exactly(recording, tmp_path):
 def test_a_renderer_without_an_opengl_platform_is_one_clear_line():
     """A library user on a headless machine who did not set MUJOCO_GL: one line naming it,
     not MuJoCo's FatalError (dynabarn-render chooses EGL itself)."""
-    import os
-    import subprocess
-    import sys
+    from tests.conftest import run_headless
 
     code = (
         "import mujoco\n"
@@ -157,7 +155,6 @@ def test_a_renderer_without_an_opengl_platform_is_one_clear_line():
         "except DynabarnError as e:\n"
         "    print(e)\n"
     )
-    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    out = run_headless(code)
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith("offscreen rendering needs an OpenGL platform") and "MUJOCO_GL=egl" in out.stdout

@@ -3,7 +3,7 @@ import numpy as np
 
 from dynabarn.mjcf import load_model
 from dynabarn.provenance import SHIPPED_WORLDS
-from dynabarn.robot import JACKAL, JACKAL_XML, LASER_GEOM_GROUPS, build_jackal_spec
+from dynabarn.robot import JACKAL, JACKAL_XML, LASER_GEOM_GROUPS, PHYSICS_TIMESTEP, build_jackal_spec
 
 ASSET_DIR = JACKAL_XML.parent
 
@@ -17,9 +17,23 @@ def test_committed_model_matches_builder():
     assert JACKAL_XML.read_text() == build_jackal_spec().to_xml()
 
 
-def test_scene_loads():
-    m = mujoco.MjModel.from_xml_path(str(ASSET_DIR / "scene.xml"))
-    assert m.nsensor == 720
+def test_scene_loads_without_a_warning(tmp_path):
+    """MuJoCo writes its warnings to MUJOCO_LOG.TXT in the current folder: loading the scene
+    (in a folder of its own) leaves none, and keeps the robot's physics options."""
+    import subprocess
+    import sys
+
+    code = (
+        "import mujoco, sys\n"
+        "m = mujoco.MjModel.from_xml_path(sys.argv[1])\n"
+        "print(m.nsensor, m.opt.timestep, int(m.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(ASSET_DIR / "scene.xml")], capture_output=True, text=True, cwd=tmp_path
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["720", str(PHYSICS_TIMESTEP), "1"]
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists(), (tmp_path / "MUJOCO_LOG.TXT").read_text()
 
 
 def _world_with_robot_at(x, y, yaw):

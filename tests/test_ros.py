@@ -26,7 +26,10 @@ def _ros_available() -> bool:
     return subprocess.run(["/usr/bin/python3", "-c", "import rospy, actionlib"], capture_output=True).returncode == 0
 
 
-pytestmark = pytest.mark.skipif(not _ros_available(), reason="Debian's ROS 1 packages: make ros-deps (root)")
+pytestmark = [
+    pytest.mark.skipif(not _ros_available(), reason="needs Debian's ROS 1 packages: sudo make ros-deps"),
+    pytest.mark.slow,  # real roscore and rospy nodes: `make test` runs them, `make test-fast` does not
+]
 
 
 def _ros(*argv: str, timeout: float = 180) -> subprocess.CompletedProcess:

@@ -12,6 +12,7 @@ from dynabarn.recording import read_recording
 from tests.xwindow import find_window, xdotool
 
 
+@pytest.mark.slow
 def test_keyboard_drives_the_robot_and_escape_ends_cleanly(display, tmp_path):
     env = {**os.environ, "DISPLAY": display}
     env.pop("MUJOCO_GL", None)  # the viewer uses GLFW on the X display

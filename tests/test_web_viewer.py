@@ -70,7 +70,8 @@ def recording(tmp_path_factory):
     return path
 
 
-@pytest.mark.skipif(chromium() is None, reason="chromium is installed by `make system-deps`")
+@pytest.mark.slow
+@pytest.mark.skipif(chromium() is None, reason="needs Debian's chromium: sudo make system-deps")
 def test_web_viewer_shows_the_run_in_chromium(recording, tmp_path):
     port, grpc_port = _free_ports(2)
     web_ports = ("--port", str(port), "--grpc-port", str(grpc_port))

@@ -23,6 +23,8 @@ import pytest
 
 from tests.conftest import require
 
+pytestmark = pytest.mark.slow  # builds and installs the wheel: `make test` runs it, `make test-fast` does not
+
 REPO = Path(__file__).resolve().parent.parent
 SKIP_IN_COPY = shutil.ignore_patterns(
     ".venv*", ".git", "build", "dist", "*.egg-info", "runs", ".golden_worlds", "__pycache__", ".pytest_cache",

@@ -89,22 +89,37 @@ def locked(out_dir: Path):
     import fcntl
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    fd = os.open(out_dir / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+    path = out_dir / LOCK
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+            os.close(fd)
+            raise DynabarnError(
+                f"{out_dir} is being written by another dynabarn-bench (pid {holder}); wait for it or use another --out"
+            ) from None
+        # The holder before us removes the file when it is done: a lock on a file that is no
+        # longer at the path guards nothing, so take the one that is there now.
+        try:
+            if os.stat(path).st_ino == os.fstat(fd).st_ino:
+                break
+        except FileNotFoundError:
+            pass
         os.close(fd)
-        raise DynabarnError(
-            f"{out_dir} is being written by another dynabarn-bench (pid {holder}); wait for it or use another --out"
-        ) from None
-    os.ftruncate(fd, 0)
-    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-    _held[out_dir] = (fd, 1)
     try:
+        # Who holds it, for the message a second writer gets; a courtesy that a full disk
+        # (a new file has no block to write into) must not turn into a lock never released.
+        with contextlib.suppress(OSError):
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        _held[out_dir] = (fd, 1)
         yield
     finally:
         _held.pop(out_dir, None)
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()  # still holding it: nothing stays behind in the results folder
         fcntl.flock(fd, fcntl.LOCK_UN)
         os.close(fd)
 
