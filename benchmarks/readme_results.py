@@ -6,7 +6,7 @@ committed results folder.
 docs/results.md, docs/tutorials/training.md) from `results/` and redraws the figures in
 `docs/assets/`; `--check` only compares and exits 1 when a page is not what the results
 say (a test runs it). The results come from `dynabarn-bench` sweeps
-(README "Comparison with the paper" gives the commands); nothing here runs an episode.
+(docs/results.md gives the commands); nothing here runs an episode.
 
 results/
   paper60_barn/    the paper's 60 generated worlds (ids 0-19, 100-109, 150-159, 200-219)

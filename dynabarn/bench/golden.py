@@ -1,6 +1,6 @@
 """The golden set: about 30 episodes whose results and recordings are committed, re-run by
 `dynabarn-bench --verify-golden` to show that this machine and install give the same
-episodes as the machine that wrote them (README "Reproducibility").
+episodes as the machine that wrote them (docs/reproducibility.md).
 
 Every planner (straight, dwa, teb, oracle, bc, td3), the three difficulties, both
 protocols, imported release worlds, static BARN worlds, mixed shapes with a static field

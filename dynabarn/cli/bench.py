@@ -73,7 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--force", action="store_true", help="start over in an --out that holds another sweep")
     golden = parser.add_argument_group(
         "golden set",
-        "about 30 committed episodes that must come out the same on every machine (README Reproducibility)",
+        "about 30 committed episodes that must come out the same on every machine (docs/reproducibility.md)",
     )
     golden.add_argument(
         "--verify-golden",

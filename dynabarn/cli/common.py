@@ -3,7 +3,7 @@
 Errors a person can cause (`DynabarnError`) print one line on stderr and exit 2; a
 traceback appears only with `--debug` (accepted before or after a subcommand). Ctrl-C
 exits 130. A new command is one module in this package with a `main(argv) -> int`, plus
-its line under `[project.scripts]` (README "Extending").
+its line under `[project.scripts]` (docs/architecture.md, "Extending").
 """
 
 from __future__ import annotations

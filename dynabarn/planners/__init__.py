@@ -2,7 +2,7 @@
 and the entry-point group `dynabarn.planners`), the classical baselines (dwa, teb with
 costmap and global_planner), the privileged oracle, the simple floors and the learned
 baselines (learned/). A new planner: a `Planner` subclass plus one registry line or entry
-point (README "Writing a planner")."""
+point (docs/tutorials/planner.md)."""
 
 from dynabarn.errors import EndEpisode
 from dynabarn.planners.base import EpisodeInfo, Observation, ObstacleState, Planner

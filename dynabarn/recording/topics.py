@@ -2,10 +2,10 @@
 
 Everything else follows this table: the recorder opens a channel per topic and writes the
 per-tick JSON topics from it, `dynabarn-replay` plots the fields a topic names in `plots`,
-and the README's topic table is `markdown_table()` (a test compares them).
+and docs/concepts/recordings.md's topic table is `markdown_table()` (a test compares them).
 
 A new JSON topic computed from each control tick is one `Topic` here with a `per_tick`
-function (return None to skip a tick); the README's "Extending" walks through one.
+function (return None to skip a tick); docs/architecture.md, "Extending", walks through one.
 """
 
 from __future__ import annotations
@@ -197,7 +197,7 @@ RESULT = Topic(
 )
 
 TOPICS: tuple[Topic, ...] = (METADATA, STATIC, GOAL, OBSTACLES, SCAN, TF, POSE, CMD, METRICS, DEBUG, PLANS, RESULT)
-"""Every topic, in the README's order; per-tick JSON topics are written in this order."""
+"""Every topic, in the documentation's order; per-tick JSON topics are written in this order."""
 
 # The names under which the rest of the package knows them.
 TOPIC_METADATA, TOPIC_STATIC, TOPIC_GOAL = METADATA.name, STATIC.name, GOAL.name
@@ -210,7 +210,7 @@ FRAMES = ("world", "odom", "base_link", "laser")
 
 
 def markdown_table() -> str:
-    """The README's topic table."""
+    """The topic table of docs/concepts/recordings.md."""
     rows = ["| topic | schema | rate |", "|---|---|---|"]
     for t in TOPICS:
         kind = "JSON " if t.encoding == "json" else ""

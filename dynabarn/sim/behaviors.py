@@ -14,7 +14,7 @@ with
   path's left normal, held for the period; offsets stay within MAX_SIDEWAYS_OFFSET.
 
 A new behaviour is one subclass here (or in your own package under the entry-point group
-`dynabarn.behaviors`), registered by name; the README's "Extending" walks through one.
+`dynabarn.behaviors`), registered by name; docs/architecture.md, "Extending", walks through one.
 """
 
 from __future__ import annotations

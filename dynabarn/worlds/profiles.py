@@ -7,7 +7,7 @@ waypoint scheme. Two sets ship:
 
 - `table1`: the paper's Table I verbatim, waypoints at every integer x (Sec. III-A).
 - `release2022`: what the released worlds actually contain, measured from the 600
-  trajectories of the original release (see README, "Paper versus release"): three
+  trajectories of the original release (docs/concepts/worlds.md, "Paper versus release"): three
   speed bands quantised to 0.1 m/s, the hard branch a mix of medium and hard obstacles,
   and waypoints at ten evenly spaced x values plus the polynomial's sample points.
 
@@ -328,7 +328,7 @@ TABLE1_HARD = MotionProfile("hard", order=(3, 4), speed=(1.0, 2.0), std=(0.1, 0.
 # Measured from the release's 600 trajectories (../shared/reference/dynabarn60.json):
 # segment speeds lie on a 0.1 m/s grid in [0.5, 1.0), [1.0, 1.5) and [1.5, 2.0); the
 # orders [1, 2], [2, 3], [3, 4] give the closest waypoints-per-trajectory distribution
-# under our distinct-x sampling (README: "Paper versus release"); per-trajectory speed
+# under our distinct-x sampling (docs/concepts/worlds.md: "Paper versus release"); per-trajectory speed
 # std has medians 0.035, 0.087 and 0.107 m/s.
 RELEASE_EASY = MotionProfile(
     "easy", order=(1, 2), speed=(0.5, 1.0), std=(0.01, 0.1), speed_step=0.1, speed_limit="redraw"
