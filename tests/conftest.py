@@ -15,6 +15,8 @@ import pytest
 REPO = Path(__file__).resolve().parent.parent
 REFERENCE = REPO.parent / "shared" / "reference"
 
+_LOG_KEY = pytest.StashKey[tuple[int, int] | None]()
+
 REQUIRE_ALL = os.environ.get("DYNABARN_REQUIRE_ALL") == "1"
 """Set by `.ci/run`, which installs every extra and Debian package: a test skipped for a
 missing install is then a failure. Skips for what no install brings stay skips."""
@@ -22,6 +24,29 @@ SKIPS_NO_INSTALL_BRINGS = (
     "reference data",  # the original release's data (../shared/reference) is not distributed
     "on this CPU",  # a CPU feature the machine lacks
 )
+
+
+MUJOCO_LOG = REPO / "MUJOCO_LOG.TXT"
+"""Where MuJoCo writes its warnings when a test runs in the repository's folder."""
+
+
+def _mujoco_log_state() -> tuple[int, int] | None:
+    return (MUJOCO_LOG.stat().st_size, MUJOCO_LOG.stat().st_mtime_ns) if MUJOCO_LOG.exists() else None
+
+
+def pytest_sessionstart(session):
+    session.config.stash[_LOG_KEY] = _mujoco_log_state()
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """A MuJoCo warning during the suite (a world or scene that compiles with a conflict, a
+    model that warns while stepping) fails it: the file it leaves names the warning."""
+    if _mujoco_log_state() != session.config.stash.get(_LOG_KEY, None):
+        reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+        if reporter is not None:
+            reporter.write_line(f"MuJoCo wrote warnings into {MUJOCO_LOG} during the tests:", red=True)
+            reporter.write_line(MUJOCO_LOG.read_text()[-2000:])
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
 
 
 def require(module: str, extra: str):
