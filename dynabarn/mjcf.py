@@ -20,7 +20,6 @@ import hashlib
 import json
 import math
 import os
-import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -318,9 +317,6 @@ def _robot_xml(beam_sensors: bool) -> bytes:
     return JACKAL_XML.read_bytes() if beam_sensors else build_jackal_spec(beam_sensors=False).to_xml().encode()
 
 
-_MODEL_REFERENCE = re.compile(r'<model name="jackal" file="[^"]*"/>')
-
-
 def load_model(path: Path | str, *, beam_sensors: bool = True, data: bytes | None = None) -> mujoco.MjModel:
     """Compile a world file with MuJoCo, turning its errors into one clear line.
 
@@ -330,11 +326,22 @@ def load_model(path: Path | str, *, beam_sensors: bool = True, data: bytes | Non
     `beam_sensors=False` gives the runner's variant of the robot."""
     path = Path(path)
     data = world_bytes(path) if data is None else data
-    check_self_contained(path, _parse(path, data))
+    root = _parse(path, data)
+    check_self_contained(path, root)
+    # MuJoCo compiles the document that was checked, written out anew, never the file's own
+    # spelling: attributes in any order or quoting, entities, a second parser's reading of
+    # the same bytes cannot bring in anything the check did not see. The Jackal's one
+    # reference now names the package's robot, handed over in memory.
+    for model in root.iter("model"):
+        if model.get("name") == "jackal" and "file" in model.attrib:
+            model.set("file", _ROBOT_ASSET)
+    for text in root.iter("text"):  # MuJoCo reads a <text>'s content only from CDATA, which
+        if text.text and text.get("data") is None:  # ElementTree does not write: the attribute
+            text.set("data", text.text)
+            text.text = None
     try:
-        xml = data.decode()
-        xml = _MODEL_REFERENCE.sub(f'<model name="jackal" file="{_ROBOT_ASSET}"/>', xml, count=1)
+        xml = ET.tostring(root, encoding="unicode")
         return mujoco.MjModel.from_xml_string(xml, assets={_ROBOT_ASSET: _robot_xml(beam_sensors)})
-    except (ValueError, UnicodeDecodeError) as exc:
+    except ValueError as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else "unknown error"
         raise WorldError(f"{path}: MuJoCo cannot load this world: {first}") from None

@@ -589,3 +589,36 @@ def test_full_disk_in_a_sweep_loses_no_row_and_resumes(small_disk):
     rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     assert len(rows) == 6 and "error" not in {r["outcome"] for r in rows} and not any(r.get("retry") for r in rows)
     assert rows[0] == json.loads(first.splitlines()[0])  # the row finished before the full disk, untouched
+
+
+@pytest.mark.parametrize(
+    "reference",
+    [
+        "<model file='{robot}' name='jackal'/>",  # another attribute order, single quotes
+        '<model name="jackal" file="{robot}" />',  # a space before />
+        '<model\n  name="jackal"\n  file="{robot}"></model>',
+        '<model name="jackal" file="/etc/passwd"/>',
+    ],
+    ids=["reordered", "spaced", "split", "etc-passwd"],
+)
+def test_the_jackal_reference_takes_the_packages_robot_however_it_is_spelled(reference, tmp_path):
+    """The check works on the parsed document and MuJoCo compiles that document: a robot
+    file named by the world is never read, however the reference is written."""
+    from dynabarn.mjcf import load_model
+    from dynabarn.robot import JACKAL_XML
+
+    smuggled = tmp_path / "smuggled.xml"  # a Jackal with one more geom, beside the world
+    smuggled.write_text(
+        JACKAL_XML.read_text().replace(
+            "<body name=", '<body name="holder"><geom name="SMUGGLED" size="0.1"/></body><body name=', 1
+        )
+    )
+    text = WORLD.read_text()
+    original = '<model name="jackal" file="../assets/jackal/jackal.xml"/>'
+    assert original in text
+    world = tmp_path / "world.xml"
+    world.write_text(text.replace(original, reference.format(robot=smuggled.name)))
+    model = load_model(world)
+    names = {model.geom(i).name for i in range(model.ngeom)}
+    assert not any("SMUGGLED" in n for n in names)
+    assert model.nsensor == 720 and "jackal/laser" in {model.site(i).name for i in range(model.nsite)}
