@@ -23,6 +23,11 @@ class ImportFormatError(DynabarnError):
     """A file handed to `dynabarn-worlds import` that does not match its format."""
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread of a command so that it ends as Ctrl-C does (an
+    episode judged as interrupted, its recording closed and kept), then exits 143."""
+
+
 class EndEpisode(Exception):
     """Raised by a planner to end its episode on purpose (outcome `error`, this reason)."""
 

@@ -18,6 +18,21 @@ def _die_with_parent() -> None:  # pragma: no cover - runs in the child before e
         pass
 
 
+def worker_start(parent: int) -> None:
+    """Initializer of the sweep's pool workers: SIGTERM ends them outright (not the
+    command's "end like Ctrl-C" handler inherited through fork), and they end with the
+    sweep even when it is killed with SIGKILL, releasing the results folder's lock and the
+    caller's pipes."""
+    import os
+    import signal
+
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if sys.platform.startswith("linux"):
+        _die_with_parent()
+        if os.getppid() != parent:  # the sweep died before the signal was asked for
+            os._exit(1)
+
+
 def die_with_parent() -> Callable[[], None] | None:
     """A `preexec_fn` for `subprocess.Popen` (None where the platform has no such signal)."""
     return _die_with_parent if sys.platform.startswith("linux") else None

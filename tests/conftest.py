@@ -55,6 +55,27 @@ def require(module: str, extra: str):
     return pytest.importorskip(module, reason=f"needs {module}: pip install -e '.[{extra}]' (make test installs it)")
 
 
+def processes_carrying(token: str) -> list[int]:
+    """Pids of the processes whose environment holds `token` ("NAME=value"): what a test
+    started and everything that started (environments are inherited, new sessions or not),
+    never what else runs on the machine."""
+    found = []
+    for environ in Path("/proc").glob("[0-9]*/environ"):
+        try:
+            if token.encode() in environ.read_bytes():
+                found.append(int(environ.parent.name))
+        except OSError:  # gone meanwhile, or not ours to read
+            continue
+    return found
+
+
+def cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+    except OSError:
+        return str(pid)
+
+
 def run_headless(code: str):
     """`code` in a fresh interpreter as on a machine without a display, where nobody set
     MUJOCO_GL (the tests' own choice of EGL is taken away)."""

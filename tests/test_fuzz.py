@@ -15,6 +15,7 @@ import re
 import signal
 import subprocess
 import sys
+import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -622,3 +623,73 @@ def test_the_jackal_reference_takes_the_packages_robot_however_it_is_spelled(ref
     names = {model.geom(i).name for i in range(model.ngeom)}
     assert not any("SMUGGLED" in n for n in names)
     assert model.nsensor == 720 and "jackal/laser" in {model.site(i).name for i in range(model.nsite)}
+
+
+def _wait_for(condition, timeout: float = 60.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.1)
+    return True
+
+
+def test_sigterm_ends_a_run_as_ctrl_c_does_with_its_recording_whole(tmp_path):
+    """SIGTERM: the episode is judged as interrupted, the recording closed whole under its
+    name (an earlier one there replaced only now), one line, exit 143."""
+    from dynabarn.recording import read_recording
+
+    log = tmp_path / "keep.mcap"
+    log.write_bytes(b"an earlier, finished recording")
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "dynabarn",
+            "run",
+            "--world",
+            "0",
+            "--planner",
+            "stop",
+            "--rate",
+            "1",
+            "--log",
+            str(log),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    part = tmp_path / "keep.mcap.part"
+    assert _wait_for(lambda: part.is_file() and part.stat().st_size > 0), "the recording never started"
+    time.sleep(1.0)  # paced at real time: a second of episode
+    assert log.read_bytes() == b"an earlier, finished recording"  # untouched while the new one runs
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, (proc.returncode, err)
+    assert err.strip() == f"terminated; recording kept: {log}", err
+    rec = read_recording(log)
+    assert not rec.truncated and rec.result["outcome"] == "error" and rec.result["reason"] == "interrupted"
+    assert not part.exists()
+
+
+def test_a_killed_sweep_takes_its_workers_with_it(tmp_path):
+    """SIGKILL to dynabarn-bench: its pool workers end too (they held the results folder's
+    lock and the caller's pipe), and the same command then runs and finishes."""
+    from tests.conftest import cmdline, processes_carrying
+
+    out = tmp_path / "sweep"
+    argv = [sys.executable, "-m", "dynabarn", "bench", "--planner", "stop", "--worlds", "0-19", "--trials", "2"]
+    argv += ["--jobs", "2", "--no-floor", "--out", str(out)]
+    token = f"DYNABARN_TEST_SWEEP={os.getpid()}_{time.monotonic_ns()}"
+    env = {**os.environ, "DYNABARN_TEST_SWEEP": token.split("=")[1]}
+    proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    results = out / "results.jsonl"
+    assert _wait_for(lambda: results.is_file() and results.read_text().count("\n") >= 2), "no episode finished"
+    assert len(processes_carrying(token)) >= 3  # the sweep and its two workers
+    proc.kill()
+    proc.wait()
+    assert _wait_for(lambda: not processes_carrying(token), 30), [cmdline(p) for p in processes_carrying(token)]
+    again = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert results.read_text().count("\n") == 40 and not (out / ".lock").exists()

@@ -153,8 +153,11 @@ def test_planner_error_keeps_recording_intact(tmp_path):
 
 
 def test_killed_process_keeps_what_it_wrote(tmp_path):
-    """SIGKILL a real recording process midway; the file reads back up to the kill."""
+    """SIGKILL a real recording process midway: what it wrote reads back up to the kill from
+    the staging file beside the target, and the finished recording already at the target
+    (an earlier run's) is untouched: nothing finished is overwritten by a cut file."""
     path = tmp_path / "killed.mcap"
+    path.write_bytes(b"an earlier, finished recording")
     script = textwrap.dedent(
         f"""
         import time
@@ -182,7 +185,8 @@ def test_killed_process_keeps_what_it_wrote(tmp_path):
     assert proc.stdout.readline().strip() == "halfway"  # 400 ticks of 1000 written: kill it now
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
-    rec = read_recording(path)
+    assert path.read_bytes() == b"an earlier, finished recording"
+    rec = read_recording(tmp_path / "killed.mcap.part")
     assert rec.truncated
     assert rec.counts()["/scan"] > 100
     assert rec.result is None

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import require
+from tests.conftest import cmdline, processes_carrying, require
 
 STACK = Path(__file__).resolve().parent / "ros_stack.py"
 
@@ -214,19 +214,6 @@ def test_rosbag2_export_reads_back_with_mcap_ros2(recording, tmp_path):
     assert counts["/obstacles"] == counts["/cmd_vel"] == result.n_ticks
 
 
-def _processes_carrying(token: str) -> list[int]:
-    """Pids of the processes whose environment holds `token` (what a test started, and
-    everything that started: environments are inherited, new sessions or not)."""
-    found = []
-    for environ in Path("/proc").glob("[0-9]*/environ"):
-        try:
-            if token.encode() in environ.read_bytes():
-                found.append(int(environ.parent.name))
-        except OSError:  # gone meanwhile, or not ours to read
-            continue
-    return found
-
-
 def test_bench_sweeps_a_ros_stack_with_a_master_per_worker(tmp_path):
     out = tmp_path / "sweep"
     argv = ["--planner", "ros", "--ros-launch", _stack(), "--set", "dynabarn300", "--worlds", "0,5,137"]
@@ -249,16 +236,9 @@ def test_bench_sweeps_a_ros_stack_with_a_master_per_worker(tmp_path):
     # The sweep's workers, their roscores and stacks end with it (this test's own, not
     # whatever else runs ROS on the machine).
     deadline = time.monotonic() + 30
-    while (left := _processes_carrying(token)) and time.monotonic() < deadline:
+    while (left := processes_carrying(token)) and time.monotonic() < deadline:
         time.sleep(0.2)
-    assert not left, f"processes of the sweep left behind: {[_cmdline(pid) for pid in left]}"
-
-
-def _cmdline(pid: int) -> str:
-    try:
-        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
-    except OSError:
-        return str(pid)
+    assert not left, f"processes of the sweep left behind: {[cmdline(pid) for pid in left]}"
 
 
 def test_a_stack_that_commands_the_velocity_controller_directly():

@@ -4,11 +4,13 @@ the same job gives the same row on either."""
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Iterator
 
 from dynabarn.bench.jobs import Job, row_head, run_job
 from dynabarn.errors import DynabarnError
+from dynabarn.processes import worker_start
 
 MAX_ATTEMPTS = 3
 """Times an episode is started when its worker process dies under it (killed, out of
@@ -40,7 +42,9 @@ def _local_backend(jobs: list[Job], n_workers: int) -> Iterator[dict]:
         suspect = next((j for j in remaining if attempts.get(j.key, 0) >= MAX_ATTEMPTS - 1), None)
         batch = [suspect] if suspect is not None else remaining
         remaining = [j for j in remaining if j is not suspect] if suspect is not None else []
-        pool = ProcessPoolExecutor(min(n_workers, len(batch)), mp_context=ctx)
+        pool = ProcessPoolExecutor(
+            min(n_workers, len(batch)), mp_context=ctx, initializer=worker_start, initargs=(os.getpid(),)
+        )
         pending = {pool.submit(run_job, job): job for job in batch}
         try:
             while pending:

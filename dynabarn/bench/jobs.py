@@ -101,7 +101,7 @@ def run_job(job: Job) -> dict:
             rec_path = default_run_path(
                 Path(job.recordings_dir), sim.world.name, job.planner, job.protocol["name"], job.seed
             )
-            observers.append(McapRecorder(rec_path.with_suffix(".mcap.part")))
+            observers.append(McapRecorder(rec_path))  # written as rec_path.part, renamed when whole
         result = run_episode(
             sim,
             planner,
@@ -114,12 +114,10 @@ def run_job(job: Job) -> dict:
         if observers and observers[0].stopped:  # disk nearly full: the result stands, run it again
             row.update({"retry": True, "recording_error": observers[0].stopped})
         if rec_path is not None:
-            part = rec_path.with_suffix(".mcap.part")
             if job.record == "all" or result.outcome is not Outcome.SUCCESS:
-                part.replace(rec_path)
                 row["recording"] = str(rec_path)
             else:
-                part.unlink(missing_ok=True)
+                rec_path.unlink(missing_ok=True)
     except (OSError, MemoryError) as exc:  # the machine failed, not the planner: run it again later
         row.update(
             {
@@ -129,7 +127,7 @@ def run_job(job: Job) -> dict:
             }
         )
         if rec_path is not None:
-            rec_path.with_suffix(".mcap.part").unlink(missing_ok=True)
+            rec_path.with_name(f"{rec_path.name}.part").unlink(missing_ok=True)  # the recorder's staging file
     except Exception as exc:  # foreign planner code, a broken world...: record and go on
         row.update(
             {

@@ -189,9 +189,8 @@ def _bench(args: argparse.Namespace) -> int:
             report = bench.run_sweep(
                 jobs, args.out, backend=args.backend, n_workers=args.jobs, address=args.address, progress=progress
             )
-        except KeyboardInterrupt:
-            print(f"interrupted; finished episodes are in {args.out / bench.RESULTS}; rerun to resume", file=sys.stderr)
-            raise
+        except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM; the workers went with the pool
+            raise type(exc)(f"finished episodes are in {args.out / bench.RESULTS}; rerun to resume") from None
     # The folder's whole sweep (every planner run into it, same worlds and protocol), so a
     # planner added later is summarised beside the others and the floor.
     summary = bench.summarise(bench.read_results(args.out / bench.RESULTS), bench.paper_worlds(args.out))

@@ -15,7 +15,7 @@ import sys
 from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, version
 
-from dynabarn.errors import DynabarnError
+from dynabarn.errors import DynabarnError, Terminated
 
 WORLD_HELP = (
     "a world by id or name (137, world_137, world_137.xml; from $DYNABARN_WORLDS, else the shipped 300) "
@@ -23,6 +23,7 @@ WORLD_HELP = (
 )
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
+EXIT_TERMINATED = 143  # 128 + SIGTERM, what a shell reports for a process that SIGTERM ended
 
 
 def package_version() -> str:
@@ -203,7 +204,18 @@ def planner_config(text: str | None) -> dict:
     return cfg
 
 
+def _terminate(signum, frame) -> None:
+    raise Terminated()
+
+
 def run_command(body: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
+    """Run a command's body: one line and exit 2 for what a person caused, Ctrl-C (130) and
+    SIGTERM (143) end it the same way, with one line saying what was kept."""
+    import signal
+    import threading
+
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
     try:
         return body(args)
     except DynabarnError as exc:
@@ -211,9 +223,11 @@ def run_command(body: Callable[[argparse.Namespace], int], args: argparse.Namesp
             raise
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Terminated)
+        terminated = isinstance(exc, Terminated)
+        kept = f"; {exc.args[0]}" if exc.args else ""
+        print(f"{'terminated' if terminated else 'interrupted'}{kept}", file=sys.stderr)
+        return EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
     except BrokenPipeError:  # `dynabarn-worlds show 137 | head`: the reader left, as for cat
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
         return 0
@@ -223,6 +237,9 @@ def run_command(body: Callable[[argparse.Namespace], int], args: argparse.Namesp
         where = f" ({exc.filename})" if exc.filename else ""
         print(f"error: {exc.strerror or exc}{where}", file=sys.stderr)
         return EXIT_USAGE
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 def progress_bar(desc: str, total: int | None = None, unit: str = "world"):

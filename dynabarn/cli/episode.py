@@ -40,9 +40,9 @@ def run_recorded(
             observers=[*([recorder] if recorder else []), *observers],
             planner_name=planner_name,
         )
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: the recorder closed it whole
         if log_path:
-            print(f"interrupted; recording kept: {log_path}", file=sys.stderr)
+            raise type(exc)(f"recording kept: {log_path}") from None
         raise
     except OSError as exc:  # the recording could not be started: a full disk, a folder...
         raise DynabarnError(f"cannot record to {log_path}: {exc.strerror or exc}") from None

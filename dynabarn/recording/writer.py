@@ -23,6 +23,7 @@ import numpy as np
 from foxglove.mcap import MCAPWriteOptions
 from foxglove.messages import FrameTransforms, LaserScan, PoseInFrame, SceneUpdate
 
+from dynabarn.files import fsync_folder
 from dynabarn.metrics import EpisodeResult
 from dynabarn.provenance import portable_path
 from dynabarn.recording import scene, wire
@@ -123,6 +124,10 @@ class McapRecorder:
         live: tuple[foxglove.Context, ...] = (),
     ):
         self.path = Path(path) if path is not None else None
+        self.staging = self.path.with_name(f"{self.path.name}.part") if self.path is not None else None
+        """Where the recording is written as it runs; renamed to `path` when it is closed, so an
+        existing recording is replaced only by a whole one and a killed process leaves its
+        readable start here, never under the final name."""
         self.chunk_size = chunk_size
         self.extra_channels = extra_channels
         self.extra_metadata = dict(extra_metadata or {})
@@ -153,7 +158,7 @@ class McapRecorder:
             raise OSError(errno.ENOSPC, f"no space left for a recording in {self.path.parent}")
         ctx = foxglove.Context()
         self._writer = foxglove.open_mcap(
-            self.path,
+            self.staging,
             allow_overwrite=True,
             context=ctx,
             # compression_threads=0: compress on this thread, so one episode uses one core.
@@ -275,10 +280,15 @@ class McapRecorder:
         return dict(self._by_context.get(id(context), {}))
 
     def close(self) -> None:
+        """End the recording: the file is closed, made durable and renamed to `path`."""
         self._open = False
         if self._writer is not None:
             self._writer.close()
             self._writer = None
+            with open(self.staging, "rb") as f:
+                os.fsync(f.fileno())
+            os.replace(self.staging, self.path)
+            fsync_folder(self.path.parent)
 
     def _metadata(self, start: EpisodeStart) -> dict:
         info = start.info
