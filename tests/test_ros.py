@@ -1,4 +1,4 @@
-"""`dynabarn-ros` with real ROS 1: Debian's roscore and rospy, the bridge node, and a rospy
+"""`dynabarn-ros` with real ROS 1: Debian's rosmaster and rospy, the bridge node, and a rospy
 navigation stack written for the test (`tests/ros_stack.py`, with an actionlib move_base
 server). Skipped where Debian's ROS packages are missing (`make ros-deps` installs them)."""
 
@@ -28,7 +28,7 @@ def _ros_available() -> bool:
 
 pytestmark = [
     pytest.mark.skipif(not _ros_available(), reason="needs Debian's ROS 1 packages: sudo make ros-deps"),
-    pytest.mark.slow,  # real roscore and rospy nodes: `make test` runs them, `make test-fast` does not
+    pytest.mark.slow,  # real rosmaster and rospy nodes: `make test` runs them, `make test-fast` does not
 ]
 
 
@@ -233,7 +233,7 @@ def test_bench_sweeps_a_ros_stack_with_a_master_per_worker(tmp_path):
     assert sorted((r["world"], r["seed"]) for r in rows if r["planner"] == "straight") == sorted(
         (r["world"], r["seed"]) for r in ros
     )
-    # The sweep's workers, their roscores and stacks end with it (this test's own, not
+    # The sweep's workers, their masters and stacks end with it (this test's own, not
     # whatever else runs ROS on the machine).
     deadline = time.monotonic() + 30
     while (left := processes_carrying(token)) and time.monotonic() < deadline:
@@ -255,3 +255,31 @@ def test_paced_at_a_rate_as_gazebo_runs():
     result = json.loads(proc.stdout)
     assert result["outcome"] == "success" and result["planner_config"]["lockstep"] is False
     assert result["wall_time"] >= result["sim_time"] / 4 * 0.95  # paced, never faster
+
+
+def test_everything_the_bridge_starts_listens_on_loopback_only():
+    """The master, the bridge's node and a stack under its environment: no server on another
+    interface (roscore's rosout, a roscpp node, listened on all of them)."""
+    token = f"DYNABARN_TEST_ROS={os.getpid()}_{time.monotonic_ns()}"
+    env = {**os.environ, "DYNABARN_TEST_ROS": token.split("=")[1]}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dynabarn", "ros", "--world", "0", "--no-log", "--launch", _stack("--delay", "0.05")],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    listening: list[str] = []
+    try:
+        deadline = time.monotonic() + 120
+        while proc.poll() is None and time.monotonic() < deadline and len(listening) < 4:
+            time.sleep(1.0)
+            pids = set(processes_carrying(token))
+            ss = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True).stdout.splitlines()
+            listening = [line for line in ss if any(f"pid={pid}," in line for pid in pids)]
+    finally:
+        proc.kill()
+        proc.wait()
+    assert len(listening) >= 4, listening  # the master, the bridge's node and the stack's servers
+    local = [line.split()[3] for line in listening]  # State Recv-Q Send-Q Local Peer Process
+    assert all(address.startswith("127.0.0.1:") for address in local), listening

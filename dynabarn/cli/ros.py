@@ -42,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--master",
         default=None,
         metavar="URI",
-        help="use this ROS master (default: start a roscore of our own on a free port)",
+        help="use this ROS master (default: start a master of our own on a free port, listening on 127.0.0.1 only)",
     )
     clock = parser.add_mutually_exclusive_group()
     clock.add_argument(

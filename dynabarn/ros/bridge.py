@@ -23,6 +23,7 @@ import socket
 import struct
 import subprocess
 import time
+import uuid
 import xmlrpc.client
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -79,7 +80,7 @@ def _master_up(uri: str) -> bool:
 
 @dataclass
 class RosMaster:
-    """A ROS master: one given by URI, or a `roscore` of our own on a free port (stopped
+    """A ROS master: one given by URI, or a `rosmaster` of our own on a free port (stopped
     with `close`), so parallel bridges never share one."""
 
     uri: str
@@ -91,14 +92,18 @@ class RosMaster:
             if not _master_up(uri):
                 raise DynabarnError(f"no ROS master answers at {uri}")
             return cls(uri)
-        roscore = shutil.which("roscore")
-        if roscore is None:
-            raise DynabarnError("roscore is not installed: install Debian's ROS 1 packages (`make ros-deps`, as root)")
+        # The master alone, not `roscore`: roscore adds rosout, a roscpp node whose servers
+        # listen on every interface whatever ROS_HOSTNAME says; rosmaster (rospy) listens on
+        # loopback under ROS_HOSTNAME=127.0.0.1, and nothing of ours needs rosout.
+        rosmaster = shutil.which("rosmaster")
+        if rosmaster is None:
+            raise DynabarnError("rosmaster is not installed: install Debian's ROS 1 packages (`sudo make ros-deps`)")
         port = _free_port()
         uri = f"http://127.0.0.1:{port}/"
         env = {**os.environ, "ROS_MASTER_URI": uri, "ROS_HOSTNAME": "127.0.0.1"}
+        env.pop("ROS_IP", None)  # it would take precedence over ROS_HOSTNAME
         process = subprocess.Popen(
-            [roscore, "-p", str(port)],
+            [rosmaster, "--core", "-p", str(port)],
             env=env,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
@@ -110,10 +115,13 @@ class RosMaster:
         while not _master_up(uri):
             if process.poll() is not None or time.monotonic() > deadline:
                 master.close()
-                raise DynabarnError(f"roscore did not start on port {port}")
+                raise DynabarnError(f"rosmaster did not start on port {port}")
             time.sleep(0.1)
-        # Before any node starts: every node (the stack's, rostopic) then runs on /clock.
-        xmlrpc.client.ServerProxy(uri).setParam("/dynabarn", "/use_sim_time", True)
+        # Before any node starts: every node (the stack's, rostopic) then runs on /clock;
+        # /run_id as roscore sets it (roslaunch and the nodes' log folders read it).
+        master_api = xmlrpc.client.ServerProxy(uri)
+        master_api.setParam("/dynabarn", "/use_sim_time", True)
+        master_api.setParam("/dynabarn", "/run_id", str(uuid.uuid4()))
         return master
 
     def env(self) -> dict[str, str]:
@@ -301,7 +309,7 @@ _worker_master: RosMaster | None = None
 def ros_planner(*, launch: str | None = None, master: str | None = None, **config) -> RosPlanner:
     """The `ros` planner of the registry (entry point): for `dynabarn-run --planner ros` and
     `dynabarn-bench --planner ros --ros-launch CMD`. Each process (a bench worker) starts its
-    own roscore on a free port once, so parallel workers never share a master; the stack is
+    own master on a free port once, so parallel workers never share a master; the stack is
     started per episode by `launch` and stopped when the episode ends."""
     import atexit
 
