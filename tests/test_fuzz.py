@@ -108,6 +108,15 @@ WORLD_FILES: dict[str, bytes] = {
     "keyframes_text.xml": _with_keyframes(lambda v: ["abc", *v[1:]]),
     "keyframes_pairs.xml": _with_keyframes(lambda v: v[:-1]),
     "many_obstacles.xml": _many_obstacles(501),
+    # Few bytes that MuJoCo's compiler would expand into millions of elements, or allocate.
+    "replicate.xml": _xml("<worldbody>", '<worldbody><replicate count="100000"><geom size="0.1"/></replicate>'),
+    "flexcomp.xml": _xml(
+        "<worldbody>", '<worldbody><flexcomp name="f" type="grid" count="1000 1000 1" spacing="0.1 0.1 0.1"/>'
+    ),
+    "hfield_inline.xml": _xml("<asset>", '<asset><hfield name="h" nrow="100000" ncol="100000" size="1 1 1 1"/>'),
+    "texture_huge.xml": _xml('width="512" height="512"', 'width="100000" height="100000"'),
+    "many_geoms.xml": _xml("<worldbody>", "<worldbody>" + '<geom size="0.1"/>' * 20_001),
+    "joint.xml": _xml("<worldbody>", '<worldbody><body name="j"><joint type="free"/><geom size="0.1"/></body>'),
     "no_obstacle_bodies.xml": _without_obstacle_bodies(),
 }
 
@@ -201,6 +210,12 @@ WORLD_CASES = [
     ("keyframes_text.xml", "keyframes are not numbers"),
     ("keyframes_pairs.xml", "not [t, x, y] triples"),
     ("many_obstacles.xml", "501 obstacles (at most 500)"),
+    ("replicate.xml", "<replicate> is not allowed in a world file"),
+    ("flexcomp.xml", "<flexcomp> is not allowed in a world file"),
+    ("hfield_inline.xml", "<hfield> is not allowed in a world file"),
+    ("texture_huge.xml", "<texture> of 100000 x 100000 pixels is too large"),
+    ("many_geoms.xml", "more than 20,000 <geom> elements"),
+    ("joint.xml", "<joint> is not allowed in a world file"),
     ("no_obstacle_bodies.xml", "has no body"),
     ("does_not_exist.xml", "world not found"),
 ]
