@@ -173,6 +173,7 @@ def bad_files(tmp_path_factory) -> Path:
     (d / "out_empty_meta").mkdir()
     (d / "out_empty_meta" / "metadata.json").write_text("")
     (d / "a_folder").mkdir()
+    (d / "a_folder.mp4").mkdir()
     # Files that are not what they claim.
     (d / "not_a_recording.mcap").write_text("hello")
     (d / "not_a_policy.pt").write_bytes(b"\x80\x04K\x01.")
@@ -237,6 +238,7 @@ PROTOCOL_CASES = [
 
 CONFIG_CASES = [
     ("dwa", "max_vel_x=abc", "max_vel_x='abc': expected a number"),
+    ("dwa", "max_vel_x=" + "1" * 5000, "bad --planner-config value for 'max_vel_x'"),
     ("dwa", "max_vel_x=-1", "max_vel_x=-1: out of range"),
     ("dwa", "max_vel_x=Infinity", "expected a finite number"),
     ("dwa", "sim_time=NaN", "expected a finite number"),
@@ -276,6 +278,7 @@ BAD_INPUTS: list[tuple[str, list[str], str]] = [
     ("worlds", ["stats", "--worlds", "5-2"], "ranges go upwards"),
     ("worlds", ["generate", "--out", "{bad}/a_file/sub"], "error:"),
     ("worlds", ["generate", "--seed", "abc"], "--seed"),
+    ("worlds", ["generate", "--seed", "-1"], "--seed: -1 is not in [0, 4294967295]"),
     ("worlds", ["import", "{bad}/nope.json"], "import file not found"),
     # Protocols.
     *[("run", ["--world", "0", "--no-log", "--protocol", "{bad}/" + name], msg) for name, msg in PROTOCOL_CASES],
@@ -320,6 +323,7 @@ BAD_INPUTS: list[tuple[str, list[str], str]] = [
     ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/v.mp4"], "error:"),
     ("render", ["{bad}/missing.mcap", "--out", "{bad}/v.mp4"], "recording not found"),
     ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/no/such/v.mp4"], "does not exist"),
+    ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/a_folder.mp4"], "is a folder, not a video file"),
     ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/v.mp4", "--fps", "100000"], "--fps: 100000 is not in"),
     ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/v.mp4", "--fps", "0"], "--fps: 0 is not in"),
     ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/v.mp4", "--size", "100000x100000"], "bad --size"),
@@ -330,6 +334,12 @@ BAD_INPUTS: list[tuple[str, list[str], str]] = [
     ("demos", ["export", "{bad}/missing", "--out", "{bad}/d.npz"], "error:"),
     ("demos", ["export", "{bad}/a_folder", "--out", "{bad}/d.npz", "--lookahead", "inf"], "--lookahead: inf"),
     ("train", ["td3", "--out", "{bad}/t", "--steps", "0"], "--steps: 0 is not in"),
+    ("train", ["td3", "--out", "{bad}/t", "--set", "nope"], "unknown world set 'nope'"),
+    (
+        "train",
+        ["td3", "--out", "{bad}/t", "--difficulty", "nope"],
+        "--difficulty 'nope': use easy, medium, hard or all",
+    ),
     ("train", ["bc", "--data", "{bad}/missing.npz", "--out", "{bad}/p.pt", "--epochs", "-1"], "--epochs: -1"),
     ("teleop", ["--world", "0", "--speed", "1e9"], "--speed: 1e9 is not in"),
 ]

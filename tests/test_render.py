@@ -158,3 +158,15 @@ def test_a_renderer_without_an_opengl_platform_is_one_clear_line():
     out = run_headless(code)
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith("offscreen rendering needs an OpenGL platform") and "MUJOCO_GL=egl" in out.stdout
+
+
+def test_a_render_replaces_a_video_only_when_whole_and_refuses_a_folder(recording, tmp_path):
+    """The video is written beside its name and renamed at the end: an earlier video stays
+    until the new one is whole, nothing is left behind, and a folder is one line."""
+    out = tmp_path / "v.gif"
+    out.write_bytes(b"an earlier video")
+    assert render_main([str(recording), "--out", str(out), "--fps", "1", "--size", "64x48"]) == 0
+    assert out.read_bytes()[:6] == b"GIF89a" and sorted(p.name for p in tmp_path.iterdir()) == ["v.gif"]
+    folder = tmp_path / "a_folder.mp4"
+    folder.mkdir()
+    assert render_main([str(recording), "--out", str(folder)]) == 2

@@ -201,6 +201,8 @@ def planner_config(text: str | None) -> dict:
             cfg[key.strip()] = json.loads(value)
         except json.JSONDecodeError:
             cfg[key.strip()] = value
+        except (ValueError, RecursionError):  # a number of thousands of digits, nesting too deep
+            raise DynabarnError(f"bad --planner-config value for {key.strip()!r}: not a number or JSON") from None
     return cfg
 
 

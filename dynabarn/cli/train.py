@@ -128,7 +128,13 @@ def _train(args: argparse.Namespace) -> int:
         )
         return 0
     from dynabarn.learn.td3 import TD3Config, train_td3
+    from dynabarn.worlds.profiles import Difficulty
+    from dynabarn.worldset import world_set
 
+    # Checked here, in one line: the environments that would find out run in worker processes.
+    world_set(args.set)
+    if args.difficulty not in ("all", *(d.value for d in Difficulty)):
+        raise DynabarnError(f"--difficulty {args.difficulty!r}: use easy, medium, hard or all")
     cfg = TD3Config(
         world_set=args.set,
         difficulty=args.difficulty,

@@ -8,9 +8,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
+    MAX_SEED,
     WORLD_HELP,
     make_parser,
     progress_bar,
+    ranged,
     run_command,
     subcommands,
 )
@@ -43,7 +45,10 @@ def build_parser() -> argparse.ArgumentParser:
         "repository the folder carries the robot the worlds name, in DIR/assets/jackal/",
     )
     g.add_argument(
-        "--seed", type=int, default=DEFAULT_BASE_SEED, help="base seed; world i uses SeedSequence([seed, i])"
+        "--seed",
+        type=ranged(int, 0, MAX_SEED),
+        default=DEFAULT_BASE_SEED,
+        help="base seed; world i uses SeedSequence([seed, i])",
     )
     g.add_argument(
         "--profiles",

@@ -98,7 +98,7 @@ def read_planner_config(text: str, _seen: tuple[str, ...] = ()) -> dict:
         raise DynabarnError(f"planner config file not found: {path}")
     try:
         cfg = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+    except (ValueError, RecursionError) as exc:  # JSON and UTF-8 errors, numbers of thousands of digits
         raise DynabarnError(f"{path}: planner config is not valid JSON ({exc})") from None
     if not isinstance(cfg, dict):
         raise DynabarnError(f"{path}: planner config must be a JSON object")

@@ -18,8 +18,10 @@ MuJoCo picks its OpenGL platform when first imported: on a machine without a dis
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,6 +29,7 @@ import mujoco
 import numpy as np
 
 from dynabarn.errors import DynabarnError
+from dynabarn.files import fsync_folder
 from dynabarn.metrics import OUTCOME_MESSAGES, Outcome
 from dynabarn.recording import Recording, pose_track, recorded_world
 from dynabarn.render.frames import frame_tracks
@@ -117,6 +120,8 @@ def check_video(out: Path, width: int, height: int) -> None:
     """One clear line for a video that cannot be written as asked."""
     if out.suffix.lower() not in (".mp4", ".gif"):
         raise DynabarnError(f"video must end in .mp4 or .gif, got {out.name!r}")
+    if out.is_dir():
+        raise DynabarnError(f"{out} is a folder, not a video file")
     if out.suffix.lower() == ".mp4" and (width % 2 or height % 2):
         raise DynabarnError(f"an .mp4 (H.264) needs an even width and height, got {width}x{height}")
 
@@ -177,7 +182,10 @@ def render_recording(
     opt = mujoco.MjvOption()
     opt.sitegroup[:] = 0  # the laser sites would clutter the picture
     frame = np.empty((height, width, 3), np.uint8)
-    writer = _writer(out, fps)
+    # Written beside `out` and renamed when whole: a video already there is replaced only by
+    # a finished one, and a killed or failed render leaves nothing under its name.
+    part = out.with_name(f".{out.stem}.{os.getpid()}.part{out.suffix}")
+    writer = _writer(part, fps)
     frames = range(n_frames) if progress is None else progress(range(n_frames))
     try:
         with offscreen_renderer(model, height, width) as renderer:
@@ -212,6 +220,15 @@ def render_recording(
                 overlay.apply(frame, float(tracks.times[k]), float(tracks.speed[k]), outcome if last else None)
                 for _ in range(n_hold if last else 1):
                     writer.append_data(frame)
-    finally:
-        writer.close()
+        writer.close()  # ffmpeg writes the rest now: a full disk may show here
+    except BaseException as exc:
+        with contextlib.suppress(Exception):
+            writer.close()
+        part.unlink(missing_ok=True)
+        if isinstance(exc, OSError | RuntimeError):  # ffmpeg's many lines (a full disk): one
+            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            raise DynabarnError(f"cannot write {out}: {first}") from None
+        raise
+    os.replace(part, out)
+    fsync_folder(out.parent)
     return VideoInfo(path=out, frames=n_frames + n_hold - 1, fps=fps, duration=duration, width=width, height=height)
