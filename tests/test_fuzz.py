@@ -179,7 +179,38 @@ def bad_files(tmp_path_factory) -> Path:
     (d / "not_a_policy.pt").write_bytes(b"\x80\x04K\x01.")
     (d / "bad_config.json").write_text('{"max_vel_x": "fast"}')
     (d / "config_list.json").write_text("[1, 2]")
+    _recordings(d)
     return d
+
+
+def _json_recording(path: Path, metadata) -> None:
+    """An MCAP file with a /world/metadata message as given (the project did not write it)."""
+    from mcap.writer import Writer
+
+    with path.open("wb") as f:
+        writer = Writer(f)
+        writer.start()
+        schema = writer.register_schema("dynabarn.EpisodeStart", "jsonschema", b"{}")
+        channel = writer.register_channel("/world/metadata", "json", schema)
+        writer.add_message(channel, log_time=0, data=json.dumps(metadata).encode(), publish_time=0)
+        writer.finish()
+
+
+def _recordings(d: Path) -> None:
+    """Recordings made wrong: metadata of the wrong shape, a chunk corrupted in the middle."""
+    from dynabarn.planners import get_planner
+    from dynabarn.protocol import get_protocol
+    from dynabarn.recording import McapRecorder
+    from dynabarn.sim import run_episode
+
+    real = d / "real.mcap"
+    run_episode(WORLD, get_planner("straight"), get_protocol("barn"), seed=0, observers=[McapRecorder(real)])
+    data = bytearray(real.read_bytes())
+    middle = len(data) // 2
+    data[middle : middle + 64] = bytes(64)  # a chunk's compressed bytes zeroed
+    (d / "rec_corrupt.mcap").write_bytes(bytes(data))
+    _json_recording(d / "rec_meta_list.mcap", [1, 2])
+    _json_recording(d / "rec_world_string.mcap", {"world": "x", "keyframes": {}, "robot": {}})
 
 
 WORLD_CASES = [
@@ -329,6 +360,10 @@ BAD_INPUTS: list[tuple[str, list[str], str]] = [
     ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/v.mp4", "--size", "100000x100000"], "bad --size"),
     ("replay", ["{bad}/not_a_recording.mcap", "--save", "{bad}/x.rrd"], "error:"),
     ("replay", ["{bad}/missing.mcap"], "recording not found"),
+    ("replay", ["{bad}/rec_meta_list.mcap", "--save", "{bad}/x.rrd"], "a /world/metadata message is list"),
+    ("replay", ["{bad}/rec_world_string.mcap", "--save", "{bad}/x.rrd"], "field 'world' is not a JSON dict"),
+    ("render", ["{bad}/rec_world_string.mcap", "--out", "{bad}/v.gif"], "field 'world' is not a JSON dict"),
+    ("demos", ["export", "{bad}/rec_meta_list.mcap", "--out", "{bad}/d.npz"], "a /world/metadata message is list"),
     ("demos", ["collect", "--jobs", "0"], "--jobs: 0 is not in"),
     ("demos", ["collect", "--trials", "-3"], "--trials: -3 is not in"),
     ("demos", ["export", "{bad}/missing", "--out", "{bad}/d.npz"], "error:"),
@@ -718,3 +753,22 @@ def test_a_killed_sweep_takes_its_workers_with_it(tmp_path):
     again = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=600)
     assert again.returncode == 0, again.stderr
     assert results.read_text().count("\n") == 40 and not (out / ".lock").exists()
+
+
+@pytest.mark.parametrize(
+    "command, argv, verb",
+    [
+        ("replay", ["{bad}/rec_corrupt.mcap", "--save", "{out}/x.rrd"], "replaying"),
+        ("render", ["{bad}/rec_corrupt.mcap", "--out", "{out}/v.gif", "--size", "64x48", "--fps", "1"], "rendering"),
+        ("demos", ["export", "{bad}/rec_corrupt.mcap", "--out", "{out}/d.npz", "--all"], "exporting"),
+    ],
+    ids=["replay", "render", "demos-export"],
+)
+def test_a_corrupted_chunk_is_read_up_to_the_corruption_with_a_warning(command, argv, verb, bad_files, tmp_path):
+    """zstd's error on a broken chunk was a traceback: now the file is cut there, as a
+    killed recording is, and every reader says so in one line."""
+    argv = [a.replace("{bad}", str(bad_files)).replace("{out}", str(tmp_path)) for a in argv]
+    code, err = _call(command, argv)
+    assert code == 0, err
+    lines = [line for line in err.splitlines() if line.strip() and not line.startswith("\r")]
+    assert len(lines) == 1 and "is truncated (ZstdError" in lines[0] and f"{verb} up to the cut" in lines[0], err

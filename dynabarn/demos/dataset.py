@@ -23,6 +23,7 @@ The dataset is one `.npz` (numpy, no pickle):
 
 from __future__ import annotations
 
+import sys
 import json
 import math
 from dataclasses import dataclass
@@ -125,6 +126,8 @@ def export(
     skipped: list[tuple[str, str]] = []
     for f in progress(files) if progress else files:
         rec = read_recording(f)
+        if rec.truncated:  # as replay and render say it: the rows end at the cut
+            print(f"warning: {f} is truncated ({rec.error}); exporting up to the cut", file=sys.stderr)
         ep = episode_rows(rec, lookahead=lookahead)
         if not include_all and ep.outcome != "success":
             skipped.append((f.name, ep.outcome))

@@ -250,11 +250,37 @@ def read_recording(path: Path | str, *, decode: bool = True) -> Recording:
         except (McapError, EOFError, ValueError, OSError, struct.error, DecodeError) as exc:  # a cut or corruption
             rec.truncated = True
             rec.error = f"{type(exc).__name__}: {exc}"
+        except Exception as exc:  # a file we did not write: a broken chunk's zstd or lz4 error
+            rec.truncated = True
+            rec.error = f"{type(exc).__name__}: {exc}"
     rec.messages = dict(rec.messages)
     if rec.truncated and not rec.messages:
         raise RecordingError(f"{path}: corrupt or empty recording ({rec.error})")
+    _check_messages(rec)
     rec.attachments, rec.records = _attachments_and_records(path)
     return rec
+
+
+_METADATA_FIELDS = {"world": dict, "keyframes": dict, "robot": dict, "protocol": dict, "planner": str, "seed": int}
+"""Fields of `/world/metadata` the readers use, with their JSON types (checked when present)."""
+
+
+def _check_messages(rec: Recording) -> None:
+    """The JSON messages every reader relies on have the shapes the writer gives them, or the
+    file is refused in one line (a recording is someone else's file as often as ours)."""
+    from dynabarn.recording.topics import TOPICS
+
+    for topic in (t.name for t in TOPICS if t.encoding == "json"):
+        for _, message in rec.messages.get(topic, []):
+            if not isinstance(message, dict):
+                raise RecordingError(f"{rec.path}: a {topic} message is {type(message).__name__}, not an object")
+    meta = rec.metadata
+    for key, kind in _METADATA_FIELDS.items():
+        if meta is not None and key in meta and not (isinstance(meta[key], kind) and not isinstance(meta[key], bool)):
+            raise RecordingError(f"{rec.path}: {TOPIC_METADATA} field {key!r} is not a JSON {kind.__name__}")
+    result = rec.result
+    if result is not None and not isinstance(result.get("outcome"), str):
+        raise RecordingError(f"{rec.path}: the recorded result has no outcome")
 
 
 def _attachments_and_records(path: Path) -> tuple[dict[str, bytes], dict[str, dict[str, str]]]:
@@ -276,4 +302,6 @@ def _attachments_and_records(path: Path) -> tuple[dict[str, bytes], dict[str, di
                     records[record.name] = dict(record.metadata)
         except (McapError, EOFError, ValueError, OSError, struct.error):
             pass  # a cut: keep what came before it
+        except Exception:  # a broken record of a file we did not write: as a cut
+            pass
     return attachments, records
