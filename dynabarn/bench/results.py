@@ -9,11 +9,13 @@ import json
 import os
 import shutil
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 from dynabarn.bench.jobs import Job
 from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
+from dynabarn.metrics import Outcome
 
 RESULTS = "results.jsonl"
 METADATA = "metadata.json"
@@ -26,6 +28,39 @@ def read_results(path: Path) -> list[dict]:
     return _read(path)[0]
 
 
+OUTCOMES = frozenset(o.value for o in Outcome)
+MAX_ROW_BYTES = 1 << 20
+"""A row is a few kB (with a planner's traceback, tens); a longer line is not one of ours."""
+_ROW_TEXT = ("key", "planner", "world", "difficulty", "outcome")
+_ROW_NUMBERS = (
+    "time", "sim_time", "path_length", "score", "spl", "min_clearance", "mean_abs_jerk", "sum_abs_dw",
+    "time_stalled", "planner_ms_mean", "planner_ms_p95", "rtf", "wall_time", "clock_offset",
+)  # fmt: skip
+
+
+def is_row(row: object) -> bool:
+    """Whether a parsed line is a result row the summaries can use: the identifying fields
+    as text, an outcome the runner gives, the seed a whole number, every metric a number or
+    null. Anything else (a foreign line, a row edited by hand) is left out."""
+    if not isinstance(row, dict) or not all(isinstance(row.get(k), str) for k in _ROW_TEXT):
+        return False
+    if row["outcome"] not in OUTCOMES or not (isinstance(row.get("seed"), int) and not isinstance(row["seed"], bool)):
+        return False
+    numbers = (row.get(k) for k in _ROW_NUMBERS if k in row)
+    return all(v is None or (isinstance(v, int | float) and not isinstance(v, bool)) for v in numbers)
+
+
+def _lines(f) -> Iterator[str | None]:
+    """The file's lines, None for one longer than MAX_ROW_BYTES (read past, never held)."""
+    while line := f.readline(MAX_ROW_BYTES):
+        if len(line) == MAX_ROW_BYTES and not line.endswith("\n"):
+            while (rest := f.readline(MAX_ROW_BYTES)) and not rest.endswith("\n"):
+                pass
+            yield None
+            continue
+        yield line
+
+
 def _read(path: Path) -> tuple[list[dict], bool]:
     """(rows, clean): clean is False when some line was not a row (torn or foreign)."""
     rows: list[dict] = []
@@ -33,15 +68,15 @@ def _read(path: Path) -> tuple[list[dict], bool]:
     if not path.is_file():
         return rows, clean
     with path.open(encoding="utf-8", errors="replace") as f:
-        for line in f:
-            if not line.strip():
+        for line in _lines(f):
+            if line is not None and not line.strip():
                 continue
             try:
-                row = json.loads(line)
-            except (json.JSONDecodeError, RecursionError):
+                row = json.loads(line) if line is not None else None
+            except (ValueError, RecursionError):
                 clean = False  # a line half-written when the process died
                 continue
-            if isinstance(row, dict) and isinstance(row.get("key"), str):
+            if is_row(row):
                 rows.append(row)
             else:
                 clean = False
