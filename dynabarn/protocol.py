@@ -150,6 +150,9 @@ class EvalProtocol:
                     fields[key] = tuple(float(v) for v in fields[key])
             if "goal_region" in fields:
                 fields["goal_region"] = GoalRegion(fields["goal_region"])
+            for key in ("reference_from_world",):  # a JSON true or false, not "yes"
+                if key in fields and not isinstance(fields[key], bool):
+                    raise TypeError(f"{key}={fields[key]!r}: expected true or false")
             return cls(**fields)
         except (TypeError, ValueError) as exc:
             raise DynabarnError(f"malformed protocol: {exc}") from None

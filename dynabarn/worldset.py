@@ -126,6 +126,11 @@ def generate_worlds(
     return write_worlds(worlds, out_dir, meta=meta, sets=sets, progress=progress)
 
 
+MAX_INDEX_WORLDS = 100_000
+"""Worlds an index may list (the shipped set has 300; every one is checked when read)."""
+MAX_INDEX_BYTES = 256 * 1024 * 1024
+
+
 def read_index(path_or_dir: Path | str | None = None) -> dict:
     """A folder's (or a file's) world index; default: the current world set (`worlds_dir`)."""
     p = Path(path_or_dir) if path_or_dir is not None else worlds_dir()
@@ -133,15 +138,19 @@ def read_index(path_or_dir: Path | str | None = None) -> dict:
         p = p / INDEX_NAME
     if not p.is_file():
         raise WorldError(f"no world index at {p}")
+    if p.stat().st_size > MAX_INDEX_BYTES:
+        raise WorldError(f"{p}: {p.stat().st_size / 1e6:.0f} MB is larger than a world index can be")
     try:
         index = json.loads(p.read_text())
-    except json.JSONDecodeError as exc:
-        raise WorldError(f"{p}: index is not valid JSON ({exc})") from None
+    except (ValueError, RecursionError) as exc:
+        raise WorldError(f"{p}: index is not valid JSON ({type(exc).__name__})") from None
     if not isinstance(index, dict) or index.get("format") != "dynabarn-index":
         raise WorldError(f"{p}: not a dynabarn world index")
     worlds = index.get("worlds")
     if not isinstance(worlds, list):
         raise WorldError(f"{p}: index has no list of worlds")
+    if len(worlds) > MAX_INDEX_WORLDS:
+        raise WorldError(f"{p}: {len(worlds):,} worlds; an index holds at most {MAX_INDEX_WORLDS:,}")
     seen: set[int] = set()
     for e in worlds:
         if not (isinstance(e, dict) and type(e.get("id")) is int and isinstance(e.get("difficulty"), str | None)):
@@ -159,7 +168,10 @@ def entry_path(index_dir: Path, entry: dict) -> Path:
     file = entry.get("file")
     if not isinstance(file, str) or not file or file in (".", "..") or Path(file).name != file or "\\" in file:
         raise WorldError(f"{index_dir / INDEX_NAME}: world file {file!r} must be a file name inside the folder")
-    return Path(index_dir) / file
+    path = Path(index_dir) / file
+    if path.is_symlink():  # a link is a way out of the folder too
+        raise WorldError(f"{index_dir / INDEX_NAME}: world file {file!r} is a symbolic link; worlds are plain files")
+    return path
 
 
 _WORLD_NAME = re.compile(r"(?:world_)?(\d{1,6})(?:\.xml)?")

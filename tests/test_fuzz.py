@@ -133,6 +133,7 @@ PROTOCOLS: dict[str, str] = {
     "p_not_json.json": "{nope",
     "p_nested.json": "[" * 100_000,
     "p_hour.json": '{"name": "x", "time_limit": 3600}',
+    "p_reference_yes.json": '{"name": "x", "reference_from_world": "yes"}',
 }
 
 
@@ -163,9 +164,15 @@ def bad_files(tmp_path_factory) -> Path:
             ],
         },
         "set_foreign": {"format": "something-else"},
+        "set_symlink": {"format": "dynabarn-index", "worlds": [{"id": 0, "file": "w.xml", "difficulty": "easy"}]},
+        "set_million": {
+            "format": "dynabarn-index",
+            "worlds": [{"id": i, "file": f"w{i}.xml", "difficulty": "easy"} for i in range(1_000_000)],
+        },
     }.items():
         (d / folder).mkdir()
         (d / folder / "index.json").write_text(json.dumps(index))
+    (d / "set_symlink" / "w.xml").symlink_to(WORLD)  # a link out of the folder
     (d / "set_not_json").mkdir()
     (d / "set_not_json" / "index.json").write_text("{")
     # Results folders.
@@ -264,11 +271,13 @@ PROTOCOL_CASES = [
     ("p_not_object.json", "malformed protocol"),
     ("p_not_json.json", "not valid JSON"),
     ("p_nested.json", "not valid JSON"),
+    ("p_reference_yes.json", "reference_from_world='yes': expected true or false"),
     ("missing.json", "protocol file not found"),
 ]
 
 CONFIG_CASES = [
     ("dwa", "max_vel_x=abc", "max_vel_x='abc': expected a number"),
+    ("dwa", "costmap=null", "costmap=None: expected an object of costmap parameters"),
     ("dwa", "max_vel_x=" + "1" * 5000, "bad --planner-config value for 'max_vel_x'"),
     ("dwa", "max_vel_x=-1", "max_vel_x=-1: out of range"),
     ("dwa", "max_vel_x=Infinity", "expected a finite number"),
@@ -306,6 +315,9 @@ BAD_INPUTS: list[tuple[str, list[str], str]] = [
     ("worlds", ["stats", "{bad}/set_twice"], "appears twice"),
     ("worlds", ["stats", "{bad}/set_foreign"], "not a dynabarn world index"),
     ("worlds", ["stats", "{bad}/set_not_json"], "not valid JSON"),
+    ("worlds", ["stats", "{bad}/set_symlink"], "is a symbolic link; worlds are plain files"),
+    ("worlds", ["stats", "{bad}/set_million"], "1,000,000 worlds; an index holds at most 100,000"),
+    ("run", ["--world", "{bad}/two\nlines.xml", "--no-log"], "world not found"),
     ("worlds", ["stats", "--worlds", "5-2"], "ranges go upwards"),
     ("worlds", ["generate", "--out", "{bad}/a_file/sub"], "error:"),
     ("worlds", ["generate", "--seed", "abc"], "--seed"),

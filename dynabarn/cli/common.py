@@ -206,6 +206,12 @@ def planner_config(text: str | None) -> dict:
     return cfg
 
 
+def one_line(text: str) -> str:
+    """An error message on one line, whatever it quotes (a path with a newline in it, a
+    library's multi-line message): line breaks shown as \\n."""
+    return text.strip().replace("\r", "\\r").replace("\n", "\\n")
+
+
 def _terminate(signum, frame) -> None:
     raise Terminated()
 
@@ -223,7 +229,7 @@ def run_command(body: Callable[[argparse.Namespace], int], args: argparse.Namesp
     except DynabarnError as exc:
         if args.debug:
             raise
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {one_line(str(exc))}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Terminated)
         terminated = isinstance(exc, Terminated)
@@ -237,7 +243,7 @@ def run_command(body: Callable[[argparse.Namespace], int], args: argparse.Namesp
         if args.debug:
             raise
         where = f" ({exc.filename})" if exc.filename else ""
-        print(f"error: {exc.strerror or exc}{where}", file=sys.stderr)
+        print(f"error: {one_line(f'{exc.strerror or exc}{where}')}", file=sys.stderr)
         return EXIT_USAGE
     finally:
         if previous is not None:

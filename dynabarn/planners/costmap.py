@@ -58,7 +58,10 @@ def with_costmap(kwargs: dict, what: str) -> dict:
     from dynabarn.planners.base import config_from_kwargs
 
     kwargs = dict(kwargs)
-    cm = dict(kwargs.pop("costmap", {}) or {})
+    cm = kwargs.pop("costmap", {})
+    if not isinstance(cm, dict):  # `costmap=null` must not run with the defaults unsaid
+        raise TypeError(f"{what} costmap={cm!r}: expected an object of costmap parameters")
+    cm = dict(cm)
     for key in [k for k in kwargs if k.startswith("costmap.")]:
         cm[key.split(".", 1)[1]] = kwargs.pop(key)
     return {**kwargs, "costmap": config_from_kwargs(CostmapConfig, cm, f"{what} costmap")}
