@@ -187,7 +187,46 @@ def bad_files(tmp_path_factory) -> Path:
     (d / "bad_config.json").write_text('{"max_vel_x": "fast"}')
     (d / "config_list.json").write_text("[1, 2]")
     _recordings(d)
+    _datasets(d)
     return d
+
+
+def _datasets(d: Path) -> None:
+    """Behaviour-cloning datasets that are not what `dynabarn-demos export` writes, and a
+    policy file whose pickle would run a command."""
+    import pickle
+
+    import numpy as np
+
+    from dynabarn.demos.dataset import DATASET_FORMAT
+
+    meta = json.dumps({"format": DATASET_FORMAT, "lookahead": 2.0})
+    n = 8
+    good = {
+        "scans": np.full((n, 720), 5.0),
+        "local_goal": np.ones((n, 2)),
+        "actions": np.ones((n, 2)),
+        "metadata": meta,
+    }
+    variants = {
+        "ds_nan_actions.npz": {**good, "actions": np.full((n, 2), np.nan)},
+        "ds_zero_rows.npz": {
+            **good,
+            "scans": np.zeros((0, 720)),
+            "local_goal": np.zeros((0, 2)),
+            "actions": np.zeros((0, 2)),
+        },
+        "ds_wrong_shapes.npz": {**good, "scans": np.zeros((n, 10))},
+        "ds_meta_text.npz": {**good, "metadata": "not json"},
+    }
+    for name, arrays in variants.items():
+        np.savez(d / name, **arrays)
+
+    class Evil:
+        def __reduce__(self):
+            return (os.system, (f"touch {d / 'EVIL_RAN'}",))
+
+    (d / "evil.pt").write_bytes(pickle.dumps(Evil(), protocol=4))
 
 
 def _json_recording(path: Path, metadata) -> None:
@@ -338,6 +377,7 @@ BAD_INPUTS: list[tuple[str, list[str], str]] = [
         "not a loadable policy",
     ),
     ("run", ["--world", "0", "--no-log", "--planner", "bc", "--policy", "{bad}/missing.pt"], "policy file not found"),
+    ("run", ["--world", "0", "--no-log", "--planner", "bc", "--policy", "{bad}/evil.pt"], "not a loadable policy"),
     # Numbers on the command line.
     ("run", ["--world", "0", "--no-log", "--seed", "-1"], "--seed: -1 is not in [0, 4294967295]"),
     ("run", ["--world", "0", "--no-log", "--seed", "1e3"], "is not a whole number"),
@@ -388,6 +428,10 @@ BAD_INPUTS: list[tuple[str, list[str], str]] = [
         "--difficulty 'nope': use easy, medium, hard or all",
     ),
     ("train", ["bc", "--data", "{bad}/missing.npz", "--out", "{bad}/p.pt", "--epochs", "-1"], "--epochs: -1"),
+    ("train", ["bc", "--data", "{bad}/ds_nan_actions.npz", "--out", "{bad}/p.pt"], "actions holds NaN or infinite"),
+    ("train", ["bc", "--data", "{bad}/ds_zero_rows.npz", "--out", "{bad}/p.pt"], "the dataset has no rows"),
+    ("train", ["bc", "--data", "{bad}/ds_wrong_shapes.npz", "--out", "{bad}/p.pt"], "10 ranges per row, not"),
+    ("train", ["bc", "--data", "{bad}/ds_meta_text.npz", "--out", "{bad}/p.pt"], "not a dynabarn"),
     ("teleop", ["--world", "0", "--speed", "1e9"], "--speed: 1e9 is not in"),
 ]
 
@@ -784,3 +828,10 @@ def test_a_corrupted_chunk_is_read_up_to_the_corruption_with_a_warning(command, 
     assert code == 0, err
     lines = [line for line in err.splitlines() if line.strip() and not line.startswith("\r")]
     assert len(lines) == 1 and "is truncated (ZstdError" in lines[0] and f"{verb} up to the cut" in lines[0], err
+
+
+def test_a_policy_whose_pickle_runs_a_command_is_refused_and_runs_nothing(bad_files):
+    require("torch", "learn")
+    code, err = _call("run", ["--world", "0", "--no-log", "--planner", "bc", "--policy", str(bad_files / "evil.pt")])
+    assert code == 2 and err.count("\n") == 1 and "not a loadable policy" in err, err
+    assert not (bad_files / "EVIL_RAN").exists()

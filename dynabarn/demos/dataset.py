@@ -35,7 +35,7 @@ from dynabarn.files import save_atomically
 from dynabarn.errors import DynabarnError
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.recording import TOPIC_CMD, TOPIC_SCAN, Recording, read_recording, scan_lasers
-from dynabarn.robot import mounted_pose, to_robot_frame
+from dynabarn.robot import JACKAL, mounted_pose, to_robot_frame
 
 DATASET_FORMAT = "dynabarn-demos-v1"
 DEFAULT_LOOKAHEAD = 2.0
@@ -171,9 +171,37 @@ def load_dataset(path: Path) -> dict[str, np.ndarray]:
     try:
         with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError) as exc:
         raise DynabarnError(f"{path}: not a readable dataset ({exc})") from None
-    meta = json.loads(str(data.get("metadata", "{}")))
-    if meta.get("format") != DATASET_FORMAT:
+    try:
+        meta = json.loads(str(data.get("metadata", "{}")))
+    except (ValueError, RecursionError):
+        meta = None
+    if not isinstance(meta, dict) or meta.get("format") != DATASET_FORMAT:
         raise DynabarnError(f"{path}: not a {DATASET_FORMAT} dataset")
+    lookahead = meta.get("lookahead")
+    if isinstance(lookahead, bool) or not isinstance(lookahead, int | float) or not 0 < lookahead < 100:
+        raise DynabarnError(f"{path}: the dataset's metadata has no usable lookahead ({lookahead!r})")
+    _check_arrays(path, data)
     return data
+
+
+N_BEAMS = JACKAL.laser_beams
+
+
+def _check_arrays(path: Path, data: dict[str, np.ndarray]) -> None:
+    """The training arrays as `export` writes them: shapes that agree, numbers, finite."""
+    shapes = {"scans": 2, "local_goal": 2, "actions": 2}
+    for name, ndim in shapes.items():
+        a = data.get(name)
+        if a is None or a.ndim != ndim or a.dtype.kind not in "fiu":
+            raise DynabarnError(f"{path}: {name} is missing or not a {ndim}-d array of numbers")
+        if not np.isfinite(a).all():
+            raise DynabarnError(f"{path}: {name} holds NaN or infinite values")
+    n, width = data["scans"].shape
+    if width != N_BEAMS:
+        raise DynabarnError(f"{path}: scans have {width} ranges per row, not the laser's {N_BEAMS}")
+    if n == 0:
+        raise DynabarnError(f"{path}: the dataset has no rows")
+    if data["local_goal"].shape != (n, 2) or data["actions"].shape != (n, 2):
+        raise DynabarnError(f"{path}: scans, local_goal and actions must have one row each per tick, (n, 2) for the last two")

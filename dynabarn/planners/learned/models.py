@@ -14,6 +14,7 @@ Policies are saved as plain state dicts with a small header, and loaded with
 from __future__ import annotations
 
 import itertools
+import warnings
 from pathlib import Path
 
 import torch
@@ -94,9 +95,12 @@ def load_policy(path: Path) -> tuple[Actor, dict]:
     if not path.is_file():
         raise DynabarnError(f"policy file not found: {path}")
     try:
-        blob = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:
-        raise DynabarnError(f"{path}: not a loadable policy ({type(exc).__name__}: {exc})") from None
+        with warnings.catch_warnings():  # PyTorch warns about a foreign file's pickle protocol
+            warnings.simplefilter("ignore")
+            blob = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:  # PyTorch's refusals run to a page; their first sentence says it
+        first = str(exc).strip().split(". ")[0].splitlines()[0][:160] if str(exc).strip() else ""
+        raise DynabarnError(f"{path}: not a loadable policy ({type(exc).__name__}: {first})") from None
     if not isinstance(blob, dict) or blob.get("format") != POLICY_FORMAT:
         raise DynabarnError(f"{path}: not a {POLICY_FORMAT} file")
     lookahead = blob.get("lookahead", 2.0)
