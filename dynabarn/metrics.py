@@ -22,6 +22,20 @@ class Outcome(enum.StrEnum):
     ERROR = "error"
 
 
+RESULT_NUMBERS = (
+    "time", "sim_time", "path_length", "score", "spl", "min_clearance", "mean_abs_jerk", "sum_abs_dw",
+    "time_stalled", "planner_ms_mean", "planner_ms_p95", "rtf", "wall_time", "clock_offset",
+)  # fmt: skip
+"""The fields of a result that are numbers (or null when no finite value exists)."""
+
+
+def numbers_ok(result: dict) -> bool:
+    """Whether the result's number fields that are present are numbers or null (a result
+    read from a file the project did not write)."""
+    values = (result[k] for k in RESULT_NUMBERS if k in result)
+    return all(v is None or (isinstance(v, int | float) and not isinstance(v, bool)) for v in values)
+
+
 OUTCOME_MESSAGES = {
     Outcome.SUCCESS: "reached the goal",
     Outcome.COLLISION: "collided",

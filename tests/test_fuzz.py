@@ -229,16 +229,19 @@ def _datasets(d: Path) -> None:
     (d / "evil.pt").write_bytes(pickle.dumps(Evil(), protocol=4))
 
 
-def _json_recording(path: Path, metadata) -> None:
-    """An MCAP file with a /world/metadata message as given (the project did not write it)."""
+def _json_recording(path: Path, metadata, result=None) -> None:
+    """An MCAP file with a /world/metadata message (and an /episode/result) as given: a
+    recording the project did not write."""
     from mcap.writer import Writer
 
     with path.open("wb") as f:
         writer = Writer(f)
         writer.start()
-        schema = writer.register_schema("dynabarn.EpisodeStart", "jsonschema", b"{}")
-        channel = writer.register_channel("/world/metadata", "json", schema)
-        writer.add_message(channel, log_time=0, data=json.dumps(metadata).encode(), publish_time=0)
+        schema = writer.register_schema("dynabarn.Json", "jsonschema", b"{}")
+        messages = {"/world/metadata": metadata, **({"/episode/result": result} if result is not None else {})}
+        for topic, payload in messages.items():
+            channel = writer.register_channel(topic, "json", schema)
+            writer.add_message(channel, log_time=0, data=json.dumps(payload).encode(), publish_time=0)
         writer.finish()
 
 
@@ -257,6 +260,8 @@ def _recordings(d: Path) -> None:
     (d / "rec_corrupt.mcap").write_bytes(bytes(data))
     _json_recording(d / "rec_meta_list.mcap", [1, 2])
     _json_recording(d / "rec_world_string.mcap", {"world": "x", "keyframes": {}, "robot": {}})
+    _json_recording(d / "rec_outcome_5.mcap", {}, {"outcome": 5, "time": 1.0})
+    _json_recording(d / "rec_time_text.mcap", {}, {"outcome": "success", "time": "abc"})
 
 
 WORLD_CASES = [
@@ -416,6 +421,8 @@ BAD_INPUTS: list[tuple[str, list[str], str]] = [
     ("replay", ["{bad}/rec_world_string.mcap", "--save", "{bad}/x.rrd"], "field 'world' is not a JSON dict"),
     ("render", ["{bad}/rec_world_string.mcap", "--out", "{bad}/v.gif"], "field 'world' is not a JSON dict"),
     ("demos", ["export", "{bad}/rec_meta_list.mcap", "--out", "{bad}/d.npz"], "a /world/metadata message is list"),
+    ("demos", ["export", "{bad}/rec_outcome_5.mcap", "--out", "{bad}/d.npz"], "no outcome the runner gives"),
+    ("demos", ["export", "{bad}/rec_time_text.mcap", "--out", "{bad}/d.npz"], "a metric that is not a number"),
     ("demos", ["collect", "--jobs", "0"], "--jobs: 0 is not in"),
     ("demos", ["collect", "--trials", "-3"], "--trials: -3 is not in"),
     ("demos", ["export", "{bad}/missing", "--out", "{bad}/d.npz"], "error:"),

@@ -15,7 +15,7 @@ from pathlib import Path
 from dynabarn.bench.jobs import Job
 from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
-from dynabarn.metrics import Outcome
+from dynabarn.metrics import Outcome, numbers_ok
 
 RESULTS = "results.jsonl"
 METADATA = "metadata.json"
@@ -32,10 +32,6 @@ OUTCOMES = frozenset(o.value for o in Outcome)
 MAX_ROW_BYTES = 1 << 20
 """A row is a few kB (with a planner's traceback, tens); a longer line is not one of ours."""
 _ROW_TEXT = ("key", "planner", "world", "difficulty", "outcome")
-_ROW_NUMBERS = (
-    "time", "sim_time", "path_length", "score", "spl", "min_clearance", "mean_abs_jerk", "sum_abs_dw",
-    "time_stalled", "planner_ms_mean", "planner_ms_p95", "rtf", "wall_time", "clock_offset",
-)  # fmt: skip
 
 
 def is_row(row: object) -> bool:
@@ -46,8 +42,7 @@ def is_row(row: object) -> bool:
         return False
     if row["outcome"] not in OUTCOMES or not (isinstance(row.get("seed"), int) and not isinstance(row["seed"], bool)):
         return False
-    numbers = (row.get(k) for k in _ROW_NUMBERS if k in row)
-    return all(v is None or (isinstance(v, int | float) and not isinstance(v, bool)) for v in numbers)
+    return numbers_ok(row)
 
 
 def _lines(f) -> Iterator[str | None]:

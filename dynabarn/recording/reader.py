@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.errors import DynabarnError
+from dynabarn.metrics import Outcome, numbers_ok
 from dynabarn.recording.topics import TOPIC_METADATA, TOPIC_OBSTACLES, TOPIC_RESULT
 from dynabarn.robot import JACKAL, mounted_pose
 from dynabarn.worlds.spec import WorldSpec
@@ -279,8 +280,10 @@ def _check_messages(rec: Recording) -> None:
         if meta is not None and key in meta and not (isinstance(meta[key], kind) and not isinstance(meta[key], bool)):
             raise RecordingError(f"{rec.path}: {TOPIC_METADATA} field {key!r} is not a JSON {kind.__name__}")
     result = rec.result
-    if result is not None and not isinstance(result.get("outcome"), str):
-        raise RecordingError(f"{rec.path}: the recorded result has no outcome")
+    if result is not None and result.get("outcome") not in {o.value for o in Outcome}:
+        raise RecordingError(f"{rec.path}: the recorded result has no outcome the runner gives")
+    if result is not None and not numbers_ok(result):
+        raise RecordingError(f"{rec.path}: the recorded result has a metric that is not a number")
 
 
 def _attachments_and_records(path: Path) -> tuple[dict[str, bytes], dict[str, dict[str, str]]]:
