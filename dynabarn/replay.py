@@ -25,6 +25,7 @@ All `rr.` calls of the package live here and in `live.rerun_live` (the same enti
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,6 +33,8 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from dynabarn.errors import DynabarnError
+from dynabarn.files import fsync_folder
 from dynabarn.recording import (
     TOPIC_CMD,
     TOPIC_DEBUG,
@@ -357,13 +360,28 @@ def build_stream(recs: list[Recording], stream: rr.RecordingStream) -> list[Repl
 
 
 def save_rrd(recs: list[Recording], path: Path) -> list[ReplayCounts]:
-    """Write an .rrd file with the recordings and the blueprint."""
-    stream = rr.RecordingStream(APP_ID, make_default=False, make_thread_default=False)
+    """Write an .rrd file with the recordings and the blueprint: beside `path` first, renamed
+    when complete, so an .rrd already there is replaced only by a whole one."""
+    path = Path(path)
+    if path.is_dir():
+        raise DynabarnError(f"{path} is a folder, not an .rrd file")
     path.parent.mkdir(parents=True, exist_ok=True)
-    stream.save(str(path))
-    counts = build_stream(recs, stream)
-    stream.flush()
-    stream.disconnect()
+    part = path.with_name(f".{path.name}.{os.getpid()}.part")
+    stream = rr.RecordingStream(APP_ID, make_default=False, make_thread_default=False)
+    try:
+        stream.save(str(part))
+        counts = build_stream(recs, stream)
+        stream.flush()
+        stream.disconnect()
+        if not part.is_file():  # rerun's sink writes in its own thread and reports nothing
+            raise DynabarnError(f"cannot write {path} (nothing was written; is the folder writable?)")
+        with open(part, "rb") as f:
+            os.fsync(f.fileno())
+        os.replace(part, path)
+    except BaseException:
+        part.unlink(missing_ok=True)
+        raise
+    fsync_folder(path.parent)
     return counts
 
 

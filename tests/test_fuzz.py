@@ -417,6 +417,7 @@ BAD_INPUTS: list[tuple[str, list[str], str]] = [
     ("render", ["{bad}/not_a_recording.mcap", "--out", "{bad}/v.mp4", "--size", "100000x100000"], "bad --size"),
     ("replay", ["{bad}/not_a_recording.mcap", "--save", "{bad}/x.rrd"], "error:"),
     ("replay", ["{bad}/missing.mcap"], "recording not found"),
+    ("replay", ["{bad}/real.mcap", "--save", "{bad}/a_folder"], "is a folder, not an .rrd file"),
     ("replay", ["{bad}/rec_meta_list.mcap", "--save", "{bad}/x.rrd"], "a /world/metadata message is list"),
     ("replay", ["{bad}/rec_world_string.mcap", "--save", "{bad}/x.rrd"], "field 'world' is not a JSON dict"),
     ("render", ["{bad}/rec_world_string.mcap", "--out", "{bad}/v.gif"], "field 'world' is not a JSON dict"),
