@@ -170,3 +170,19 @@ def test_a_render_replaces_a_video_only_when_whole_and_refuses_a_folder(recordin
     folder = tmp_path / "a_folder.mp4"
     folder.mkdir()
     assert render_main([str(recording), "--out", str(folder)]) == 2
+
+
+def test_run_with_video_on_a_headless_machine_without_mujoco_gl(tmp_path):
+    """The planners' imports load MuJoCo: the command picks EGL before any of them runs."""
+    from tests.conftest import run_headless
+
+    out = tmp_path / "v.gif"
+    code = (
+        "import sys\n"
+        "from dynabarn.cli import run_main\n"
+        f"sys.exit(run_main(['--world', '0', '--planner', 'straight', '--no-log', '--video', {str(out)!r},"
+        " '--size', '64x48', '--fps', '2']))\n"
+    )
+    proc = run_headless(code)
+    assert proc.returncode == 0, proc.stderr
+    assert out.read_bytes()[:6] == b"GIF89a"

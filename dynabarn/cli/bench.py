@@ -14,6 +14,7 @@ from dynabarn.cli.common import (
     add_protocol,
     make_parser,
     planner_config,
+    prefer_offscreen_gl,
     ranged,
     run_command,
 )
@@ -22,6 +23,7 @@ from dynabarn.errors import DynabarnError
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-bench`'s parser (its `--help`, and the documentation's page of the command)."""
+    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
     from dynabarn.planners import planner_presets
 
     parser = make_parser(

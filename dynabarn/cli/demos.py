@@ -11,6 +11,7 @@ from dynabarn.cli.common import (
     add_jobs,
     add_protocol,
     make_parser,
+    prefer_offscreen_gl,
     ranged,
     run_command,
     subcommands,
@@ -20,6 +21,7 @@ from dynabarn.errors import DynabarnError
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-demos`'s parser (its `--help`, and the documentation's page of the command)."""
+    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
     from dynabarn.demos.dataset import DEFAULT_LOOKAHEAD
 
     parser = make_parser("dynabarn-demos", "Collect synthetic demonstrations and export datasets for learning.")

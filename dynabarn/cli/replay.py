@@ -10,6 +10,7 @@ from pathlib import Path
 
 from dynabarn.cli.common import (
     make_parser,
+    prefer_offscreen_gl,
     run_command,
 )
 from dynabarn.errors import DynabarnError
@@ -18,6 +19,7 @@ from dynabarn.provenance import has_display
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-replay`'s parser (its `--help`, and the documentation's page of the command)."""
+    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
     from dynabarn.web_viewer import DEFAULT_BIND, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
 
     parser = make_parser(

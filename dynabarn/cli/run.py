@@ -13,6 +13,7 @@ from dynabarn.cli.common import (
     add_world,
     make_parser,
     planner_config,
+    prefer_offscreen_gl,
     ranged,
     run_command,
 )
@@ -23,6 +24,7 @@ from dynabarn.cli.render import add_video_options, render_video, video_settings
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-run`'s parser (its `--help`, and the documentation's page of the command)."""
+    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
     from dynabarn.planners import available_planners, planner_presets
 
     parser = make_parser(

@@ -11,6 +11,7 @@ from dynabarn.cli.common import (
     MAX_SEED,
     WORLD_HELP,
     make_parser,
+    prefer_offscreen_gl,
     progress_bar,
     ranged,
     run_command,
@@ -23,6 +24,7 @@ from dynabarn.errors import DynabarnError, ImportFormatError
 # the other, as `--help` shows them.
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-worlds`'s parser (its `--help`, and the documentation's page of the command)."""
+    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
     from dynabarn.provenance import WORLDS_ENV
     from dynabarn.sim.behaviors import available_behaviors, get_behavior
     from dynabarn.worlds.generate import DEFAULT_BASE_SEED
