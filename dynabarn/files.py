@@ -43,6 +43,24 @@ def atomic_file(path: Path | str) -> Iterator[BinaryIO]:
     fsync_folder(path.parent)
 
 
+@contextlib.contextmanager
+def staged_path(path: Path | str) -> Iterator[Path]:
+    """For writers that take a file name (ffmpeg, rerun): a temporary name beside `path`
+    (same suffix, so the format is recognised), made durable and renamed over `path` when
+    the block finishes, removed on any error, so `path` holds the old file or a whole new one."""
+    path = Path(path)
+    part = path.with_name(f".{path.stem}.{os.getpid()}.part{path.suffix}")
+    try:
+        yield part
+        with open(part, "rb") as f:
+            os.fsync(f.fileno())
+        os.replace(part, path)
+    except BaseException:
+        part.unlink(missing_ok=True)
+        raise
+    fsync_folder(path.parent)
+
+
 def write_atomically(path: Path | str, data: bytes | str) -> None:
     """`path` now holds `data` (text is written as UTF-8), or, after a failure, what it held."""
     with atomic_file(path) as f:

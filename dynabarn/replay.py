@@ -25,7 +25,6 @@ All `rr.` calls of the package live here and in `live.rerun_live` (the same enti
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,7 +33,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from dynabarn.errors import DynabarnError
-from dynabarn.files import fsync_folder
+from dynabarn.files import staged_path
 from dynabarn.recording import (
     TOPIC_CMD,
     TOPIC_DEBUG,
@@ -366,22 +365,14 @@ def save_rrd(recs: list[Recording], path: Path) -> list[ReplayCounts]:
     if path.is_dir():
         raise DynabarnError(f"{path} is a folder, not an .rrd file")
     path.parent.mkdir(parents=True, exist_ok=True)
-    part = path.with_name(f".{path.name}.{os.getpid()}.part")
     stream = rr.RecordingStream(APP_ID, make_default=False, make_thread_default=False)
-    try:
+    with staged_path(path) as part:
         stream.save(str(part))
         counts = build_stream(recs, stream)
         stream.flush()
         stream.disconnect()
         if not part.is_file():  # rerun's sink writes in its own thread and reports nothing
             raise DynabarnError(f"cannot write {path} (nothing was written; is the folder writable?)")
-        with open(part, "rb") as f:
-            os.fsync(f.fileno())
-        os.replace(part, path)
-    except BaseException:
-        part.unlink(missing_ok=True)
-        raise
-    fsync_folder(path.parent)
     return counts
 
 

@@ -139,6 +139,32 @@ def serve_web(
     return viewer
 
 
+def spawn_native_viewer(*, timeout: float = 30.0) -> tuple[subprocess.Popen, str]:
+    """rerun's native viewer, its data server on loopback at a free port (rerun-sdk's own
+    `spawn` listens on every interface), ended with this process; returns the process and
+    the gRPC URL to stream to, once the server answers (or one line saying why not)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    log = Path(tempfile.mkstemp(prefix="dynabarn-rerun-", suffix=".log")[1])
+    cmd = [rerun_binary(), "--bind", "127.0.0.1", "--port", str(port), "--hide-welcome-screen"]
+    with open(log, "wb") as sink:
+        process = subprocess.Popen(
+            cmd, stdin=subprocess.DEVNULL, stdout=sink, stderr=subprocess.STDOUT, preexec_fn=die_with_parent()
+        )
+    deadline = time.monotonic() + timeout
+    try:
+        while not _listening("127.0.0.1", port):
+            if process.poll() is not None or time.monotonic() > deadline:
+                WebViewer(process, "", "127.0.0.1", log).stop()
+                lines = [s for s in log.read_text(errors="replace").splitlines() if s.strip()]
+                raise DynabarnError(f"rerun's viewer did not start: {lines[-1].strip() if lines else 'no output'}")
+            time.sleep(0.1)
+    finally:
+        log.unlink(missing_ok=True)
+    return process, f"rerun+http://127.0.0.1:{port}/proxy"
+
+
 def grpc_url(address: str) -> str:
     """`--connect` forms: a port (this machine), host:port, or a full rerun+http(s) URL."""
     text = address.strip()

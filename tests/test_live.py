@@ -263,3 +263,31 @@ def test_a_paused_pacer_holds_the_episode_until_resumed():
     assert done.wait(10), "after the pause the clock restarts from the paused tick"
     with pytest.raises(ValueError):
         Pacer(rate=0.0)
+
+
+def test_the_spawned_rerun_viewer_listens_on_loopback_or_says_why_it_cannot_start(display, monkeypatch):
+    """`--live rerun` starts rerun's native viewer itself, its data server on 127.0.0.1
+    (rerun-sdk's spawn listens on every interface). Where the graphics cannot run it (here:
+    software GL without the formats the viewer needs) that is one line, not a wait."""
+    import subprocess
+
+    from dynabarn.errors import DynabarnError
+    from dynabarn.web_viewer import spawn_native_viewer
+
+    monkeypatch.setenv("DISPLAY", display)
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    try:
+        process, url = spawn_native_viewer(timeout=60)
+    except DynabarnError as exc:
+        assert str(exc).startswith("rerun's viewer did not start: ") and "\n" not in str(exc)
+        return
+    try:
+        port = url.split(":")[-1].split("/")[0]
+        assert url.startswith("rerun+http://127.0.0.1:")
+        ss = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True).stdout.splitlines()
+        mine = [line for line in ss if f"pid={process.pid}," in line]
+        assert mine and all(line.split()[3].startswith("127.0.0.1:") for line in mine), mine
+        assert any(line.split()[3] == f"127.0.0.1:{port}" for line in mine)
+    finally:
+        process.terminate()
+        process.wait(timeout=30)

@@ -79,6 +79,7 @@ class LiveOutputs:
         self.contexts: tuple = ()
         self.observers: tuple = ()
         self._foxglove = self._rerun = self._viewer = None
+        self._viewer_process = None  # rerun's native viewer, when we started it
         if args.connect is not None and "rerun" not in args.live:
             raise DynabarnError("--connect is for --live rerun")
 
@@ -123,7 +124,11 @@ class LiveOutputs:
         if self.args.connect is None:
             if not has_display():
                 raise DynabarnError("--live rerun spawns a viewer and needs a display; or --connect to a running one")
-            self._rerun = RerunLive()
+            from dynabarn.web_viewer import spawn_native_viewer
+
+            viewer, url = spawn_native_viewer()
+            self._viewer_process = viewer
+            self._rerun = RerunLive(url, viewer=viewer)
         else:
             from dynabarn.web_viewer import check_reachable, grpc_url
 
@@ -149,5 +154,15 @@ class LiveOutputs:
             self._viewer.close()
         if self._rerun is not None:
             self._rerun.close()
+        viewer = self._viewer_process
+        if viewer is not None and viewer.poll() is None:
+            try:
+                if exc[0] is None:  # the run is over; its viewer (which ends with us) stays to be looked at
+                    print("the rerun viewer stays open: close it (or Ctrl-C) to finish", file=sys.stderr)
+                    viewer.wait()
+            except KeyboardInterrupt:
+                pass
+            finally:
+                viewer.terminate()
         if self._foxglove is not None:
             self._foxglove.stop()

@@ -9,10 +9,12 @@ a running `rerun`, `rerun --serve-web`, or `rerun --save FILE.rrd` with no windo
 from __future__ import annotations
 
 import math
+import subprocess
 
 import numpy as np
 import rerun as rr
 
+from dynabarn.errors import EndEpisode
 from dynabarn.recording import returns_in_world
 from dynabarn.recording.topics import plotted
 from dynabarn.replay import (
@@ -36,15 +38,15 @@ class RerunLive:
 
     Args:
         connect: a gRPC URL (`rerun+http://127.0.0.1:9876/proxy`) of a running viewer or
-            server; None spawns rerun's native viewer.
+            server (`web_viewer.spawn_native_viewer` starts one on loopback).
+        viewer: the viewer's process when we started it: the episode ends when it does
+            (the window was closed), instead of streaming into nothing.
     """
 
-    def __init__(self, connect: str | None = None) -> None:
+    def __init__(self, connect: str, viewer: subprocess.Popen | None = None) -> None:
         self.stream = rr.RecordingStream(APP_ID, make_default=False, make_thread_default=False)
-        if connect is None:
-            self.stream.spawn()
-        else:
-            self.stream.connect_grpc(connect)
+        self.stream.connect_grpc(connect)
+        self.viewer = viewer
         self._path: list[tuple[float, float]] = []
         self.ticks = 0
 
@@ -68,6 +70,8 @@ class RerunLive:
         s.send_blueprint(blueprint([RUN]))
 
     def on_tick(self, tick) -> None:
+        if self.viewer is not None and self.viewer.poll() is not None:
+            raise EndEpisode("the rerun viewer was closed")
         s = self.stream
         s.set_time(TIMELINE, duration=tick.time)
         x, y, _ = tick.pose.tolist()
