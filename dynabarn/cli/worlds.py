@@ -220,11 +220,13 @@ def _worlds_show(args: argparse.Namespace) -> int:
     import numpy as np
 
     from dynabarn.mjcf import load_model, read_world
+    from dynabarn.sim import Simulation
     from dynabarn.worldset import resolve_world
 
     path = resolve_world(args.world)
     world = read_world(path)
     model = load_model(path)
+    Simulation(path)  # what `dynabarn-run` refuses (e.g. an obstacle without its body), this does too
     print(f"{world.name}  ({path})")
     print(
         f"  difficulty {world.difficulty.value}  branch {world.count_class and world.count_class.value}"

@@ -22,6 +22,7 @@ import contextlib
 import itertools
 import math
 import os
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -122,6 +123,11 @@ def check_video(out: Path, width: int, height: int) -> None:
         raise DynabarnError(f"video must end in .mp4 or .gif, got {out.name!r}")
     if out.is_dir():
         raise DynabarnError(f"{out} is a folder, not a video file")
+    try:  # before any frame: ffmpeg and Pillow find out only when they write, in many lines
+        with tempfile.TemporaryFile(dir=out.parent):
+            pass
+    except OSError as exc:
+        raise DynabarnError(f"cannot write a video into {out.parent}: {exc.strerror or exc}") from None
     if out.suffix.lower() == ".mp4" and (width % 2 or height % 2):
         raise DynabarnError(f"an .mp4 (H.264) needs an even width and height, got {width}x{height}")
 
