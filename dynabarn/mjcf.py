@@ -295,6 +295,12 @@ def check_self_contained(path: Path, root: ET.Element) -> None:
         raise WorldError(f"{path}: more than one <model name='jackal'>")
 
 
+def check_world_data(path: Path, data: bytes) -> None:
+    """The checks every world file passes, on bytes from elsewhere (a recording's attached
+    world): parsed, then self-contained and bounded, or one `WorldError`."""
+    check_self_contained(path, _parse(path, data))
+
+
 def _check_sizes(path: Path, tag: str, element: ET.Element) -> None:
     """Sizes MuJoCo would allocate before it could say no: a texture's pixels, a numeric's
     declared size, the offscreen buffer."""

@@ -229,7 +229,7 @@ def _datasets(d: Path) -> None:
     (d / "evil.pt").write_bytes(pickle.dumps(Evil(), protocol=4))
 
 
-def _json_recording(path: Path, metadata, result=None) -> None:
+def _json_recording(path: Path, metadata, result=None, world: bytes | None = None) -> None:
     """An MCAP file with a /world/metadata message (and an /episode/result) as given: a
     recording the project did not write."""
     from mcap.writer import Writer
@@ -242,6 +242,8 @@ def _json_recording(path: Path, metadata, result=None) -> None:
         for topic, payload in messages.items():
             channel = writer.register_channel(topic, "json", schema)
             writer.add_message(channel, log_time=0, data=json.dumps(payload).encode(), publish_time=0)
+        if world is not None:
+            writer.add_attachment(0, 0, "world.xml", "application/vnd.mujoco.mjcf+xml", world)
         writer.finish()
 
 
@@ -262,6 +264,7 @@ def _recordings(d: Path) -> None:
     _json_recording(d / "rec_world_string.mcap", {"world": "x", "keyframes": {}, "robot": {}})
     _json_recording(d / "rec_outcome_5.mcap", {}, {"outcome": 5, "time": 1.0})
     _json_recording(d / "rec_time_text.mcap", {}, {"outcome": "success", "time": "abc"})
+    _json_recording(d / "rec_attached_include.mcap", {}, world=WORLD_FILES["include.xml"])
 
 
 WORLD_CASES = [
@@ -426,6 +429,7 @@ BAD_INPUTS: list[tuple[str, list[str], str]] = [
     ("demos", ["export", "{bad}/rec_meta_list.mcap", "--out", "{bad}/d.npz"], "a /world/metadata message is list"),
     ("demos", ["export", "{bad}/rec_outcome_5.mcap", "--out", "{bad}/d.npz"], "no outcome the runner gives"),
     ("demos", ["export", "{bad}/rec_time_text.mcap", "--out", "{bad}/d.npz"], "a metric that is not a number"),
+    ("demos", ["export", "{bad}/rec_attached_include.mcap", "--out", "{bad}/d.npz"], "<include> is not allowed"),
     ("demos", ["collect", "--jobs", "0"], "--jobs: 0 is not in"),
     ("demos", ["collect", "--trials", "-3"], "--trials: -3 is not in"),
     ("demos", ["export", "{bad}/missing", "--out", "{bad}/d.npz"], "error:"),
@@ -777,10 +781,9 @@ def test_sigterm_ends_a_run_as_ctrl_c_does_with_its_recording_whole(tmp_path):
             "0",
             "--planner",
             "stop",
-            "--rate",
-            "1",
             "--log",
             str(log),
+            *("--live", "foxglove", "--port", "0", "--wait", "0", "--rate", "1"),  # paced: 100 s of episode
         ],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
@@ -793,7 +796,7 @@ def test_sigterm_ends_a_run_as_ctrl_c_does_with_its_recording_whole(tmp_path):
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, (proc.returncode, err)
-    assert err.strip() == f"terminated; recording kept: {log}", err
+    assert err.strip().splitlines()[-1] == f"terminated; recording kept: {log}", err  # after Foxglove's address
     rec = read_recording(log)
     assert not rec.truncated and rec.result["outcome"] == "error" and rec.result["reason"] == "interrupted"
     assert not part.exists()

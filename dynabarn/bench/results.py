@@ -31,7 +31,8 @@ def read_results(path: Path) -> list[dict]:
 OUTCOMES = frozenset(o.value for o in Outcome)
 MAX_ROW_BYTES = 1 << 20
 """A row is a few kB (with a planner's traceback, tens); a longer line is not one of ours."""
-_ROW_TEXT = ("key", "planner", "world", "difficulty", "outcome")
+_ROW_TEXT = ("key", "planner", "difficulty", "outcome")
+"""Text fields every row has (a worker that died mid-episode leaves a row without `world`)."""
 
 
 def is_row(row: object) -> bool:
@@ -41,6 +42,8 @@ def is_row(row: object) -> bool:
     if not isinstance(row, dict) or not all(isinstance(row.get(k), str) for k in _ROW_TEXT):
         return False
     if row["outcome"] not in OUTCOMES or not (isinstance(row.get("seed"), int) and not isinstance(row["seed"], bool)):
+        return False
+    if not isinstance(row.get("world", ""), str):
         return False
     return numbers_ok(row)
 

@@ -259,6 +259,11 @@ def read_recording(path: Path | str, *, decode: bool = True) -> Recording:
         raise RecordingError(f"{path}: corrupt or empty recording ({rec.error})")
     _check_messages(rec)
     rec.attachments, rec.records = _attachments_and_records(path)
+    from dynabarn.mjcf import check_world_data
+
+    for name, data in rec.attachments.items():  # the attached world is a world file like any other
+        if name.endswith(".xml"):
+            check_world_data(path.parent / f"{path.name}:{name}", data)
     return rec
 
 
