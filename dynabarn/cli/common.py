@@ -15,7 +15,7 @@ import sys
 from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, version
 
-from dynabarn.errors import DynabarnError, Terminated
+from dynabarn.errors import DynabarnError, ImportFormatError, Terminated
 
 WORLD_HELP = (
     "a world by id or name (137, world_137, world_137.xml; from $DYNABARN_WORLDS, else the shipped 300) "
@@ -229,7 +229,8 @@ def run_command(body: Callable[[argparse.Namespace], int], args: argparse.Namesp
     except DynabarnError as exc:
         if args.debug:
             raise
-        print(f"error: {one_line(str(exc))}", file=sys.stderr)
+        # An import's problems are listed one per line, all at once; any other error is one line.
+        print(f"error: {str(exc) if isinstance(exc, ImportFormatError) else one_line(str(exc))}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Terminated)
         terminated = isinstance(exc, Terminated)
