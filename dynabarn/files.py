@@ -25,25 +25,6 @@ def fsync_folder(folder: Path) -> None:
 
 
 @contextlib.contextmanager
-def atomic_file(path: Path | str) -> Iterator[BinaryIO]:
-    """Write `path` through a temporary file beside it: flushed, fsync'ed and renamed over
-    `path` only when the block finishes; on any error the temporary file is removed and
-    `path` is untouched."""
-    path = Path(path)
-    part = path.with_name(f".{path.name}.{os.getpid()}.part")
-    try:
-        with open(part, "wb") as f:
-            yield f
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(part, path)
-    except BaseException:
-        part.unlink(missing_ok=True)
-        raise
-    fsync_folder(path.parent)
-
-
-@contextlib.contextmanager
 def staged_path(path: Path | str) -> Iterator[Path]:
     """For writers that take a file name (ffmpeg, rerun): a temporary name beside `path`
     (same suffix, so the format is recognised), made durable and renamed over `path` when
@@ -59,6 +40,15 @@ def staged_path(path: Path | str) -> Iterator[Path]:
         part.unlink(missing_ok=True)
         raise
     fsync_folder(path.parent)
+
+
+@contextlib.contextmanager
+def atomic_file(path: Path | str) -> Iterator[BinaryIO]:
+    """Write `path` through a temporary file beside it (`staged_path`): flushed, fsync'ed and
+    renamed over `path` only when the block finishes; on any error the temporary file is
+    removed and `path` is untouched."""
+    with staged_path(path) as part, open(part, "wb") as f:
+        yield f
 
 
 def write_atomically(path: Path | str, data: bytes | str) -> None:
