@@ -23,16 +23,15 @@ The dataset is one `.npz` (numpy, no pickle):
 
 from __future__ import annotations
 
-import sys
 import json
-import math
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from dynabarn.files import save_atomically
 from dynabarn.errors import DynabarnError
+from dynabarn.files import save_atomically
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.recording import TOPIC_CMD, TOPIC_SCAN, Recording, read_recording, scan_lasers
 from dynabarn.robot import JACKAL, mounted_pose, to_robot_frame
@@ -204,4 +203,6 @@ def _check_arrays(path: Path, data: dict[str, np.ndarray]) -> None:
     if n == 0:
         raise DynabarnError(f"{path}: the dataset has no rows")
     if data["local_goal"].shape != (n, 2) or data["actions"].shape != (n, 2):
-        raise DynabarnError(f"{path}: scans, local_goal and actions must have one row each per tick, (n, 2) for the last two")
+        raise DynabarnError(
+            f"{path}: scans, local_goal and actions must have one row each per tick, (n, 2) for the last two"
+        )
