@@ -112,3 +112,28 @@ def test_every_command_line_of_the_readme_and_the_docs_parses():
                     wrong.append(f"{page.parent.name}/{page.name}: does not parse: {line.strip()}")
     assert not wrong, "\n".join(wrong)
     assert checked >= 30
+
+
+def test_every_command_chooses_mujocos_opengl_platform_before_mujoco_is_imported():
+    """MuJoCo reads MUJOCO_GL once, when first imported: on a machine without a display,
+    each command's parser sets EGL before anything it imports brings MuJoCo in (else
+    `--video` dies in MuJoCo's renderer)."""
+    from dynabarn.cli.dispatch import COMMANDS
+    from tests.conftest import run_headless
+
+    code = (
+        "import importlib.abc, os, sys\n"
+        "seen = []\n"
+        "class Watch(importlib.abc.MetaPathFinder):\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'mujoco' and not seen:\n"
+        "            seen.append(os.environ.get('MUJOCO_GL'))\n"
+        "sys.meta_path.insert(0, Watch())\n"
+        "import importlib\n"
+        "importlib.import_module('dynabarn.cli.' + sys.argv[1]).build_parser()\n"
+        "print(seen[0] if seen else 'not imported')\n"
+    )
+    for name in COMMANDS:
+        proc = run_headless(code.replace("sys.argv[1]", repr(name)))
+        assert proc.returncode == 0, proc.stderr
+        assert proc.stdout.strip() in ("egl", "not imported"), (name, proc.stdout)

@@ -14,7 +14,6 @@ from dynabarn.cli.common import (
     add_protocol,
     make_parser,
     planner_config,
-    prefer_offscreen_gl,
     ranged,
     run_command,
 )
@@ -23,14 +22,15 @@ from dynabarn.errors import DynabarnError
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-bench`'s parser (its `--help`, and the documentation's page of the command)."""
-    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
-    from dynabarn.planners import planner_presets
-
     parser = make_parser(
         "dynabarn-bench",
         "Run planners over a world set and trials in parallel; resumable; summary table, CSV, Markdown "
         "and a Fig. 5-style PNG in --out.",
     )
+    # Imported once the parser exists: make_parser chose MuJoCo's OpenGL platform, which
+    # MuJoCo reads when first imported (these modules import it).
+    from dynabarn.planners import planner_presets
+
     parser.add_argument(
         "--planner",
         default="dwa",

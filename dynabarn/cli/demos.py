@@ -11,7 +11,6 @@ from dynabarn.cli.common import (
     add_jobs,
     add_protocol,
     make_parser,
-    prefer_offscreen_gl,
     ranged,
     run_command,
     subcommands,
@@ -21,10 +20,11 @@ from dynabarn.errors import DynabarnError
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-demos`'s parser (its `--help`, and the documentation's page of the command)."""
-    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
+    parser = make_parser("dynabarn-demos", "Collect synthetic demonstrations and export datasets for learning.")
+    # Imported once the parser exists: make_parser chose MuJoCo's OpenGL platform, which
+    # MuJoCo reads when first imported (these modules import it).
     from dynabarn.demos.dataset import DEFAULT_LOOKAHEAD
 
-    parser = make_parser("dynabarn-demos", "Collect synthetic demonstrations and export datasets for learning.")
     sub = subcommands(parser)
     ex = sub.add_parser(
         "export",

@@ -8,13 +8,12 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from dynabarn.cli.common import make_parser, prefer_offscreen_gl, run_command
+from dynabarn.cli.common import make_parser, run_command
 from dynabarn.errors import DynabarnError
 
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-export`'s parser (its `--help`, and the documentation's page of the command)."""
-    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
     parser = make_parser(
         "dynabarn-export",
         "Write a recording as a ROS bag with ROS message types (sensor_msgs/LaserScan, nav_msgs/Odometry, "

@@ -9,7 +9,6 @@ from pathlib import Path
 
 from dynabarn.cli.common import (
     make_parser,
-    prefer_offscreen_gl,
     ranged,
     run_command,
 )
@@ -18,7 +17,6 @@ from dynabarn.errors import DynabarnError
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-render`'s parser (its `--help`, and the documentation's page of the command)."""
-    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
     parser = make_parser(
         "dynabarn-render",
         "Render a recorded episode to a video offscreen with MuJoCo (EGL or OSMesa, no GPU needed).",

@@ -10,7 +10,6 @@ from pathlib import Path
 
 from dynabarn.cli.common import (
     make_parser,
-    prefer_offscreen_gl,
     run_command,
 )
 from dynabarn.errors import DynabarnError
@@ -19,14 +18,15 @@ from dynabarn.provenance import has_display
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-replay`'s parser (its `--help`, and the documentation's page of the command)."""
-    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
-    from dynabarn.web_viewer import DEFAULT_BIND, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
-
     parser = make_parser(
         "dynabarn-replay",
         "Show MCAP recordings in rerun: the scene, the scan, the robot's path and the plots on a sim_time "
         "timeline. Several recordings of one world open together for comparison.",
     )
+    # Imported once the parser exists: make_parser chose MuJoCo's OpenGL platform, which
+    # MuJoCo reads when first imported (these modules import it).
+    from dynabarn.web_viewer import DEFAULT_BIND, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
+
     parser.add_argument("recordings", nargs="+", type=Path, help="MCAP recordings (from dynabarn-run)")
     parser.add_argument("--save", type=Path, default=None, help="write an .rrd file instead of opening a viewer")
     where = parser.add_mutually_exclusive_group()

@@ -13,7 +13,6 @@ from dynabarn.cli.common import (
     add_trial_seed,
     add_world,
     make_parser,
-    prefer_offscreen_gl,
     ranged,
     run_command,
 )
@@ -23,7 +22,6 @@ from dynabarn.errors import DynabarnError
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-ros`'s parser (its `--help`, and the documentation's page of the command)."""
-    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
     parser = make_parser(
         "dynabarn-ros",
         "Let a ROS 1 navigation stack drive the Jackal in a DynaBARN world: the bridge publishes /clock, "

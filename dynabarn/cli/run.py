@@ -13,7 +13,6 @@ from dynabarn.cli.common import (
     add_world,
     make_parser,
     planner_config,
-    prefer_offscreen_gl,
     ranged,
     run_command,
 )
@@ -24,13 +23,14 @@ from dynabarn.cli.render import add_video_options, render_video, video_settings
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-run`'s parser (its `--help`, and the documentation's page of the command)."""
-    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
-    from dynabarn.planners import available_planners, planner_presets
-
     parser = make_parser(
         "dynabarn-run",
         "Run one episode of a planner in a DynaBARN world, print its outcome and metrics, and record it to MCAP.",
     )
+    # Imported once the parser exists: make_parser chose MuJoCo's OpenGL platform, which
+    # MuJoCo reads when first imported (these modules import it).
+    from dynabarn.planners import available_planners, planner_presets
+
     add_world(parser)
     parser.add_argument(
         "--planner",

@@ -12,7 +12,6 @@ from dynabarn.cli.common import (
     add_trial_seed,
     add_world,
     make_parser,
-    prefer_offscreen_gl,
     ranged,
     run_command,
 )
@@ -23,7 +22,6 @@ from dynabarn.provenance import has_display
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-teleop`'s parser (its `--help`, and the documentation's page of the command)."""
-    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
     parser = make_parser(
         "dynabarn-teleop",
         "Drive the Jackal yourself in MuJoCo's viewer and record a demonstration. Keys: Up/Down speed, "

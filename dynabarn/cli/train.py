@@ -12,7 +12,6 @@ from dynabarn.cli.common import (
     MAX_SEED,
     add_protocol,
     make_parser,
-    prefer_offscreen_gl,
     ranged,
     run_command,
     subcommands,
@@ -68,7 +67,6 @@ TD3_OPTIONS = (
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-train`'s parser (its `--help`, and the documentation's page of the command)."""
-    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
     parser = make_parser(
         "dynabarn-train",
         f"Train the learned baselines (needs {LEARN_EXTRA}).",

@@ -11,7 +11,6 @@ from dynabarn.cli.common import (
     MAX_SEED,
     WORLD_HELP,
     make_parser,
-    prefer_offscreen_gl,
     progress_bar,
     ranged,
     run_command,
@@ -24,13 +23,14 @@ from dynabarn.errors import DynabarnError, ImportFormatError
 # the other, as `--help` shows them.
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-worlds`'s parser (its `--help`, and the documentation's page of the command)."""
-    prefer_offscreen_gl()  # before anything below imports MuJoCo, which picks its OpenGL platform once
+    parser = make_parser("dynabarn-worlds", "Generate, import and inspect DynaBARN worlds.")
+    # Imported once the parser exists: make_parser chose MuJoCo's OpenGL platform, which
+    # MuJoCo reads when first imported (these modules import it).
     from dynabarn.provenance import WORLDS_ENV
     from dynabarn.sim.behaviors import available_behaviors, get_behavior
     from dynabarn.worlds.generate import DEFAULT_BASE_SEED
     from dynabarn.worlds.profiles import PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS
 
-    parser = make_parser("dynabarn-worlds", "Generate, import and inspect DynaBARN worlds.")
     sub = subcommands(parser)
 
     g = sub.add_parser(
