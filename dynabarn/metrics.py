@@ -22,6 +22,9 @@ class Outcome(enum.StrEnum):
     ERROR = "error"
 
 
+OUTCOMES = frozenset(o.value for o in Outcome)
+"""The outcomes a result may hold, as written in results and recordings."""
+
 RESULT_NUMBERS = (
     "time", "sim_time", "path_length", "score", "spl", "min_clearance", "mean_abs_jerk", "sum_abs_dw",
     "time_stalled", "planner_ms_mean", "planner_ms_p95", "rtf", "wall_time", "clock_offset",

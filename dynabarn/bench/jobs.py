@@ -12,7 +12,7 @@ from pathlib import Path
 from dynabarn.metrics import Outcome
 from dynabarn.planners.registry import get_planner, planner_factory, registered_at_run_time
 from dynabarn.protocol import EvalProtocol
-from dynabarn.recording.writer import default_run_path
+from dynabarn.recording.writer import default_run_path, staging_path
 
 
 @dataclass(frozen=True)
@@ -127,7 +127,7 @@ def run_job(job: Job) -> dict:
             }
         )
         if rec_path is not None:
-            rec_path.with_name(f"{rec_path.name}.part").unlink(missing_ok=True)  # the recorder's staging file
+            staging_path(rec_path).unlink(missing_ok=True)  # what the recorder had written
     except Exception as exc:  # foreign planner code, a broken world...: record and go on
         row.update(
             {

@@ -15,7 +15,7 @@ from pathlib import Path
 from dynabarn.bench.jobs import Job
 from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
-from dynabarn.metrics import Outcome, numbers_ok
+from dynabarn.metrics import OUTCOMES, numbers_ok
 
 RESULTS = "results.jsonl"
 METADATA = "metadata.json"
@@ -28,7 +28,6 @@ def read_results(path: Path) -> list[dict]:
     return _read(path)[0]
 
 
-OUTCOMES = frozenset(o.value for o in Outcome)
 MAX_ROW_BYTES = 1 << 20
 """A row is a few kB (with a planner's traceback, tens); a longer line is not one of ours."""
 _ROW_TEXT = ("key", "planner", "difficulty", "outcome")

@@ -6,7 +6,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import struct
 from collections import defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -15,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.errors import DynabarnError
-from dynabarn.metrics import Outcome, numbers_ok
+from dynabarn.metrics import OUTCOMES, numbers_ok
 from dynabarn.recording.topics import TOPIC_METADATA, TOPIC_OBSTACLES, TOPIC_RESULT
 from dynabarn.robot import JACKAL, mounted_pose
 from dynabarn.worlds.spec import WorldSpec
@@ -220,8 +219,6 @@ def read_recording(path: Path | str, *, decode: bool = True) -> Recording:
     Uses mcap's NonSeekingReader in file order (no summary section needed), so files
     whose writer was killed read back up to the last complete chunk.
     """
-    from google.protobuf.message import DecodeError
-    from mcap.exceptions import McapError
     from mcap.reader import NonSeekingReader
     from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 
@@ -248,10 +245,7 @@ def read_recording(path: Path | str, *, decode: bool = True) -> Recording:
                     rec.messages[channel.topic].append((message.log_time / 1e9, message.data))
                     if schema is not None:
                         rec.schemas.setdefault(channel.topic, schema.name)
-        except (McapError, EOFError, ValueError, OSError, struct.error, DecodeError) as exc:  # a cut or corruption
-            rec.truncated = True
-            rec.error = f"{type(exc).__name__}: {exc}"
-        except Exception as exc:  # a file we did not write: a broken chunk's zstd or lz4 error
+        except Exception as exc:  # a cut or a corruption: mcap's, protobuf's, zstd's or lz4's error
             rec.truncated = True
             rec.error = f"{type(exc).__name__}: {exc}"
     rec.messages = dict(rec.messages)
@@ -285,7 +279,7 @@ def _check_messages(rec: Recording) -> None:
         if meta is not None and key in meta and not (isinstance(meta[key], kind) and not isinstance(meta[key], bool)):
             raise RecordingError(f"{rec.path}: {TOPIC_METADATA} field {key!r} is not a JSON {kind.__name__}")
     result = rec.result
-    if result is not None and result.get("outcome") not in {o.value for o in Outcome}:
+    if result is not None and result.get("outcome") not in OUTCOMES:
         raise RecordingError(f"{rec.path}: the recorded result has no outcome the runner gives")
     if result is not None and not numbers_ok(result):
         raise RecordingError(f"{rec.path}: the recorded result has a metric that is not a number")
@@ -295,7 +289,6 @@ def _attachments_and_records(path: Path) -> tuple[dict[str, bytes], dict[str, di
     """The file's attachments and metadata records, from a record stream (so a file cut
     before its summary still gives those written before the cut). Chunks are skipped
     unread: attachments and metadata live outside them."""
-    from mcap.exceptions import McapError
     from mcap.records import Attachment, Metadata
     from mcap.stream_reader import StreamReader
 
@@ -308,8 +301,6 @@ def _attachments_and_records(path: Path) -> tuple[dict[str, bytes], dict[str, di
                     attachments[record.name] = bytes(record.data)
                 elif isinstance(record, Metadata):
                     records[record.name] = dict(record.metadata)
-        except (McapError, EOFError, ValueError, OSError, struct.error):
-            pass  # a cut: keep what came before it
-        except Exception:  # a broken record of a file we did not write: as a cut
+        except Exception:  # a cut or a broken record: keep what came before it
             pass
     return attachments, records

@@ -124,7 +124,7 @@ class McapRecorder:
         live: tuple[foxglove.Context, ...] = (),
     ):
         self.path = Path(path) if path is not None else None
-        self.staging = self.path.with_name(f"{self.path.name}.part") if self.path is not None else None
+        self.staging = staging_path(self.path) if self.path is not None else None
         """Where the recording is written as it runs; renamed to `path` when it is closed, so an
         existing recording is replaced only by a whole one and a killed process leaves its
         readable start here, never under the final name."""
@@ -320,6 +320,11 @@ class McapRecorder:
             "synthetic": start.planner == "oracle",
             **self.extra_metadata,
         }
+
+
+def staging_path(path: Path) -> Path:
+    """Where a recording to `path` is written while its episode runs (`NAME.mcap.part`)."""
+    return path.with_name(f"{path.name}.part")
 
 
 WORLD_MEDIA_TYPE = "application/vnd.mujoco.mjcf+xml"

@@ -21,7 +21,6 @@ from __future__ import annotations
 import contextlib
 import itertools
 import math
-import os
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,7 +29,7 @@ import mujoco
 import numpy as np
 
 from dynabarn.errors import DynabarnError
-from dynabarn.files import fsync_folder
+from dynabarn.files import staged_path
 from dynabarn.metrics import OUTCOME_MESSAGES, Outcome
 from dynabarn.recording import Recording, pose_track, recorded_world
 from dynabarn.render.frames import frame_tracks
@@ -108,13 +107,24 @@ def _header(rec: Recording, world_name: str) -> str:
     return f"{world_name} | {meta.get('planner', '?')} | {protocol} | seed {meta.get('seed', '?')}"
 
 
+@contextlib.contextmanager
 def _writer(out: Path, fps: float):
+    """imageio's writer for `out`, closed when the block ends: then ffmpeg writes the rest, so
+    a full disk may show there; after a failure its own errors on closing are not added."""
     import imageio.v2 as imageio
 
     if out.suffix.lower() == ".mp4":
         # macro_block_size 2: H.264 in yuv420p needs even sizes, nothing more (no silent resize).
-        return imageio.get_writer(out, fps=fps, codec="libx264", quality=7, macro_block_size=2, pixelformat="yuv420p")
-    return imageio.get_writer(out, mode="I", duration=1000.0 / fps, loop=0)
+        writer = imageio.get_writer(out, fps=fps, codec="libx264", quality=7, macro_block_size=2, pixelformat="yuv420p")
+    else:
+        writer = imageio.get_writer(out, mode="I", duration=1000.0 / fps, loop=0)
+    try:
+        yield writer
+    except BaseException:
+        with contextlib.suppress(Exception):
+            writer.close()
+        raise
+    writer.close()
 
 
 def check_video(out: Path, width: int, height: int) -> None:
@@ -190,11 +200,13 @@ def render_recording(
     frame = np.empty((height, width, 3), np.uint8)
     # Written beside `out` and renamed when whole: a video already there is replaced only by
     # a finished one, and a killed or failed render leaves nothing under its name.
-    part = out.with_name(f".{out.stem}.{os.getpid()}.part{out.suffix}")
-    writer = _writer(part, fps)
     frames = range(n_frames) if progress is None else progress(range(n_frames))
     try:
-        with offscreen_renderer(model, height, width) as renderer:
+        with (
+            staged_path(out) as part,
+            _writer(part, fps) as writer,
+            offscreen_renderer(model, height, width) as renderer,
+        ):
             scene = renderer.scene
             marks = _SceneMarks(scene)
             for k in frames:
@@ -226,15 +238,7 @@ def render_recording(
                 overlay.apply(frame, float(tracks.times[k]), float(tracks.speed[k]), outcome if last else None)
                 for _ in range(n_hold if last else 1):
                     writer.append_data(frame)
-        writer.close()  # ffmpeg writes the rest now: a full disk may show here
-    except BaseException as exc:
-        with contextlib.suppress(Exception):
-            writer.close()
-        part.unlink(missing_ok=True)
-        if isinstance(exc, OSError | RuntimeError):  # ffmpeg's many lines (a full disk): one
-            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-            raise DynabarnError(f"cannot write {out}: {first}") from None
-        raise
-    os.replace(part, out)
-    fsync_folder(out.parent)
+    except (OSError, RuntimeError) as exc:  # ffmpeg's many lines (a full disk): one
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise DynabarnError(f"cannot write {out}: {first}") from None
     return VideoInfo(path=out, frames=n_frames + n_hold - 1, fps=fps, duration=duration, width=width, height=height)
