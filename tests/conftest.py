@@ -55,6 +55,15 @@ def require(module: str, extra: str):
     return pytest.importorskip(module, reason=f"needs {module}: pip install -e '.[{extra}]' (make test installs it)")
 
 
+def tagged_environment() -> tuple[str, dict[str, str]]:
+    """(token, environment): an environment for a test's child processes carrying a token of
+    its own, which `processes_carrying` then finds in them and everything they start."""
+    import time
+
+    value = f"{os.getpid()}_{time.monotonic_ns()}"
+    return f"DYNABARN_TEST_TAG={value}", {**os.environ, "DYNABARN_TEST_TAG": value}
+
+
 def processes_carrying(token: str) -> list[int]:
     """Pids of the processes whose environment holds `token` ("NAME=value"): what a test
     started and everything that started (environments are inherited, new sessions or not),

@@ -805,13 +805,12 @@ def test_sigterm_ends_a_run_as_ctrl_c_does_with_its_recording_whole(tmp_path):
 def test_a_killed_sweep_takes_its_workers_with_it(tmp_path):
     """SIGKILL to dynabarn-bench: its pool workers end too (they held the results folder's
     lock and the caller's pipe), and the same command then runs and finishes."""
-    from tests.conftest import cmdline, processes_carrying
+    from tests.conftest import cmdline, processes_carrying, tagged_environment
 
     out = tmp_path / "sweep"
     argv = [sys.executable, "-m", "dynabarn", "bench", "--planner", "stop", "--worlds", "0-19", "--trials", "2"]
     argv += ["--jobs", "2", "--no-floor", "--out", str(out)]
-    token = f"DYNABARN_TEST_SWEEP={os.getpid()}_{time.monotonic_ns()}"
-    env = {**os.environ, "DYNABARN_TEST_SWEEP": token.split("=")[1]}
+    token, env = tagged_environment()
     proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     results = out / "results.jsonl"
     assert _wait_for(lambda: results.is_file() and results.read_text().count("\n") >= 2), "no episode finished"

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import cmdline, processes_carrying, require
+from tests.conftest import cmdline, processes_carrying, require, tagged_environment
 
 STACK = Path(__file__).resolve().parent / "ros_stack.py"
 
@@ -217,13 +217,13 @@ def test_rosbag2_export_reads_back_with_mcap_ros2(recording, tmp_path):
 def test_bench_sweeps_a_ros_stack_with_a_master_per_worker(tmp_path):
     out = tmp_path / "sweep"
     argv = ["--planner", "ros", "--ros-launch", _stack(), "--set", "dynabarn300", "--worlds", "0,5,137"]
-    token = f"DYNABARN_TEST_SWEEP={os.getpid()}_{time.monotonic_ns()}"
+    token, env = tagged_environment()
     proc = subprocess.run(
         [sys.executable, "-m", "dynabarn", "bench", *argv, "--trials", "1", "--jobs", "2", "--out", str(out)],
         capture_output=True,
         text=True,
         timeout=300,
-        env={**os.environ, token.split("=")[0]: token.split("=")[1]},
+        env=env,
     )
     assert proc.returncode == 0, proc.stderr
     rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
@@ -260,8 +260,7 @@ def test_paced_at_a_rate_as_gazebo_runs():
 def test_everything_the_bridge_starts_listens_on_loopback_only():
     """The master, the bridge's node and a stack under its environment: no server on another
     interface (roscore's rosout, a roscpp node, listened on all of them)."""
-    token = f"DYNABARN_TEST_ROS={os.getpid()}_{time.monotonic_ns()}"
-    env = {**os.environ, "DYNABARN_TEST_ROS": token.split("=")[1]}
+    token, env = tagged_environment()
     proc = subprocess.Popen(
         [sys.executable, "-m", "dynabarn", "ros", "--world", "0", "--no-log", "--launch", _stack("--delay", "0.05")],
         env=env,
