@@ -43,10 +43,11 @@ lock:
 
 install: $(STAMP)
 
-# Debian packages some tests and renderers need (installed by the project, never by hand).
+# Debian packages some tests and renderers need (installed by the project, never by hand);
+# iproute2 for `ss`, which the tests use to see what listens where.
 system-deps:
 	@if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
-	  need=""; for p in xvfb xdotool libosmesa6 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri chromium fonts-dejavu-core; do \
+	  need=""; for p in xvfb xdotool libosmesa6 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri chromium fonts-dejavu-core iproute2; do \
 	    dpkg -s $$p >/dev/null 2>&1 || need="$$need $$p"; done; \
 	  if [ -n "$$need" ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$need >/dev/null; fi; \
 	fi
