@@ -2,7 +2,7 @@
 
 A closed loop of physics and planner is chaotic: a difference in the last bit of one
 number (numpy's SIMD transcendentals, OpenBLAS's CPU-specific kernels and thread count,
-PyTorch's CPU kernels and MINPACK's QR all round differently on different machines or
+and PyTorch's CPU kernels all round differently on different machines or
 installs; docs/reproducibility.md has the measured list) grows until an episode ends
 differently. So every value that crosses from one part of the loop to the next, or from
 one control tick to the next, is snapped to a fixed grid far coarser than those last bits

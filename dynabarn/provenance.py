@@ -82,7 +82,7 @@ def _version(dist: str) -> str | None:
 
 @functools.cache
 def versions() -> dict[str, str]:
-    """The versions that decide a result: ours, MuJoCo, numpy, scipy (TEB's optimiser,
+    """The versions that decide a result: ours, MuJoCo, numpy, scipy (Dijkstra,
     the costmap's distance transform). PyTorch is added by the planners that use it
     (`Planner.versions`)."""
     import mujoco

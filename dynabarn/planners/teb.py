@@ -5,11 +5,10 @@ The band is a sequence of poses s_i = (x_i, y_i, theta_i), i = 0..N-1, and the t
 intervals dT_i between them. The first pose is the robot's, the last the local goal
 (`lookahead` metres along the Dijkstra global plan, heading along the plan); the poses in
 between and all dT_i (as log dT, so intervals stay positive) are optimised with
-`scipy.optimize.least_squares` (Levenberg-Marquardt, MINPACK) against teb_local_planner's
+Levenberg-Marquardt (`levenberg_marquardt.py`: the same bits on every CPU) against teb_local_planner's
 soft constraints, each a weighted residual. The Jacobian is banded (each residual touches
 one or two neighbouring poses); it is computed by forward differences in a single
-batched evaluation of all residuals, which for a band this small is faster than scipy's
-sparse finite differences:
+batched evaluation of all residuals:
 
 - time optimality: dT_i (`weight_optimaltime` 1);
 - non-holonomic kinematics: (cos th_i + cos th_i+1) dy_i - (sin th_i + sin th_i+1) dx_i
@@ -38,12 +37,12 @@ from dataclasses import asdict, dataclass, field
 from typing import ClassVar
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from dynabarn.determinism import STATE_RESOLUTION, exp, sincos, snap_array
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
+from dynabarn.planners.levenberg_marquardt import levenberg_marquardt
 
 
 @dataclass
@@ -72,7 +71,7 @@ class TEBConfig:
     weight_obstacle: float = 50.0
     weight_inflation: float = 0.5
     max_iterations: int = 12
-    """Residual evaluations allowed per tick (least_squares `max_nfev`)."""
+    """Residual evaluations allowed per tick (the optimiser's `max_nfev`)."""
     costmap: CostmapConfig = field(default_factory=CostmapConfig)
     """The local costmap the replanning around blocked stretches of the global plan uses."""
 
@@ -306,19 +305,15 @@ class TEBPlanner(Planner):
         band[:, 2] = start[2] + _wrap(band[:, 2] - start[2])
         goal[2] = band[-1, 2]
         z0 = self._pack(band, dts)
-        sol = least_squares(
-            self._residuals,
+        sol = levenberg_marquardt(
+            lambda z: self._residuals(z, start, goal, obstacles),
+            lambda z: self._jacobian(z, start, goal, obstacles),
             z0,
-            jac=self._jacobian,
-            args=(start, goal, obstacles),
-            method="lm",
             max_nfev=cfg.max_iterations,
-            x_scale="jac",
         )
         band, dts = self._unpack(sol.x, start, goal)
-        # The band on a fixed grid: MINPACK's QR runs on OpenBLAS, whose kernels (CPU type,
-        # threads) and version change its last bits; snapped, the warm start and the command
-        # drawn from it are the same on every machine.
+        # The band on a fixed grid, so the warm start and the command drawn from it stay on
+        # the grid even where numpy's own kernels (exp's ldexp, sqrt) were to differ.
         snap_array(band, STATE_RESOLUTION, out=band)
         snap_array(dts, STATE_RESOLUTION, out=dts)
         self._band, self._dts = band, dts
