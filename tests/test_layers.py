@@ -20,6 +20,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("mjcf",),
     ("worldset",),
     ("sim",),
+    ("perception",),  # what a robot makes of its laser: below the planners that use it
     ("planners",),
     ("recording",),
     ("replay", "web_viewer"),  # consumers of the layers above, each may use the ones before it

@@ -17,7 +17,15 @@ from typing import ClassVar
 from dynabarn.errors import EndEpisode
 from dynabarn.sim.observation import EpisodeInfo, Observation, ObstacleState
 
-__all__ = ["EndEpisode", "EpisodeInfo", "Observation", "ObstacleState", "Planner", "config_from_kwargs"]
+__all__ = [
+    "EndEpisode",
+    "EpisodeInfo",
+    "Observation",
+    "ObstacleState",
+    "Planner",
+    "config_from_kwargs",
+    "nested_config",
+]
 
 
 def config_from_kwargs(cls, kwargs: dict, what: str):
@@ -34,6 +42,20 @@ def config_from_kwargs(cls, kwargs: dict, what: str):
     limits: dict[str, tuple[float, float]] = getattr(cls, "LIMITS", {})
     checked = {key: _checked(f"{what} {key}", value, hints.get(key), limits.get(key)) for key, value in kwargs.items()}
     return cls(**checked)
+
+
+def nested_config(kwargs: dict, key: str, build: typing.Callable[[dict], object], what: str) -> dict:
+    """A planner's keyword configuration with its `KEY.PARAM` entries (or a `KEY` dict, e.g.
+    from a JSON preset) gathered and built by `build(dict)` into the one value under KEY
+    (e.g. `costmap.resolution=0.05` -> `costmap=CostmapConfig(resolution=0.05)`)."""
+    kwargs = dict(kwargs)
+    sub = kwargs.pop(key, {})
+    if not isinstance(sub, dict):  # `costmap=null` must not run with the defaults unsaid
+        raise TypeError(f"{what} {key}={sub!r}: expected an object of {key} parameters")
+    sub = dict(sub)
+    for k in [k for k in kwargs if k.startswith(f"{key}.")]:
+        sub[k.split(".", 1)[1]] = kwargs.pop(k)
+    return {**kwargs, key: build(sub)}
 
 
 def _checked(name: str, value, kind, limits: tuple[float, float] | None):
@@ -90,6 +112,13 @@ class Planner(abc.ABC):
     @abc.abstractmethod
     def act(self, obs: Observation) -> tuple[float, float]:
         """Return the command (v [m/s], w [rad/s]) for this tick."""
+
+    def tracks(self):
+        """The planner's tracked obstacles (`dynabarn.perception.Tracks`) after its last
+        `act`, for planners that track them: the runner scores them against the truth
+        (recall, position and velocity errors, identity switches) and records them. None
+        for planners without a tracker."""
+        return None
 
     def debug(self) -> dict:
         """Optional planner internals to record (e.g. {'local_plan': (n, 2) array})."""

@@ -55,16 +55,9 @@ class CostmapConfig:
 def with_costmap(kwargs: dict, what: str) -> dict:
     """A planner's keyword configuration with its `costmap.KEY` entries (or a `costmap`
     dict) gathered into one checked `CostmapConfig` under "costmap"."""
-    from dynabarn.planners.base import config_from_kwargs
+    from dynabarn.planners.base import config_from_kwargs, nested_config
 
-    kwargs = dict(kwargs)
-    cm = kwargs.pop("costmap", {})
-    if not isinstance(cm, dict):  # `costmap=null` must not run with the defaults unsaid
-        raise TypeError(f"{what} costmap={cm!r}: expected an object of costmap parameters")
-    cm = dict(cm)
-    for key in [k for k in kwargs if k.startswith("costmap.")]:
-        cm[key.split(".", 1)[1]] = kwargs.pop(key)
-    return {**kwargs, "costmap": config_from_kwargs(CostmapConfig, cm, f"{what} costmap")}
+    return nested_config(kwargs, "costmap", lambda sub: config_from_kwargs(CostmapConfig, sub, f"{what} costmap"), what)
 
 
 class LocalCostmap:

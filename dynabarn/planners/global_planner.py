@@ -23,13 +23,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dynabarn.perception.map_distance import BOUNDS, grid_indices
 from dynabarn.robot import JACKAL, to_robot_frame
 
 RESOLUTION = 0.1
 """Grid cell size [m]."""
-BOUNDS = (-11.0, 14.0, -11.0, 14.0)
-"""Grid extent (x_min, x_max, y_min, y_max) [m]: the arena plus both spawn points, and the
-static BARN worlds (x in [-4.5, 0], y in [0, 13])."""
 MARGIN = 0.05
 """[m] added to the robot's size when growing the known map."""
 CIRCLE_INFLATION = JACKAL.width / 2 + MARGIN
@@ -91,14 +89,6 @@ def _dijkstra_field(
     goal_cell = _cell(goal[0], goal[1], nx, ny, resolution)
     cost, pred = dijkstra(graph, directed=False, indices=goal_cell, return_predecessors=True)
     return _Field(cost=cost.reshape(ny, nx), pred=pred.tolist(), nx=nx, ny=ny)
-
-
-def grid_indices(x: np.ndarray, y: np.ndarray, resolution: float, nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
-    """Row (y) and column (x) indices of points in a grid of `resolution` over BOUNDS,
-    clipped to the grid (points outside read its edge)."""
-    i = np.clip(((y - BOUNDS[2]) / resolution).astype(np.int64), 0, ny - 1)
-    j = np.clip(((x - BOUNDS[0]) / resolution).astype(np.int64), 0, nx - 1)
-    return i, j
 
 
 def _cell(x: float, y: float, nx: int, ny: int, resolution: float) -> int:

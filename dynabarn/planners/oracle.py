@@ -24,8 +24,9 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
+from dynabarn.perception.map_distance import MapDistance, grid_indices
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
-from dynabarn.planners.global_planner import BOUNDS, GlobalPlanner, grid_indices
+from dynabarn.planners.global_planner import GlobalPlanner
 
 
 @dataclass
@@ -83,9 +84,10 @@ class OraclePlanner(Planner):
 
     name = "oracle"
     privileged = True
+    config_class: ClassVar[type[OracleConfig]] = OracleConfig
 
     def __init__(self, **config) -> None:
-        self.cfg = OracleConfig.from_kwargs(**config)
+        self.cfg = self.config_class.from_kwargs(**config)
         c = self.cfg
         v = np.asarray(c.v_samples, dtype=float)
         w = np.asarray(c.w_samples, dtype=float)
@@ -112,7 +114,7 @@ class OraclePlanner(Planner):
             circles=info.static_obstacles,
             circle_inflation=self.radius + self.cfg.static_safety,
         )
-        self._static = _StaticDistance(info.static_obstacles) if len(info.static_obstacles) else None
+        self._static = MapDistance(info.static_obstacles) if len(info.static_obstacles) else None
         self._last = None
 
     def debug(self) -> dict:
@@ -147,16 +149,23 @@ class OraclePlanner(Planner):
         straight = np.hypot(xy[..., 0] - self.info.goal[0], xy[..., 1] - self.info.goal[1]) + 5.0
         return np.where(np.isfinite(cost), cost, straight)
 
-    def act(self, obs: Observation) -> tuple[float, float]:
+    def obstacle_future(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
+        """Where the moving obstacles will be at the rollout times `obs.time + self._steps`:
+        centres (K, n, 2) and the radius to keep clear of, (n,) or (K, n). Here: their exact
+        future, from the schedules; subclasses predict it from less."""
         if obs.obstacles is None:
-            raise RuntimeError("the oracle needs privileged observations (Planner.privileged)")
+            raise RuntimeError(f"{self.name} needs privileged observations (Planner.privileged)")
+        return obs.obstacles.predict(obs.time + self._steps), obs.obstacles.radii
+
+    def act(self, obs: Observation) -> tuple[float, float]:
         c = self.cfg
         traj = self._rollout(obs.pose)  # (N, K, 3)
         xy = traj[..., :2]
-        future = obs.obstacles.predict(obs.time + self._steps)  # (K, n, 2)
+        future, radii = self.obstacle_future(obs)  # (K, n, 2), (n,) or (K, n)
         if future.shape[1]:
             d = np.hypot(xy[:, :, None, 0] - future[None, :, :, 0], xy[:, :, None, 1] - future[None, :, :, 1])
-            clear = (d - obs.obstacles.radii[None, None, :]).min(axis=2) - self.radius  # (N, K)
+            radii = radii[None, None, :] if radii.ndim == 1 else radii[None]
+            clear = (d - radii).min(axis=2) - self.radius  # (N, K)
         else:
             clear = np.full(xy.shape[:2], np.inf)
         clear = np.minimum(clear, self._wall_distance(xy) - self.radius)
@@ -190,30 +199,15 @@ class OraclePlanner(Planner):
         return float(self._v1[best]), float(self._w1[best])
 
 
-class _StaticDistance:
-    """Distance [m] to the nearest static cylinder's surface, from a 0.025 m distance
-    transform of the known map (built once per episode, ~50 ms; a lookup per rollout
-    point). Outside the cylinders it is within 0.025 m of the exact distance."""
+class PresentStateOraclePlanner(OraclePlanner):
+    """`oracle_present`: the oracle's search told only the obstacles' true present positions
+    and velocities, extrapolated at constant velocity: what a perfect tracker would give.
+    Privileged (a rung of the ladder from blind to all-knowing, not a robot's planner)."""
 
-    RESOLUTION = 0.025
+    name = "oracle_present"
 
-    def __init__(self, circles: np.ndarray) -> None:
-        from scipy.ndimage import distance_transform_edt
-
-        res = self.RESOLUTION
-        x0, x1, y0, y1 = BOUNDS
-        self.nx, self.ny = round((x1 - x0) / res), round((y1 - y0) / res)
-        cx = x0 + (np.arange(self.nx) + 0.5) * res
-        cy = y0 + (np.arange(self.ny) + 0.5) * res
-        free = np.ones((self.ny, self.nx), dtype=bool)
-        for x, y, r in circles:  # a few cells each
-            i0, i1 = np.searchsorted(cy, [y - r - res, y + r + res])
-            j0, j1 = np.searchsorted(cx, [x - r - res, x + r + res])
-            gx, gy = np.meshgrid(cx[j0:j1], cy[i0:i1])
-            free[i0:i1, j0:j1] &= np.hypot(gx - x, gy - y) > r
-        # Distance from each cell centre to the nearest occupied cell's centre, less half a
-        # cell: errs towards the obstacle by at most half a cell.
-        self.distance = distance_transform_edt(free) * res - 0.5 * res
-
-    def lookup(self, xy: np.ndarray) -> np.ndarray:
-        return self.distance[grid_indices(xy[..., 0], xy[..., 1], self.RESOLUTION, self.nx, self.ny)]
+    def obstacle_future(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
+        if obs.obstacles is None:
+            raise RuntimeError(f"{self.name} needs privileged observations (Planner.privileged)")
+        state = obs.obstacles
+        return state.positions[None] + state.velocities[None] * self._steps[:, None, None], state.radii

@@ -16,7 +16,8 @@ from dynabarn.errors import DynabarnError, unknown_choice
 from dynabarn.planners.base import Planner
 from dynabarn.planners.dwa import DWAPlanner
 from dynabarn.planners.learned import BCPlanner, TD3Planner
-from dynabarn.planners.oracle import OraclePlanner
+from dynabarn.planners.oracle import OraclePlanner, PresentStateOraclePlanner
+from dynabarn.planners.predictive import PredictivePlanner
 from dynabarn.planners.simple import StopPlanner, StraightPlanner
 from dynabarn.planners.teb import TEBPlanner
 
@@ -27,6 +28,8 @@ _BUILTIN: dict[str, Callable[..., Planner]] = {
     "dwa": DWAPlanner,
     "teb": TEBPlanner,
     "oracle": OraclePlanner,
+    "oracle_present": PresentStateOraclePlanner,
+    "predictive": PredictivePlanner,
     "bc": BCPlanner,  # the learned ones import torch only when built
     "td3": TD3Planner,
     "straight": StraightPlanner,

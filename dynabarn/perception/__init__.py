@@ -1,0 +1,24 @@
+"""Perception: what the robot makes of its own laser and odometry, below the planners
+that use it and above the simulator (it sees only `Observation` and `EpisodeInfo`).
+
+- `map_distance`: distance to the known map (walls, static cylinders);
+- `detect`: obstacle detections in one scan (segments, split arcs, known-radius circles);
+- `tracks`: the `Tracks` a tracker reports, and their constant-velocity future;
+- `tracker`: association (Hungarian), a constant-velocity Kalman filter per track, births,
+  coasting through occlusion and expiry.
+"""
+
+from dynabarn.perception.detect import Detections, DetectorConfig, ObstacleDetector
+from dynabarn.perception.map_distance import MapDistance
+from dynabarn.perception.tracker import ObstacleTracker, TrackerConfig
+from dynabarn.perception.tracks import Tracks
+
+__all__ = [
+    "Detections",
+    "DetectorConfig",
+    "MapDistance",
+    "ObstacleDetector",
+    "ObstacleTracker",
+    "TrackerConfig",
+    "Tracks",
+]

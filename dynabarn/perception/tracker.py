@@ -1,0 +1,221 @@
+"""A multi-obstacle tracker on the laser alone: detect, associate, filter, manage tracks.
+
+Per scan (`ObstacleTracker.update`):
+
+1. predict every track to the scan's time with a constant-velocity model (white-noise
+   acceleration of standard deviation `accel_std`);
+2. detect obstacles in the scan (`detect.py`: returns the map does not explain, segments,
+   known-radius circle fits);
+3. associate detections with tracks by the Hungarian method
+   (`scipy.optimize.linear_sum_assignment`) on centre distances, gated at `gate` metres
+   plus three standard deviations of the track's predicted position;
+4. update matched tracks with a Kalman filter per axis (position measured, measurement
+   standard deviation `measurement_std` times sqrt(8 / points), at least 1 mm);
+5. unmatched detections start tracks at rest with speed uncertainty `birth_speed_std`;
+6. an unmatched track coasts: it is dropped after `max_coast` seconds unseen, or after
+   `max_unseen_in_view` seconds when the laser saw through where it should be (in view,
+   in range, and the beam at its bearing returned beyond it: it is not there), so an
+   obstacle hidden behind another keeps its identity while one that vanished does not
+   linger.
+
+Everything is vectorised over tracks and detections and uses elementwise arithmetic only
+(no BLAS), and the state is kept on `STATE_RESOLUTION`'s grid, so the same scans give the
+same tracks on every CPU.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from dynabarn.determinism import STATE_RESOLUTION, snap_array
+from dynabarn.perception.detect import Detections, DetectorConfig, ObstacleDetector
+from dynabarn.perception.tracks import Tracks
+
+_NO_MATCH = 1e6
+
+
+@dataclass
+class TrackerConfig:
+    accel_std: float = 2.0
+    """White-noise acceleration of the motion model [m/s^2] (the paper's obstacles change
+    speed and turn along polynomial paths)."""
+    measurement_std: float = 0.02
+    """Standard deviation of a detected centre with 8 returns [m] (fewer returns: more)."""
+    birth_speed_std: float = 2.0
+    """Speed uncertainty of a new track [m/s]: its second detection sets its velocity."""
+    gate: float = 0.6
+    """Association gate beyond three standard deviations of the predicted position [m]."""
+    max_coast: float = 1.0
+    """Seconds a track is kept without a detection (hidden behind another obstacle or out of view)."""
+    max_unseen_in_view: float = 0.3
+    """Seconds a track is kept while the laser sees through its place."""
+    detector: DetectorConfig = field(default_factory=DetectorConfig)
+
+    LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        "accel_std": (0.0, 100.0),
+        "measurement_std": (1e-4, 5.0),
+        "birth_speed_std": (0.0, 20.0),
+        "gate": (0.0, 10.0),
+        "max_coast": (0.0, 60.0),
+        "max_unseen_in_view": (0.0, 60.0),
+    }
+
+
+class ObstacleTracker:
+    """Tracks moving obstacles from scans and odometry (world frame).
+
+    Args:
+        cfg: the tracker's parameters.
+        walls, static_obstacles: the known map (`EpisodeInfo.walls`, `.static_obstacles`).
+        laser_angles, laser_offset, range_max: the laser (`EpisodeInfo`).
+    """
+
+    def __init__(
+        self,
+        cfg: TrackerConfig,
+        *,
+        walls: np.ndarray,
+        static_obstacles: np.ndarray,
+        laser_angles: np.ndarray,
+        laser_offset: np.ndarray,
+        range_max: float,
+    ) -> None:
+        self.cfg = cfg
+        self.detector = ObstacleDetector(
+            cfg.detector,
+            walls=walls,
+            static_obstacles=static_obstacles,
+            laser_angles=laser_angles,
+            laser_offset=laser_offset,
+            range_max=range_max,
+        )
+        self.angles = self.detector.angles
+        self.range_max = float(range_max)
+        self._next_id = 0
+        self.time: float | None = None
+        self.detections: Detections | None = None
+        n = 0
+        self.ids = np.zeros(n, dtype=np.int64)
+        self.x = np.zeros((n, 2))  # position
+        self.v = np.zeros((n, 2))  # velocity
+        self.p_xx = np.zeros((n, 2))  # per-axis covariance: position, cross, velocity
+        self.p_xv = np.zeros((n, 2))
+        self.p_vv = np.zeros((n, 2))
+        self.size = np.zeros(n)
+        self.born = np.zeros(n)
+        self.seen = np.zeros(n)
+        self.unseen_in_view = np.zeros(n)
+
+    # -- the filter ---------------------------------------------------------------------------
+    def _predict(self, dt: float) -> None:
+        if dt <= 0.0 or not len(self.ids):
+            return
+        q = self.cfg.accel_std**2
+        self.x += self.v * dt
+        self.p_xx += 2.0 * dt * self.p_xv + dt * dt * self.p_vv + q * dt**3 / 3.0
+        self.p_xv += dt * self.p_vv + q * dt * dt / 2.0
+        self.p_vv += q * dt
+
+    def _correct(self, k: np.ndarray, z: np.ndarray, r: np.ndarray) -> None:
+        """Kalman update of tracks k with measured positions z (m, 2), variances r (m,)."""
+        s = self.p_xx[k] + r[:, None]
+        gain_x, gain_v = self.p_xx[k] / s, self.p_xv[k] / s
+        innovation = z - self.x[k]
+        self.x[k] += gain_x * innovation
+        self.v[k] += gain_v * innovation
+        p_xx, p_xv, p_vv = self.p_xx[k], self.p_xv[k], self.p_vv[k]
+        self.p_xx[k] = p_xx - gain_x * p_xx
+        self.p_xv[k] = p_xv - gain_x * p_xv
+        self.p_vv[k] = p_vv - gain_v * p_xv
+
+    # -- one scan -----------------------------------------------------------------------------
+    def update(self, time: float, scan: np.ndarray, pose: np.ndarray) -> Tracks:
+        """Take one scan (and the robot's pose at it); the tracks at `time`."""
+        cfg = self.cfg
+        dt = 0.0 if self.time is None else time - self.time
+        self._predict(dt)
+        self.time = time
+        det = self.detector.detect(scan, pose)
+        self.detections = det
+        var = (cfg.measurement_std * np.sqrt(8.0 / np.maximum(det.n_points, 1))) ** 2 + 1e-6
+        track_rows, det_cols = self._associate(det)
+        if len(track_rows):
+            self._correct(track_rows, det.centres[det_cols], var[det_cols])
+            self.size[track_rows] = det.sizes[det_cols]
+            self.seen[track_rows] = time
+            self.unseen_in_view[track_rows] = 0.0
+        self._age_unmatched(np.setdiff1d(np.arange(len(self.ids)), track_rows), scan, pose, dt)
+        born = np.setdiff1d(np.arange(len(det)), det_cols)
+        if len(born):
+            self._birth(det.centres[born], det.sizes[born], var[born], time)
+        # On a fixed grid: the state carried to the next scan is the same bits everywhere.
+        snap_array(self.x, STATE_RESOLUTION, out=self.x)
+        snap_array(self.v, STATE_RESOLUTION, out=self.v)
+        return self.tracks()
+
+    def _associate(self, det: Detections) -> tuple[np.ndarray, np.ndarray]:
+        if not len(self.ids) or not len(det):
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        d = np.sqrt(((self.x[:, None, :] - det.centres[None, :, :]) ** 2).sum(axis=-1))
+        gate = self.cfg.gate + 3.0 * np.sqrt(self.p_xx.max(axis=1))
+        cost = np.where(d <= gate[:, None], d, _NO_MATCH)
+        rows, cols = linear_sum_assignment(cost)
+        ok = cost[rows, cols] < _NO_MATCH
+        return rows[ok], cols[ok]
+
+    def _age_unmatched(self, k: np.ndarray, scan: np.ndarray, pose: np.ndarray, dt: float) -> None:
+        """Count the time unmatched tracks were in view and not there; drop the stale."""
+        cfg = self.cfg
+        if len(k):
+            origin = self.detector.laser_origin(pose)
+            rel = self.x[k] - origin
+            dist = np.sqrt(rel[:, 0] ** 2 + rel[:, 1] ** 2)
+            bearing = np.array([math.atan2(y, x) for x, y in rel.tolist()]) - pose[2]
+            bearing = (bearing + np.pi) % (2.0 * np.pi) - np.pi
+            step = (self.angles[-1] - self.angles[0]) / (len(self.angles) - 1)
+            beam = np.rint((bearing - self.angles[0]) / step).astype(np.int64)
+            in_view = (beam >= 0) & (beam < len(self.angles)) & (dist < self.range_max)
+            seen_through = np.zeros(len(k), dtype=bool)
+            seen_through[in_view] = scan[beam[in_view]] > dist[in_view] + self.size[k][in_view]
+            self.unseen_in_view[k] = np.where(seen_through, self.unseen_in_view[k] + dt, 0.0)
+        stale = (self.time - self.seen > cfg.max_coast) | (self.unseen_in_view > cfg.max_unseen_in_view)
+        if stale.any():
+            keep = ~stale
+            for name in ("ids", "x", "v", "p_xx", "p_xv", "p_vv", "size", "born", "seen", "unseen_in_view"):
+                setattr(self, name, getattr(self, name)[keep])
+
+    def _birth(self, centres: np.ndarray, sizes: np.ndarray, var: np.ndarray, time: float) -> None:
+        n = len(centres)
+        ids = np.arange(self._next_id, self._next_id + n, dtype=np.int64)
+        self._next_id += n
+        self.ids = np.concatenate([self.ids, ids])
+        self.x = np.concatenate([self.x, centres])
+        self.v = np.concatenate([self.v, np.zeros((n, 2))])
+        self.p_xx = np.concatenate([self.p_xx, np.repeat(var[:, None], 2, axis=1)])
+        self.p_xv = np.concatenate([self.p_xv, np.zeros((n, 2))])
+        self.p_vv = np.concatenate([self.p_vv, np.full((n, 2), self.cfg.birth_speed_std**2)])
+        self.size = np.concatenate([self.size, sizes])
+        self.born = np.concatenate([self.born, np.full(n, time)])
+        self.seen = np.concatenate([self.seen, np.full(n, time)])
+        self.unseen_in_view = np.concatenate([self.unseen_in_view, np.zeros(n)])
+
+    def tracks(self) -> Tracks:
+        """The current tracks (copies)."""
+        t = 0.0 if self.time is None else self.time
+        return Tracks(
+            time=t,
+            ids=self.ids.copy(),
+            positions=self.x.copy(),
+            velocities=self.v.copy(),
+            sizes=self.size.copy(),
+            position_var=self.p_xx.copy(),
+            velocity_var=self.p_vv.copy(),
+            position_velocity_cov=self.p_xv.copy(),
+            age=t - self.born,
+            last_seen=self.seen.copy(),
+        )

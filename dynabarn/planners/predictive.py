@@ -1,0 +1,95 @@
+"""`predictive`: the oracle's time-aware search, fed by the laser tracker instead of the
+schedules. Sensor-only: it reads the scan, its own pose and the clock, never `obs.obstacles`.
+
+Per tick the tracker (`perception.tracker`) updates its tracks from the scan; every
+rollout of the oracle's two-segment search (`oracle.py`) is checked against each track
+extrapolated at constant velocity to the same future time. Predictions grow less certain
+with time and are least certain for young tracks (a new track's speed is unknown until its
+second detection), so the radius kept clear of grows with the prediction's standard
+deviation: size + `uncertainty_sigmas` x std(t), at most `max_padding` beyond the size.
+The known map (walls, static cylinders) is handled as by the oracle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from dynabarn.perception import DetectorConfig, ObstacleTracker, TrackerConfig, Tracks
+from dynabarn.planners.base import EpisodeInfo, Observation, config_from_kwargs, nested_config
+from dynabarn.planners.oracle import OracleConfig, OraclePlanner
+
+
+@dataclass
+class PredictiveConfig(OracleConfig):
+    uncertainty_sigmas: float = 1.0
+    """Standard deviations of a prediction's position added to an obstacle's radius."""
+    max_padding: float = 0.3
+    """Most that uncertainty adds to an obstacle's radius [m]."""
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    """The tracker's parameters (`tracker.KEY=...`, `tracker.detector.KEY=...`)."""
+
+    LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        **OracleConfig.LIMITS,
+        "uncertainty_sigmas": (0.0, 10.0),
+        "max_padding": (0.0, 5.0),
+    }
+
+    @classmethod
+    def from_kwargs(cls, **kwargs) -> PredictiveConfig:
+        return config_from_kwargs(cls, with_tracker(kwargs, "predictive"), "predictive")
+
+
+def with_tracker(kwargs: dict, what: str) -> dict:
+    """A planner's keyword configuration with its `tracker.*` (and `tracker.detector.*`)
+    entries built into one checked `TrackerConfig` under "tracker"."""
+
+    def build(sub: dict) -> TrackerConfig:
+        sub = nested_config(
+            sub, "detector", lambda d: config_from_kwargs(DetectorConfig, d, f"{what} tracker detector"), what
+        )
+        return config_from_kwargs(TrackerConfig, sub, f"{what} tracker")
+
+    return nested_config(kwargs, "tracker", build, what)
+
+
+def make_tracker(cfg: TrackerConfig, info: EpisodeInfo) -> ObstacleTracker:
+    """An episode's tracker: its map and laser from `info`."""
+    return ObstacleTracker(
+        cfg,
+        walls=info.walls,
+        static_obstacles=info.static_obstacles,
+        laser_angles=info.laser_angles,
+        laser_offset=info.laser_offset,
+        range_max=info.laser_range[1],
+    )
+
+
+class PredictivePlanner(OraclePlanner):
+    """The oracle's search against the laser tracker's constant-velocity predictions."""
+
+    name = "predictive"
+    privileged = False
+    config_class = PredictiveConfig
+
+    def __init__(self, **config) -> None:
+        super().__init__(**config)
+        self._tracks = Tracks.empty()
+
+    def reset(self, info: EpisodeInfo) -> None:
+        super().reset(info)
+        self.tracker = make_tracker(self.cfg.tracker, info)
+        self._tracks = Tracks.empty()
+
+    def tracks(self) -> Tracks:
+        return self._tracks
+
+    def obstacle_future(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
+        tracks = self.tracker.update(obs.time, obs.scan, obs.pose)
+        self._tracks = tracks
+        c = self.cfg
+        times = obs.time + self._steps
+        padding = np.minimum(c.max_padding, c.uncertainty_sigmas * tracks.position_std(times))  # (K, n)
+        return tracks.predict(times), tracks.sizes[None, :] + padding
