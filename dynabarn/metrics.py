@@ -47,6 +47,11 @@ OUTCOME_MESSAGES = {
 }
 
 
+def _json_number(v):
+    """Floats rounded to 6 decimals, and null where no finite number exists (strict JSON)."""
+    return (round(v, 6) if np.isfinite(v) else None) if isinstance(v, float) else v
+
+
 @dataclass(slots=True)
 class EpisodeResult:
     """Everything known about one finished episode (the JSON of `dynabarn-run --json`).
@@ -89,6 +94,10 @@ class EpisodeResult:
     """CPU, SIMD targets, BLAS kernels and threads (`provenance.machine`)."""
     planner_config: dict = field(default_factory=dict)
     protocol_version: int = 1
+    tracking: dict | None = None
+    """How well the planner's tracker saw the obstacles (planners with `Planner.tracks`; left
+    out of `to_dict` for the rest): recall, precision, position and velocity errors (median,
+    95th percentile) [m, m/s], identity switches, ticks scored (`sim.track_scoring`)."""
 
     @property
     def success(self) -> bool:
@@ -97,9 +106,13 @@ class EpisodeResult:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["outcome"] = self.outcome.value
+        if d["tracking"] is None:  # planners without a tracker: the row as it always was
+            del d["tracking"]
+        else:
+            d["tracking"] = {k: _json_number(v) for k, v in d["tracking"].items()}
         # Strict JSON: a value with no finite number (min_clearance in a world without
         # obstacles, rtf of an instant episode) is null, never NaN or Infinity.
-        return {k: ((round(v, 6) if np.isfinite(v) else None) if isinstance(v, float) else v) for k, v in d.items()}
+        return {k: _json_number(v) for k, v in d.items()}
 
     def summary(self) -> str:
         """The one-line human summary."""

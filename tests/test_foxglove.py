@@ -41,16 +41,29 @@ def dwa_recording(tmp_path_factory):
     return path, result, world
 
 
+@pytest.fixture(scope="module")
+def predictive_recording(tmp_path_factory):
+    """A planner with a tracker: the tracks topics too."""
+    path = tmp_path_factory.mktemp("fox") / "predictive.mcap"
+    run_episode(resolve_world(0), get_planner("predictive"), BARN, seed=1, observers=[McapRecorder(path)])
+    return path
+
+
 def _sdk_decoder(schema_name: str):
     s = SDK_TYPES[schema_name].get_schema()
     return DecoderFactory().decoder_for("protobuf", Schema(id=1, name=s.name, encoding=s.encoding, data=s.data))
 
 
-def test_every_message_decodes_with_foxglove_schemas_and_json_schemas(dwa_recording):
+def test_every_message_decodes_with_foxglove_schemas_and_json_schemas(dwa_recording, predictive_recording):
     jsonschema = require("jsonschema", "test")
-    path, _, _ = dwa_recording
     decoders = {name: _sdk_decoder(name) for name in SDK_TYPES}
     counts: dict[str, int] = {}
+    for path in (dwa_recording[0], predictive_recording):
+        _check_messages(path, decoders, counts, jsonschema)
+    assert set(counts) == {t.name for t in TOPICS}
+
+
+def _check_messages(path, decoders, counts, jsonschema) -> None:
     with path.open("rb") as f:
         reader = make_reader(f)
         for schema, channel, message in reader.iter_messages():
@@ -65,7 +78,6 @@ def test_every_message_decodes_with_foxglove_schemas_and_json_schemas(dwa_record
                 assert doc.get("title") == schema.name and doc.get("properties"), f"{channel.topic}: a placeholder"
                 jsonschema.Draft202012Validator.check_schema(doc)  # a valid schema itself
                 jsonschema.Draft202012Validator(doc).validate(json.loads(message.data))
-    assert set(counts) == {t.name for t in TOPICS}
 
 
 def test_the_frame_tree_is_complete_at_every_time_and_places_the_scan(dwa_recording):

@@ -70,8 +70,8 @@ def test_topic_table_is_what_is_recorded_and_what_the_readme_says(tmp_path):
 
     from dynabarn.recording.topics import TOPICS, markdown_table
 
-    path = tmp_path / "dwa.mcap"
-    _record(path, world=0, planner="dwa", seed=1)  # DWA records a local plan: every topic appears
+    path = tmp_path / "predictive.mcap"
+    _record(path, world=0, planner="predictive", seed=1)  # a local plan and tracks: every topic appears
     with path.open("rb") as f:
         summary = make_reader(f).get_summary()
     recorded = {c.topic: (summary.schemas[c.schema_id].name, c.message_encoding) for c in summary.channels.values()}

@@ -31,6 +31,8 @@ from dynabarn.recording.topics import (
     TOPIC_SCAN,
     TOPIC_STATIC,
     TOPIC_TF,
+    TOPIC_TRACK_SCENE,
+    TOPIC_TRACKS,
     TOPICS,
     Topic,
 )
@@ -61,6 +63,8 @@ __all__ = [
     "TOPIC_SCAN",
     "TOPIC_STATIC",
     "TOPIC_TF",
+    "TOPIC_TRACKS",
+    "TOPIC_TRACK_SCENE",
     "WALL_CLOCK_FIELDS",
     "WORLD_MEDIA_TYPE",
     "McapRecorder",

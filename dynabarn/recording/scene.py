@@ -19,6 +19,10 @@ WALL_COLOR = wire.color(0.55, 0.55, 0.6, 1.0)
 GOAL_COLOR = wire.color(0.1, 0.8, 0.2, 0.5)
 LOCAL_PLAN_COLOR = wire.color(1.0, 0.78, 0.0, 1.0)
 GLOBAL_PLAN_COLOR = wire.color(0.2, 0.45, 1.0, 0.8)
+TRACK_COLOR = wire.color(1.0, 0.55, 0.0, 0.45)
+TRACK_VELOCITY_COLOR = wire.color(1.0, 0.55, 0.0, 1.0)
+TRACK_HEIGHT = 1.2
+"""[m] Drawn a little taller than the obstacles (1 m), so a track shows around its obstacle."""
 PLANS = (
     # debug key, colour, height [m], width [m]
     ("global_plan", GLOBAL_PLAN_COLOR, 0.03, 0.05),
@@ -76,6 +80,23 @@ def plans_update(ns: int, debug: dict) -> bytes:
             lines = [wire.line_strip(points[:, :2], z, width, color)]
         entities.append(wire.scene_entity(ns, WORLD_FRAME, name, lines=lines))
     return wire.scene_update(entities)
+
+
+def tracks_update(ns: int, message: dict) -> bytes:
+    """`/perception/tracks/scene`: a tick's (gridded) `/perception/tracks` message as
+    translucent cylinders and 1 s velocity lines; empty entities when there are no tracks,
+    so old ones do not linger."""
+    cylinders, lines = [], []
+    for (x, y), (vx, vy), size in zip(message["positions"], message["velocities"], message["sizes"], strict=True):
+        body = wire.pose(x, y, TRACK_HEIGHT / 2, 0.0, 0.0, 0.0, 1.0)
+        cylinders.append(wire.cylinder(body, wire.vector3(2 * size, 2 * size, TRACK_HEIGHT), TRACK_COLOR))
+        lines.append(wire.line_strip(np.array([[x, y], [x + vx, y + vy]]), TRACK_HEIGHT, 0.05, TRACK_VELOCITY_COLOR))
+    return wire.scene_update(
+        [
+            wire.scene_entity(ns, WORLD_FRAME, "tracks", cylinders=cylinders),
+            wire.scene_entity(ns, WORLD_FRAME, "track_velocities", lines=lines),
+        ]
+    )
 
 
 _TRANSLATION_FIELD = bytes((0x22, 27))  # FrameTransform.translation (field 4): a 27-byte Vector3

@@ -53,7 +53,16 @@ def document(title: str, schema: dict) -> dict:
     return {"$schema": DIALECT, "title": title, **schema}
 
 
-_JSON_TYPES = {"float": ["number", "null"], "int": "integer", "str": "string", "dict": "object", "bool": "boolean"}
+_JSON_TYPES = {
+    "float": ["number", "null"],
+    "int": "integer",
+    "str": "string",
+    "dict": "object",
+    "bool": "boolean",
+    "dict | None": "object",
+}
+_OPTIONAL_RESULT_FIELDS = ("tracking",)
+"""Result fields only some episodes have (planners with a tracker)."""
 
 
 def result_schema() -> dict:
@@ -68,6 +77,7 @@ def result_schema() -> dict:
         else:
             properties[f.name] = {"type": _JSON_TYPES[kind]}
     required = [f.name for f in dataclasses.fields(EpisodeResult) if f.name in properties]
+    required = [name for name in required if name not in _OPTIONAL_RESULT_FIELDS]
     return obj("the episode's outcome and metrics (dynabarn.metrics.EpisodeResult)", properties, tuple(required))
 
 
@@ -125,6 +135,26 @@ METADATA_SCHEMA = obj(
         "synthetic": {"type": "boolean"},
     },
     ("world", "world_sha256", "protocol", "planner", "seed", "clock_offset", "versions", "robot", "keyframes"),
+)
+
+
+def numbers(doc: str) -> dict:
+    return {"type": "array", "description": doc, "items": {"type": "number"}}
+
+
+TRACKS_SCHEMA = obj(
+    "the planner's tracked obstacles at one control tick (dynabarn.perception.Tracks), on the 0.1 mm grid",
+    {
+        "ids": {"type": "array", "description": "track identities", "items": {"type": "integer"}},
+        "positions": points_xy("centres [m], world frame"),
+        "velocities": points_xy("velocities [m/s], world frame"),
+        "sizes": numbers("radius of a circle around each obstacle [m]"),
+        "position_std": numbers("standard deviation of each centre (the larger axis) [m]"),
+        "age": numbers("seconds since each track was born"),
+        "last_seen": numbers("time of each track's last detection [s]"),
+    },
+    ("ids", "positions", "velocities", "sizes", "position_std", "age", "last_seen"),
+    closed=True,
 )
 
 DEBUG_SCHEMA = obj(

@@ -19,6 +19,7 @@ from dynabarn.determinism import snap_array
 from dynabarn.recording.schemas import (
     DEBUG_SCHEMA,
     METADATA_SCHEMA,
+    TRACKS_SCHEMA,
     document,
     nullable_number,
     number,
@@ -102,6 +103,21 @@ def _planner_debug(tick: Tick) -> dict | None:
     if isinstance(debug.get("global_plan"), np.ndarray):
         debug["global_plan"] = thin(debug["global_plan"], GLOBAL_PLAN_POINTS)
     return debug
+
+
+def _tracks(tick: Tick) -> dict | None:
+    tracks = tick.tracks
+    if tracks is None:
+        return None
+    return {
+        "ids": tracks.ids.tolist(),
+        "positions": snap_array(tracks.positions, DEBUG_RESOLUTION).tolist(),
+        "velocities": snap_array(tracks.velocities, DEBUG_RESOLUTION).tolist(),
+        "sizes": snap_array(tracks.sizes, DEBUG_RESOLUTION).tolist(),
+        "position_std": snap_array(np.sqrt(tracks.position_var.max(axis=1)), DEBUG_RESOLUTION).tolist(),
+        "age": snap_array(tracks.age, DEBUG_RESOLUTION).tolist(),
+        "last_seen": snap_array(tracks.last_seen, DEBUG_RESOLUTION).tolist(),
+    }
 
 
 METADATA = Topic(
@@ -188,6 +204,22 @@ PLANS = Topic(
     "the local plan (entity `local_plan`, yellow) and the global plan (`global_plan`, blue) as line strips, "
     "frame `world`, when the planner has them",
 )
+TRACKS = Topic(
+    "/perception/tracks",
+    "dynabarn.Tracks",
+    "10 Hz",
+    "the planner's tracked obstacles (ids, centres, velocities, sizes, uncertainty, age), beside the true "
+    "`/world/obstacles`, when the planner tracks them (drawn on `/perception/tracks/scene`)",
+    json_schema=TRACKS_SCHEMA,
+    per_tick=_tracks,
+)
+TRACK_SCENE = Topic(
+    "/perception/tracks/scene",
+    "foxglove.SceneUpdate",
+    "10 Hz",
+    "each track as a translucent cylinder of its size (entity `tracks`) and its velocity as a line to where "
+    "it will be in 1 s (entity `track_velocities`), frame `world`",
+)
 RESULT = Topic(
     "/episode/result",
     "dynabarn.EpisodeResult",
@@ -196,7 +228,22 @@ RESULT = Topic(
     json_schema=result_schema(),
 )
 
-TOPICS: tuple[Topic, ...] = (METADATA, STATIC, GOAL, OBSTACLES, SCAN, TF, POSE, CMD, METRICS, DEBUG, PLANS, RESULT)
+TOPICS: tuple[Topic, ...] = (
+    METADATA,
+    STATIC,
+    GOAL,
+    OBSTACLES,
+    SCAN,
+    TF,
+    POSE,
+    CMD,
+    METRICS,
+    DEBUG,
+    PLANS,
+    TRACKS,
+    TRACK_SCENE,
+    RESULT,
+)
 """Every topic, in the documentation's order; per-tick JSON topics are written in this order."""
 
 # The names under which the rest of the package knows them.
@@ -204,6 +251,7 @@ TOPIC_METADATA, TOPIC_STATIC, TOPIC_GOAL = METADATA.name, STATIC.name, GOAL.name
 TOPIC_OBSTACLES, TOPIC_SCAN, TOPIC_POSE = OBSTACLES.name, SCAN.name, POSE.name
 TOPIC_CMD, TOPIC_METRICS, TOPIC_DEBUG, TOPIC_RESULT = CMD.name, METRICS.name, DEBUG.name, RESULT.name
 TOPIC_TF, TOPIC_PLANS = TF.name, PLANS.name
+TOPIC_TRACKS, TOPIC_TRACK_SCENE = TRACKS.name, TRACK_SCENE.name
 
 FRAMES = ("world", "odom", "base_link", "laser")
 """The frame tree on `/tf`, root first: each frame is the child of the one before."""

@@ -39,6 +39,8 @@ from dynabarn.recording.topics import (
     TOPIC_SCAN,
     TOPIC_STATIC,
     TOPIC_TF,
+    TOPIC_TRACK_SCENE,
+    TOPIC_TRACKS,
     TOPICS,
     Topic,
 )
@@ -200,6 +202,7 @@ class McapRecorder:
         self._static = proto(TOPIC_STATIC, SceneUpdate)
         self._obstacles = proto(TOPIC_OBSTACLES, SceneUpdate)
         self._plans = proto(TOPIC_PLANS, SceneUpdate)
+        self._track_scene = proto(TOPIC_TRACK_SCENE, SceneUpdate)
         for t in (*(t for t in TOPICS if t.json_schema is not None), *self.extra_channels):
             schema = foxglove.Schema(name=t.schema, encoding="jsonschema", data=json.dumps(t.schema_document).encode())
             self._json[t.name] = fanout(t.name, schema, "json")
@@ -236,6 +239,8 @@ class McapRecorder:
                 self.log_json(topic.name, t, message)
                 if topic.name == TOPIC_DEBUG:
                     self._plans.log(scene.plans_update(ns, message), log_time=ns)
+                elif topic.name == TOPIC_TRACKS:
+                    self._track_scene.log(scene.tracks_update(ns, message), log_time=ns)
 
     def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
         if not self._open:

@@ -25,6 +25,7 @@ from dynabarn.sim.config import MAX_CLOCK_OFFSET
 from dynabarn.sim.events import Tick
 from dynabarn.sim.observation import Observation, ObstacleState
 from dynabarn.sim.simulation import Simulation
+from dynabarn.sim.track_scoring import MIN_BEAMS, TrackScorer, beams_per_obstacle
 from dynabarn.worlds.schedule import SchedulePlayer
 
 MAX_PHYSICS_STEPS = 5_000_000
@@ -83,6 +84,8 @@ class Episode:
         self.raw_command = (0.0, 0.0)
         self.wall_t0 = time.perf_counter()
         self._batch_xy = self._batch_vel = None
+        self.track_scorer: TrackScorer | None = None
+        """Tracking quality of a planner with a tracker (`score_tracks`), else None."""
         # Reactive obstacles run on their own clocks (a yielding one pauses its schedule);
         # scripted-only worlds keep the exact global clock.
         self.reactive: ReactiveObstacles | None = None
@@ -137,6 +140,19 @@ class Episode:
             obstacles=privileged,
         )
         return self._obs
+
+    def score_tracks(self, tracks):
+        """Score the planner's tracks for the last observation against the truth (None: the
+        planner has none this tick); returns them."""
+        if tracks is None:
+            return None
+        sim = self.sim
+        n = len(sim.radii)
+        if self.track_scorer is None:
+            self.track_scorer = TrackScorer(n)
+        in_view = beams_per_obstacle(sim.laser.geom_ids, sim.obstacle_of_geom, n) >= MIN_BEAMS
+        self.track_scorer.add(tracks, self._batch_xy[0], self._batch_vel[0], in_view)
+        return tracks
 
     def end(self, outcome: Outcome, reason: str) -> None:
         self.outcome, self.reason = outcome, reason
@@ -197,7 +213,7 @@ class Episode:
         self.step, self.t_start, self.outcome = step, t_start, outcome
         return outcome
 
-    def tick_record(self, debug: dict) -> Tick:
+    def tick_record(self, debug: dict, tracks=None) -> Tick:
         """The last observation and command (as received, on its grid), for observers."""
         obs, sim = self._obs, self.sim
         pose = obs.pose
@@ -222,6 +238,7 @@ class Episode:
             distance_to_goal=math.hypot(sim.goal[0] - pose[0], sim.goal[1] - pose[1]),
             planner_ms=float(self.planner_ms[self.n_ticks - 1]) if self.n_ticks else 0.0,
             debug=debug,
+            tracks=tracks,
         )
 
     def poses_between(self, first: int) -> tuple[np.ndarray, np.ndarray]:

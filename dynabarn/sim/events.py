@@ -54,6 +54,7 @@ class Tick:
     distance_to_goal: float
     planner_ms: float
     debug: dict = field(default_factory=dict)
+    tracks: object | None = None  # the planner's `Tracks` (dynabarn.perception), if it tracks obstacles
 
 
 class EpisodeObserver(Protocol):

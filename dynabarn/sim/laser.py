@@ -73,6 +73,11 @@ class Laser:
             np.minimum(ranges, self._cast_static(origin[0], origin[1], yaw), out=ranges)
         return ranges
 
+    @property
+    def geom_ids(self) -> np.ndarray:
+        """(n,) the geom each beam of the last `cast` ended on (-1: none, or a static cylinder)."""
+        return self._geomid
+
     def _cast_static(self, ox: float, oy: float, yaw: float) -> np.ndarray:
         """Ranges (n,) to the static cylinders (range_max where none is hit)."""
         out = np.full(self.n, self.params.laser_range_max)

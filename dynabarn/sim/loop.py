@@ -89,6 +89,7 @@ def run_episode(
     )
     for obs_ in observers:
         obs_.on_start(start)
+    tracks_of = getattr(planner, "tracks", None)  # planners that predate the hook have none
     try:
         planner.reset(episode.info)
         while episode.outcome is None:
@@ -106,11 +107,12 @@ def run_episode(
                 episode.end(Outcome.ERROR, f"planner raised {type(exc).__name__}: {exc}")
                 break
             episode.planner_ms[episode.n_ticks] = (time.perf_counter() - c0) * 1e3
+            tracks = episode.score_tracks(tracks_of()) if tracks_of is not None else None
             first = episode.step
             if episode.apply(raw_v, raw_w) is Outcome.ERROR:
                 break
             if observers:
-                tick = episode.tick_record(planner.debug())
+                tick = episode.tick_record(planner.debug(), tracks)
                 try:
                     for obs_ in observers:
                         obs_.on_tick(tick)

@@ -89,4 +89,5 @@ def episode_result(episode: Episode, start: EpisodeStart) -> EpisodeResult:
         machine=machine(),
         planner_config=start.planner_config,
         protocol_version=protocol.version,
+        tracking=episode.track_scorer.summary() if episode.track_scorer is not None else None,
     )

@@ -63,6 +63,9 @@ class Simulation:
             [[w.centre[0], w.centre[1], w.size[0], w.size[1]] for w in self.world.layout.walls], dtype=np.float64
         ).reshape(-1, 4)
         self.robot_geoms = {i for i in range(self.model.ngeom) if self.model.geom_bodyid[i] == self.laser.robot_body}
+        mocap = self.model.body_mocapid[self.model.geom_bodyid]
+        self.obstacle_of_geom = np.where(mocap < len(obstacles), mocap, -1)
+        """(ngeom,) the obstacle each geom belongs to, -1 for the rest (the laser's hits -> obstacles)."""
 
     def reset(self, spawn: tuple[float, float, float]) -> None:
         mujoco.mj_resetData(self.model, self.data)
