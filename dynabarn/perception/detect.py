@@ -71,6 +71,7 @@ class Detections:
         residuals: (m,) RMS distance of the segment's points from the fitted circle [m].
         n_points: (m,) returns in each segment.
         points: (k, 2) the returns not explained by the map [m] (segments' points, in scan order).
+        beams: (k,) the beam index of each point.
         segment_of_point: (k,) the detection index of each point (-1: rejected segment).
     """
 
@@ -79,6 +80,7 @@ class Detections:
     residuals: np.ndarray
     n_points: np.ndarray
     points: np.ndarray
+    beams: np.ndarray
     segment_of_point: np.ndarray
 
     def __len__(self) -> int:
@@ -156,6 +158,7 @@ class ObstacleDetector:
             residuals=rms[keep],
             n_points=counts[keep],
             points=pts,
+            beams=beam,
             segment_of_point=index[seg],
         )
 
@@ -214,5 +217,6 @@ def _empty() -> Detections:
         residuals=np.zeros(0),
         n_points=np.zeros(0, dtype=np.int64),
         points=np.zeros((0, 2)),
+        beams=np.zeros(0, dtype=np.int64),
         segment_of_point=np.zeros(0, dtype=np.int64),
     )

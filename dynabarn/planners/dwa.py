@@ -30,9 +30,11 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
+from dynabarn.perception import TrackerConfig, Tracks
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
+from dynabarn.planners.tracking import make_tracker, tracked_beams, with_tracker
 
 
 @dataclass
@@ -68,7 +70,13 @@ class DWAConfig:
     (the footprint's circumscribed radius 0.333 plus a margin)."""
     escape_vel: float = -0.3
     """Backing-up speed when nothing is admissible [m/s]."""
+    include_dynamic_obstacles: bool = False
+    """Track the moving obstacles with the laser tracker (`perception`), take their returns
+    out of the costmap, and reject rollouts that come within `collision_radius` of a track
+    at constant velocity at the rollout's time (as TEB's switch of the same name)."""
     costmap: CostmapConfig = field(default_factory=CostmapConfig)
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    """The tracker's parameters (with `include_dynamic_obstacles`)."""
 
     LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
         "max_vel_x": (0.0, 5.0),
@@ -92,7 +100,7 @@ class DWAConfig:
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> DWAConfig:
-        return config_from_kwargs(cls, with_costmap(kwargs, "DWA"), "DWA")
+        return config_from_kwargs(cls, with_tracker(with_costmap(kwargs, "DWA"), "DWA"), "DWA")
 
 
 def rollout(pose: np.ndarray, v: np.ndarray, w: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -148,6 +156,11 @@ class DWAPlanner(Planner):
         self._last_plan = np.zeros((0, 2))
         self._global_plan = np.zeros((0, 2))
         self._prev = np.zeros(2)
+        self.tracker = make_tracker(self.cfg.tracker, info) if self.cfg.include_dynamic_obstacles else None
+        self._tracks: Tracks | None = None
+
+    def tracks(self) -> Tracks | None:
+        return self._tracks
 
     def debug(self) -> dict:
         plans = {"local_plan": self._last_plan, "global_plan": self._global_plan}
@@ -156,7 +169,12 @@ class DWAPlanner(Planner):
     def act(self, obs: Observation) -> tuple[float, float]:
         cfg, info = self.cfg, self.info
         pose = obs.pose
-        self.costmap.update(pose, obs.scan, info.laser_angles, info.laser_offset, info.laser_range[1])
+        scan = obs.scan
+        if self.tracker is not None:
+            self._tracks = self.tracker.update(obs.time, obs.scan, pose)
+            # The moving obstacles are the tracker's: the costmap holds what stands still.
+            scan = np.where(tracked_beams(self.tracker, len(scan)), info.laser_range[1], scan)
+        self.costmap.update(pose, scan, info.laser_angles, info.laser_offset, info.laser_range[1])
         path = self.global_planner.plan_around(pose[0], pose[1], self.costmap, block_radius=cfg.collision_radius)
         local_goal, path = self.global_planner.local_goal(pose[0], pose[1], cfg.lookahead, path)
         self._global_plan = path
@@ -178,6 +196,8 @@ class DWAPlanner(Planner):
         xy = traj[..., :2]
         dist = self.costmap.lookup(xy, self.costmap.distance, outside=np.inf)  # (N, K)
         ok = dist.min(axis=1) >= cfg.collision_radius
+        if self._tracks is not None and len(self._tracks):
+            ok &= self._moving_clearance(xy, obs.time) >= cfg.collision_radius
         if not ok.any():
             return self._escape(obs)
         res = self.costmap.cfg.resolution
@@ -206,6 +226,15 @@ class DWAPlanner(Planner):
         self._last_plan = xy[best]
         self._prev = np.array([v[best], w[best]])
         return float(v[best]), float(w[best])
+
+    def _moving_clearance(self, xy: np.ndarray, now: float) -> np.ndarray:
+        """Smallest distance (N,) of each rollout (N, K, 2) from the tracks' surfaces, each
+        track at constant velocity at the rollout point's time."""
+        tracks = self._tracks
+        future = tracks.predict(now + self._times)  # (K, n, 2)
+        ex = xy[:, :, None, 0] - future[None, :, :, 0]
+        ey = xy[:, :, None, 1] - future[None, :, :, 1]
+        return (np.sqrt(ex * ex + ey * ey) - tracks.sizes).min(axis=(1, 2))
 
     def _escape(self, obs: Observation) -> tuple[float, float]:
         """Nothing admissible: back up turning to the freer side, else rotate in place."""

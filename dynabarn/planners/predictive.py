@@ -17,9 +17,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.perception import DetectorConfig, ObstacleTracker, TrackerConfig, Tracks
-from dynabarn.planners.base import EpisodeInfo, Observation, config_from_kwargs, nested_config
+from dynabarn.perception import TrackerConfig, Tracks
+from dynabarn.planners.base import EpisodeInfo, Observation, config_from_kwargs
 from dynabarn.planners.oracle import OracleConfig, OraclePlanner
+from dynabarn.planners.tracking import make_tracker, with_tracker
 
 
 @dataclass
@@ -40,31 +41,6 @@ class PredictiveConfig(OracleConfig):
     @classmethod
     def from_kwargs(cls, **kwargs) -> PredictiveConfig:
         return config_from_kwargs(cls, with_tracker(kwargs, "predictive"), "predictive")
-
-
-def with_tracker(kwargs: dict, what: str) -> dict:
-    """A planner's keyword configuration with its `tracker.*` (and `tracker.detector.*`)
-    entries built into one checked `TrackerConfig` under "tracker"."""
-
-    def build(sub: dict) -> TrackerConfig:
-        sub = nested_config(
-            sub, "detector", lambda d: config_from_kwargs(DetectorConfig, d, f"{what} tracker detector"), what
-        )
-        return config_from_kwargs(TrackerConfig, sub, f"{what} tracker")
-
-    return nested_config(kwargs, "tracker", build, what)
-
-
-def make_tracker(cfg: TrackerConfig, info: EpisodeInfo) -> ObstacleTracker:
-    """An episode's tracker: its map and laser from `info`."""
-    return ObstacleTracker(
-        cfg,
-        walls=info.walls,
-        static_obstacles=info.static_obstacles,
-        laser_angles=info.laser_angles,
-        laser_offset=info.laser_offset,
-        range_max=info.laser_range[1],
-    )
 
 
 class PredictivePlanner(OraclePlanner):

@@ -39,10 +39,12 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import STATE_RESOLUTION, exp, sincos, snap_array
+from dynabarn.perception import TrackerConfig, Tracks
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.levenberg_marquardt import levenberg_marquardt
+from dynabarn.planners.tracking import make_tracker, tracked_beams, with_tracker
 
 
 @dataclass
@@ -72,8 +74,19 @@ class TEBConfig:
     weight_inflation: float = 0.5
     max_iterations: int = 12
     """Residual evaluations allowed per tick (the optimiser's `max_nfev`)."""
+    include_dynamic_obstacles: bool = False
+    """teb_local_planner's switch: track the moving obstacles with the laser tracker
+    (`perception`), take their returns out of the static obstacles, and keep every band pose
+    clear of each track at constant velocity at that pose's time."""
+    weight_dynamic_obstacle: float = 50.0
+    """teb_local_planner's default."""
+    weight_dynamic_obstacle_inflation: float = 0.1
+    dynamic_obstacle_inflation_dist: float = 0.6
+    """teb_local_planner's default [m]."""
     costmap: CostmapConfig = field(default_factory=CostmapConfig)
     """The local costmap the replanning around blocked stretches of the global plan uses."""
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    """The tracker's parameters (with `include_dynamic_obstacles`)."""
 
     LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
         "n_poses": (3, 100),
@@ -88,6 +101,7 @@ class TEBConfig:
         "obstacle_range": (0.0, 30.0),
         "obstacle_stride": (1, 720),
         "max_iterations": (1, 1000),
+        "dynamic_obstacle_inflation_dist": (0.0, 5.0),
         **{
             w: (0.0, 1e6)
             for w in (
@@ -100,6 +114,8 @@ class TEBConfig:
                 "weight_acc_lim_theta",
                 "weight_obstacle",
                 "weight_inflation",
+                "weight_dynamic_obstacle",
+                "weight_dynamic_obstacle_inflation",
             )
         },
     }
@@ -107,7 +123,7 @@ class TEBConfig:
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> TEBConfig:
-        cfg = config_from_kwargs(cls, with_costmap(kwargs, "TEB"), "TEB")
+        cfg = config_from_kwargs(cls, with_tracker(with_costmap(kwargs, "TEB"), "TEB"), "TEB")
         if cfg.n_poses < 3:
             raise TypeError("n_poses must be at least 3")
         return cfg
@@ -143,6 +159,8 @@ class TEBPlanner(Planner):
                 c.weight_acc_lim_theta,
                 c.weight_obstacle,
                 c.weight_inflation,
+                c.weight_dynamic_obstacle,
+                c.weight_dynamic_obstacle_inflation,
             ]
         )
         self._band: np.ndarray | None = None  # (n, 3)
@@ -160,6 +178,11 @@ class TEBPlanner(Planner):
         self._rerouted = self._was_rerouted = False
         self.costmap = LocalCostmap(self.cfg.costmap)
         self._beams = np.arange(0, len(info.laser_angles), self.cfg.obstacle_stride)
+        self.tracker = make_tracker(self.cfg.tracker, info) if self.cfg.include_dynamic_obstacles else None
+        self._tracks: Tracks | None = None
+
+    def tracks(self) -> Tracks | None:
+        return self._tracks
 
     def debug(self) -> dict:
         plans = {"local_plan": self._band[:, :2] if self._band is not None else (), "global_plan": self._global_plan}
@@ -221,8 +244,11 @@ class TEBPlanner(Planner):
         )
         return band, exp(np.clip(z[..., 3 * m :], -7.0, 3.0))  # dT in [1 ms, 20 s]
 
-    def _residuals(self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray) -> np.ndarray:
-        """Weighted residuals (..., n_res) for variables z (..., n_var): batched over leading axes."""
+    def _residuals(
+        self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray, moving: Tracks | None = None
+    ) -> np.ndarray:
+        """Weighted residuals (..., n_res) for variables z (..., n_var): batched over leading
+        axes. `moving`: tracked obstacles, each kept clear of at the band pose's time."""
         cfg = self.cfg
         band, dts = self._unpack(z, start, goal)
         x, y, th = band[..., 0], band[..., 1], band[..., 2]
@@ -248,33 +274,56 @@ class TEBPlanner(Planner):
         else:
             d = np.full(x[..., 1:-1].shape, np.inf)
         w_ = self._sqrt_weights
-        return np.concatenate(
-            [
-                w_[0] * dts,
-                w_[1] * nh,
-                w_[2] * fwd,
-                w_[3] * v_over,
-                w_[4] * w_over,
-                w_[5] * a_over,
-                w_[6] * alpha_over,
-                w_[7] * np.maximum(0.0, cfg.min_obstacle_dist - d),
-                w_[8] * np.maximum(0.0, cfg.inflation_dist - d),
-            ],
-            axis=-1,
-        )
+        parts = [
+            w_[0] * dts,
+            w_[1] * nh,
+            w_[2] * fwd,
+            w_[3] * v_over,
+            w_[4] * w_over,
+            w_[5] * a_over,
+            w_[6] * alpha_over,
+            w_[7] * np.maximum(0.0, cfg.min_obstacle_dist - d),
+            w_[8] * np.maximum(0.0, cfg.inflation_dist - d),
+        ]
+        if moving is not None:
+            dm = self._moving_distance(x[..., 1:-1], y[..., 1:-1], dts, moving)
+            parts += [
+                w_[9] * np.maximum(0.0, cfg.min_obstacle_dist - dm),
+                w_[10] * np.maximum(0.0, cfg.dynamic_obstacle_inflation_dist - dm),
+            ]
+        return np.concatenate(parts, axis=-1)
 
-    def _jacobian(self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray) -> np.ndarray:
+    @staticmethod
+    def _moving_distance(x: np.ndarray, y: np.ndarray, dts: np.ndarray, moving: Tracks) -> np.ndarray:
+        """Distance (..., n - 2) from each inner band pose to the nearest tracked obstacle's
+        surface, the obstacles at constant velocity at the pose's time (teb_local_planner's
+        `include_dynamic_obstacles`)."""
+        if not len(moving):
+            return np.full(x.shape, np.inf)
+        t = np.cumsum(dts, axis=-1)[..., :-1, None]  # (..., n - 2, 1): seconds from now to pose i
+        ox = moving.positions[:, 0] + moving.velocities[:, 0] * t
+        oy = moving.positions[:, 1] + moving.velocities[:, 1] * t
+        ex, ey = x[..., None] - ox, y[..., None] - oy
+        return (np.sqrt(ex * ex + ey * ey) - moving.sizes).min(axis=-1)
+
+    def _jacobian(
+        self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray, moving: Tracks | None = None
+    ) -> np.ndarray:
         """Forward-difference Jacobian, all columns in one batched residual evaluation."""
         h = 1e-6 * np.maximum(1.0, np.abs(z))
         batch = z[None, :] + np.diag(h)
-        r = self._residuals(np.vstack([z[None], batch]), start, goal, obstacles)
+        r = self._residuals(np.vstack([z[None], batch]), start, goal, obstacles, moving)
         return ((r[1:] - r[0]) / h[:, None]).T
 
-    def _obstacle_points(self, obs: Observation) -> np.ndarray:
+    def _obstacle_points(self, obs: Observation, moving_beams: np.ndarray | None = None) -> np.ndarray:
+        """Laser returns within `obstacle_range` (one in `obstacle_stride` beams), world
+        frame; without the beams that ended on tracked obstacles when `moving_beams` is given."""
         info = self.info
         idx = self._beams
         r = obs.scan[idx]
         keep = (r < self.cfg.obstacle_range) & (r < info.laser_range[1] - 1e-6)
+        if moving_beams is not None:
+            keep &= ~moving_beams[idx]
         a = info.laser_angles[idx][keep] + obs.pose[2]
         x0, y0, yaw = obs.pose
         lx = x0 + math.cos(yaw) * info.laser_offset[0]
@@ -286,7 +335,14 @@ class TEBPlanner(Planner):
         cfg = self.cfg
         start = obs.pose.astype(np.float64).copy()
         info = self.info
-        self.costmap.update(start, obs.scan, info.laser_angles, info.laser_offset, info.laser_range[1])
+        scan, moving, moving_beams = obs.scan, None, None
+        if self.tracker is not None:
+            moving = self._tracks = self.tracker.update(obs.time, obs.scan, obs.pose)
+            moving_beams = tracked_beams(self.tracker, len(scan))
+            # The moving obstacles are the tracker's: the costmap (and with it the replanning
+            # around blocked stretches of the plan) sees only what stands still.
+            scan = np.where(moving_beams, info.laser_range[1], scan)
+        self.costmap.update(start, scan, info.laser_angles, info.laser_offset, info.laser_range[1])
         path = self.global_planner.plan_around(start[0], start[1], self.costmap, block_radius=cfg.min_obstacle_dist)
         rerouted = len(path) != len(self.global_planner.plan(start[0], start[1]))
         self._rerouted = rerouted and not self._was_rerouted
@@ -299,15 +355,15 @@ class TEBPlanner(Planner):
             k = min(int(np.searchsorted(np.cumsum(np.hypot(*np.diff(path, axis=0).T)), cfg.lookahead)), len(path) - 2)
             goal_heading = math.atan2(path[k + 1, 1] - path[k, 1], path[k + 1, 0] - path[k, 0])
         goal = np.array([local_goal[0], local_goal[1], goal_heading])
-        obstacles = self._obstacle_points(obs)
+        obstacles = self._obstacle_points(obs, moving_beams)
         band, dts = self._warm_band(start, goal, path)
         # Headings unwrapped around the start so the optimiser never sees a 2 pi jump.
         band[:, 2] = start[2] + _wrap(band[:, 2] - start[2])
         goal[2] = band[-1, 2]
         z0 = self._pack(band, dts)
         sol = levenberg_marquardt(
-            lambda z: self._residuals(z, start, goal, obstacles),
-            lambda z: self._jacobian(z, start, goal, obstacles),
+            lambda z: self._residuals(z, start, goal, obstacles, moving),
+            lambda z: self._jacobian(z, start, goal, obstacles, moving),
             z0,
             max_nfev=cfg.max_iterations,
         )
