@@ -81,6 +81,50 @@ def _mean(values: list[float]) -> float:
 PAPER_PROTOCOLS = ("barn", "paper2022")
 
 
+TRACKING_SUMMARY = {
+    "track_recall": "recall",
+    "track_precision": "precision",
+    "track_pos_err": "position_error_median",
+    "track_pos_err_p95": "position_error_p95",
+    "track_vel_err": "velocity_error_median",
+    "track_vel_err_p95": "velocity_error_p95",
+    "track_id_switches": "id_switches",
+}
+"""Summary column -> the episode's `tracking` field it summarises: the median over the
+episodes of the episode's value (identity switches: the mean per episode)."""
+
+
+def _median(values: list) -> float | None:
+    vals = sorted(v for v in values if v is not None and math.isfinite(v))
+    if not vals:
+        return None
+    mid = len(vals) // 2
+    return vals[mid] if len(vals) % 2 else 0.5 * (vals[mid - 1] + vals[mid])
+
+
+def tracking_summary(rows: list[dict]) -> dict:
+    """The tracking columns for a group of rows: all None when no row has a tracker."""
+    tracked = [r["tracking"] for r in rows if isinstance(r.get("tracking"), dict)]
+    out: dict = {column: None for column in TRACKING_SUMMARY}
+    if tracked:
+        for column, key in TRACKING_SUMMARY.items():
+            values = [t.get(key) for t in tracked]
+            out[column] = _mean(values) if key == "id_switches" else _median(values)
+    return out
+
+
+def privileged(planner: str) -> bool:
+    """Whether a result row's planner (`NAME` or `NAME@PRESET`) reads the true obstacle
+    states: marked in every table (a rung of the ladder, not a robot's planner)."""
+    from dynabarn.errors import DynabarnError
+    from dynabarn.planners.registry import planner_factory
+
+    try:
+        return bool(getattr(planner_factory(planner.split("@")[0]), "privileged", False))
+    except DynabarnError:  # a planner no longer installed: its rows still summarise
+        return False
+
+
 def summarise(rows: list[dict], paper_worlds: set[str] = frozenset()) -> list[dict]:
     """One summary row per (planner, difficulty), plus 'all' per planner. The paper's Fig. 5
     value is given only where every episode ran under one of the paper's protocols in a
@@ -112,6 +156,7 @@ def summarise(rows: list[dict], paper_worlds: set[str] = frozenset()) -> list[di
                 "score": _mean([r.get("score", 0.0) for r in rs]),
                 "spl": _mean([r.get("spl", 0.0) for r in rs]),
                 "min_clearance": _mean([r.get("min_clearance") for r in rs]),
+                "privileged": privileged(planner),
                 # The paper's Fig. 5 only compares with runs in the paper's worlds under its protocols.
                 "paper": PAPER_FIG5.get(planner.split("@")[0], {}).get(difficulty)
                 if all(r.get("protocol") in PAPER_PROTOCOLS and r.get("world") in paper_worlds for r in rs)
@@ -121,6 +166,7 @@ def summarise(rows: list[dict], paper_worlds: set[str] = frozenset()) -> list[di
                     if planner != FLOOR and (FLOOR, difficulty) in groups
                     else none
                 ),
+                **tracking_summary(rs),
             }
         )
     return out
@@ -135,7 +181,7 @@ def _skill_text(s: dict) -> str:
 
 
 def format_table(summary: list[dict]) -> str:
-    wp = max([10, *(len(s["planner"]) + 2 for s in summary)])
+    wp = max([10, *(len(_label(s)) + 2 for s in summary)])
     head = (
         f"{'planner':<{wp}}{'difficulty':<11}{'n':>5}{'success [95% CI]':>22}{'coll':>7}{'timeout':>8}"
         f"{'t_succ':>8}{'score':>7}{'SPL':>6}{'clear':>7}{'paper':>7}  {'skill over floor [95% CI]'}"
@@ -145,11 +191,54 @@ def format_table(summary: list[dict]) -> str:
         ci = f"{s['success']:.2f} [{s['success_lo']:.2f}, {s['success_hi']:.2f}]"
         paper = f"{s['paper']:.2f}" if s["paper"] is not None else "-"
         lines.append(
-            f"{s['planner']:<{wp}}{s['difficulty']:<11}{s['episodes']:>5}{ci:>22}{s['collision']:>7.2f}"
+            f"{_label(s):<{wp}}{s['difficulty']:<11}{s['episodes']:>5}{ci:>22}{s['collision']:>7.2f}"
             f"{s['timeout']:>8.2f}{s['time_success']:>8.1f}{s['score']:>7.3f}{s['spl']:>6.2f}"
             f"{s['min_clearance']:>7.2f}{paper:>7}  {_skill_text(s)}"
         )
+    tracked = [s for s in summary if s.get("track_recall") is not None]
+    if tracked:
+        lines += ["", tracking_table(tracked, markdown=False)]
     return "\n".join(lines)
+
+
+def _label(s: dict) -> str:
+    return f"{s['planner']} (privileged)" if s.get("privileged") else s["planner"]
+
+
+def _num(value, fmt: str) -> str:
+    return "-" if value is None else format(value, fmt)
+
+
+def tracking_table(summary: list[dict], *, markdown: bool = True) -> str:
+    """Tracking quality of the planners with a tracker (medians over episodes)."""
+    head = [
+        "planner",
+        "difficulty",
+        "recall",
+        "precision",
+        "position error median / p95 [m]",
+        "velocity error median / p95 [m/s]",
+        "identity switches per episode",
+    ]
+    rows = [
+        [
+            s["planner"],
+            s["difficulty"],
+            _num(s["track_recall"], ".3f"),
+            _num(s["track_precision"], ".3f"),
+            f"{_num(s['track_pos_err'], '.3f')} / {_num(s['track_pos_err_p95'], '.3f')}",
+            f"{_num(s['track_vel_err'], '.3f')} / {_num(s['track_vel_err_p95'], '.3f')}",
+            _num(s["track_id_switches"], ".1f"),
+        ]
+        for s in summary
+        if s.get("track_recall") is not None
+    ]
+    if markdown:
+        return "\n".join(
+            ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)] + ["| " + " | ".join(r) + " |" for r in rows]
+        )
+    widths = [max(len(h), *(len(r[i]) for r in rows)) + 2 for i, h in enumerate(head)]
+    return "\n".join("".join(c.ljust(w) for c, w in zip(r, widths, strict=True)) for r in [head, *rows])
 
 
 def write_summary(summary: list[dict], out_dir: Path, *, title: str = "") -> dict[str, Path]:
@@ -167,11 +256,18 @@ def write_summary(summary: list[dict], out_dir: Path, *, title: str = "") -> dic
     for s in summary:
         paper = f"{s['paper']:.2f}" if s["paper"] is not None else "-"
         md.append(
-            f"| {s['planner']} | {s['difficulty']} | {s['episodes']} | {s['success']:.2f} "
+            f"| {_label(s)} | {s['difficulty']} | {s['episodes']} | {s['success']:.2f} "
             f"[{s['success_lo']:.2f}, {s['success_hi']:.2f}] | {s['collision']:.2f} | {s['timeout']:.2f} | "
             f"{s['time_success']:.1f} | {s['score']:.3f} | {s['spl']:.2f} | {s['min_clearance']:.2f} | {paper} | "
             f"{'-' if s.get('floor') is None else format(s['floor'], '.2f')} | {_skill_text(s)} |"
         )
+    if any(s.get("track_recall") is not None for s in summary):
+        md += [
+            "",
+            "Tracking quality (planners with a laser tracker; medians over episodes):",
+            "",
+            tracking_table(summary),
+        ]
     write_atomically(paths["md"], (f"# {title}\n\n" if title else "") + "\n".join(md) + "\n")
     plot_fig5(summary, paths["png"], title=title)
     return paths
