@@ -88,7 +88,10 @@ def test_golden_set_with_numpy_transcendentals_one_ulp_off():
 def test_golden_set_covers_every_planner_difficulty_protocol_and_world_kind():
     cases = golden.CASES
     assert 25 <= len(cases) <= 40
-    assert {c.planner for c in cases} == {"straight", "dwa", "teb", "oracle", "bc", "td3"}
+    from dynabarn.planners.registry import _BUILTIN
+
+    assert {c.planner for c in cases} == set(_BUILTIN) - {"stop"}, "every built-in planner that moves"
+    assert {"teb_dynamic", "dwa_dynamic"} <= {c.config for c in cases}, "prediction from the laser in TEB and DWA"
     assert {c.protocol for c in cases} >= {"barn", "paper2022", "barn-static"}
     assert {c.source for c in cases} == {"generated", "mixed", "avoid", "yield", "release", "barn-static"}
     generated = {c.world_id // 100 for c in cases if c.source == "generated"}

@@ -2,7 +2,7 @@
 `dynabarn-bench --verify-golden` to show that this machine and install give the same
 episodes as the machine that wrote them (docs/reproducibility.md).
 
-Every planner (straight, dwa, teb, oracle, bc, td3), the three difficulties, both
+Every planner (straight, dwa, teb, predictive, oracle_present, oracle, bc, td3), the three difficulties, both
 protocols, imported release worlds, static BARN worlds, mixed shapes with a static field
 and reactive (`avoid`, `yield`) worlds. Worlds that are not committed are built on the
 spot, deterministically, into `.golden_worlds/` beside `generated_worlds/` (the user's cache
@@ -85,7 +85,15 @@ CASES: tuple[GoldenCase, ...] = (
     GoldenCase("teb", "mixed", 120),
     GoldenCase("teb", "yield", 210),
     GoldenCase("teb", "avoid", 230, seed=2),
-    # The privileged oracle.
+    # Prediction from the laser: the tracker feeding the oracle's search, TEB and DWA.
+    GoldenCase("predictive", "generated", 205),
+    GoldenCase("predictive", "release", 45, "paper2022", seed=1),
+    GoldenCase("predictive", "mixed", 120),
+    GoldenCase("predictive", "yield", 210),
+    GoldenCase("teb", "generated", 150, seed=1, config="teb_dynamic"),
+    GoldenCase("dwa", "generated", 137, seed=2, config="dwa_dynamic"),
+    # The privileged oracle: the true present state at constant velocity, the exact future.
+    GoldenCase("oracle_present", "generated", 215, seed=3),
     GoldenCase("oracle", "generated", 0),
     GoldenCase("oracle", "generated", 137),
     GoldenCase("oracle", "generated", 230, seed=4),
