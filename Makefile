@@ -99,6 +99,7 @@ bench: $(STAMP)
 # The README's result tables and figures, from the committed results/ (README "Comparison with the paper").
 readme: $(STAMP)
 	$(BIN)/python benchmarks/readme_results.py
+	$(BIN)/python benchmarks/tracking_figure.py
 
 # The golden set: the same episodes as the committed ones, or every field that differs.
 verify-golden: $(TEST_STAMP)

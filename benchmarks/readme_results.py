@@ -48,7 +48,23 @@ PLANNERS = {
     "teb@teb_ros_defaults": "TEB, teb_local_planner's defaults as the authors ran it (`teb@teb_ros_defaults`)",
     "bc": "BC (shipped `bc.pt`)",
     "td3": "TD3 (shipped `td3.pt`)",
+    "dwa@dwa_dynamic": "DWA with the laser tracker's predictions (`dwa@dwa_dynamic`)",
+    "teb@teb_dynamic": "TEB with the laser tracker's predictions (`teb@teb_dynamic`)",
+    "predictive": "The laser tracker feeding the oracle's search (`predictive`)",
+    "oracle_present": "*Privileged*: the true present state, constant velocity (`oracle_present`)",
+    "oracle": "*Privileged*: the exact future (`oracle`)",
 }
+LADDER = (
+    (FLOOR, "blind", "the blind floor: drive at the goal, avoid nothing"),
+    ("dwa", "laser", "reactive: DWA, each scan a static snapshot"),
+    ("teb", "laser", "reactive: TEB, each scan a static snapshot"),
+    ("dwa@dwa_dynamic", "laser", "DWA + tracker predictions"),
+    ("teb@teb_dynamic", "laser", "TEB + tracker predictions"),
+    ("predictive", "laser", "tracker predictions + the oracle's search"),
+    ("oracle_present", "privileged", "true present state, constant velocity, the oracle's search"),
+    ("oracle", "privileged", "the exact future, the oracle's search"),
+)
+"""The ladder from blind to all-knowing: (planner, what it sees, what it is)."""
 PAPER_NAMES = {"dwa": "DWA", "teb": "TEB", "bc": "BC", "td3": "TD3"}
 
 
@@ -182,8 +198,60 @@ def headline_table(summaries: dict[str, list[dict]]) -> str:
     return "\n".join(lines)
 
 
+def _gap_closed(by: dict, planner: str, difficulty: str) -> str:
+    """How much of the distance from the floor to the exact-future oracle a rung closes."""
+    keys = [(p, difficulty) for p in (planner, FLOOR, "oracle")]
+    if not all(k in by for k in keys):
+        return "-"
+    rung, floor, top = (by[k]["success"] for k in keys)
+    return f"{(rung - floor) / (top - floor):.0%}" if top > floor else "-"
+
+
+def ladder_table(summaries: dict[str, list[dict]]) -> str:
+    """Each rung's success per difficulty on both world sets, and the share of the floor-to-
+    oracle distance it closes on the hard worlds."""
+    paper60, original = _by(summaries.get("paper60_barn", [])), _by(summaries.get("original60_barn", []))
+    lines = [
+        "| rung | sees | paper60: easy | medium | hard | release's 60: easy | medium | hard "
+        "| gap closed, hard: paper60 / release |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for planner, sees, what in LADDER:
+        if (planner, "all") not in paper60 and (planner, "all") not in original:
+            continue
+        cells = [
+            f"{by[(planner, d)]['success']:.2f}" if (planner, d) in by else "-"
+            for by in (paper60, original)
+            for d in DIFFICULTIES
+        ]
+        gap = f"{_gap_closed(paper60, planner, 'hard')} / {_gap_closed(original, planner, 'hard')}"
+        lines.append(f"| {what} (`{planner}`) | {sees} | " + " | ".join(cells) + f" | {gap} |")
+    return "\n".join(lines)
+
+
+def tracking_quality(summaries: dict[str, list[dict]]) -> str:
+    """The tracker's quality against the truth, per planner that uses it and world set."""
+    lines = [
+        "| planner | worlds | difficulty | recall | precision | position error median / p95 [m] "
+        "| velocity error median / p95 [m/s] | identity switches per episode |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for folder in ("paper60_barn", "original60_barn"):
+        for s in summaries.get(folder, []):
+            if s.get("track_recall") is None:
+                continue
+            lines.append(
+                f"| `{s['planner']}` | {SETS[folder]} | {s['difficulty']} | {s['track_recall']:.3f} "
+                f"| {s['track_precision']:.3f} | {s['track_pos_err']:.3f} / {s['track_pos_err_p95']:.3f} "
+                f"| {s['track_vel_err']:.3f} / {s['track_vel_err_p95']:.3f} | {s['track_id_switches']:.1f} |"
+            )
+    return "\n".join(lines)
+
+
 BLOCKS = {
     "headline": lambda f, s: headline_table(s),
+    "ladder": lambda f, s: ladder_table(s),
+    "tracking": lambda f, s: tracking_quality(s),
     "fig5": lambda f, s: fig5_table(s),
     "skill": lambda f, s: skill_table(s),
     "floor": lambda f, s: floor_table(f),
@@ -192,8 +260,8 @@ BLOCKS = {
 
 
 PAGES = {
-    README: ("headline",),
-    DOCS / "results.md": ("fig5", "skill", "floor"),
+    README: ("headline", "ladder"),
+    DOCS / "results.md": ("fig5", "skill", "floor", "ladder", "tracking"),
     DOCS / "tutorials" / "training.md": ("td3-training",),
 }
 """Each page and the blocks it must hold (every block of BLOCKS is on some page)."""
@@ -214,6 +282,11 @@ def draw(summaries: dict[str, list[dict]]) -> None:
         if summary and folder != "unseen_barn":
             title = f"{SETS[folder]} worlds, barn protocol (95% Wilson intervals; the floor dashed)"
             plot_fig5(summary, FIGURES / f"fig5_{folder}.png", title=title)
+            rungs = {planner for planner, _, _ in LADDER}
+            ladder = [s for s in summary if s["planner"] in rungs]
+            if ladder:
+                title = f"the ladder from blind to all-knowing, {SETS[folder]} worlds (95% Wilson intervals)"
+                plot_fig5(ladder, FIGURES / f"ladder_{folder}.png", title=title)
 
 
 def main(argv: list[str] | None = None) -> int:
