@@ -14,6 +14,7 @@ Entity tree (one per recording; several recordings of one world go under
 | <run>/scan | Points3D: laser returns in the world frame | every scan |
 | <run>/scan_beams | LineStrips3D: one beam in four from the laser to its return | every scan |
 | <run>/local_plan, <run>/global_plan | LineStrips3D | when the planner recorded them |
+| <run>/tracks, <run>/track_velocities | LineStrips3D (circles), Arrows3D (1 s of motion) | each tick, if tracked |
 | metrics/<field>/<run> | Scalars: the fields `recording.topics` plots (v, w, clearance, ...) | every control tick |
 | description | TextDocument: world, planner, outcome | static |
 
@@ -39,6 +40,7 @@ from dynabarn.recording import (
     TOPIC_DEBUG,
     TOPIC_POSE,
     TOPIC_SCAN,
+    TOPIC_TRACKS,
     Recording,
     obstacle_pose,
     obstacle_track,
@@ -139,6 +141,60 @@ def log_robot_body(stream: rr.RecordingStream, run: str, footprint: tuple[float,
     stream.log(
         f"{run}/robot/heading", rr.Arrows3D(origins=[[0, 0, 0.26]], vectors=[[0.5, 0, 0]], colors=[color]), static=True
     )
+
+
+TRACK_HEIGHT = 1.2
+"""[m] Track circles float just above the obstacles (1 m tall), so truth and estimate both show."""
+_CIRCLE = np.linspace(0.0, 2.0 * np.pi, 25)
+
+
+def _log_tracks(stream, run: str, rec: Recording) -> None:
+    """The planner's tracks of a recording (`/perception/tracks`), every control tick."""
+    msgs = rec.topic(TOPIC_TRACKS)
+    if not msgs:
+        return
+    log_tracks(
+        stream,
+        run,
+        _times(msgs),
+        [len(m["ids"]) for _, m in msgs],
+        np.array([xy for _, m in msgs for xy in m["positions"]], dtype=np.float64).reshape(-1, 2),
+        np.array([r for _, m in msgs for r in m["sizes"]], dtype=np.float64),
+        np.array([v for _, m in msgs for v in m["velocities"]], dtype=np.float64).reshape(-1, 2),
+    )
+
+
+def log_tracks(
+    stream,
+    run: str,
+    times: np.ndarray,
+    counts: list[int],
+    centres: np.ndarray,
+    sizes: np.ndarray,
+    velocities: np.ndarray,
+    *,
+    style: bool = True,
+) -> None:
+    """Tracks against the true obstacles: a circle of each track's size and an arrow of its
+    velocity (1 s of motion), `counts[i]` tracks at `times[i]` (rows of centres (N, 2),
+    sizes (N,), velocities (N, 2) in time order); `style`: also their colour (static, once)."""
+    import rerun as rr
+
+    cos, sin = np.cos(_CIRCLE), np.sin(_CIRCLE)
+    circles = [
+        np.column_stack([x + r * cos, y + r * sin, np.full(len(cos), TRACK_HEIGHT)])
+        for (x, y), r in zip(centres.tolist(), sizes.tolist(), strict=True)
+    ]
+    index = [_time_column(times)]
+    strips = rr.LineStrips3D.columns(strips=circles).partition(counts)
+    stream.send_columns(f"{run}/tracks", indexes=index, columns=strips)
+    origins = np.column_stack([centres, np.full(len(centres), TRACK_HEIGHT)])
+    vectors = np.column_stack([velocities, np.zeros(len(velocities))])
+    arrows = rr.Arrows3D.columns(origins=origins, vectors=vectors).partition(counts)
+    stream.send_columns(f"{run}/track_velocities", indexes=index, columns=arrows)
+    if style:
+        stream.log(f"{run}/tracks", rr.LineStrips3D.from_fields(colors=[(255, 140, 0)], radii=[0.03]), static=True)
+        stream.log(f"{run}/track_velocities", rr.Arrows3D.from_fields(colors=[(255, 140, 0)]), static=True)
 
 
 def log_obstacles(
@@ -279,6 +335,8 @@ def log_recording(
             ),
         )
         stream.log(f"{run}/{key}", rr.LineStrips3D.from_fields(colors=[plan_color], radii=[0.04]), static=True)
+
+    _log_tracks(stream, run, rec)
 
     # Time series: every field the topic table marks for plotting.
     for topic, name in plotted():

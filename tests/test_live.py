@@ -159,7 +159,8 @@ def test_rerun_live_stream_is_received(tmp_path):
                     break
             time.sleep(0.1)
         log = tmp_path / "rerun.mcap"
-        proc = _run(f"--world 0 --planner dwa --live rerun --rate 50 --connect {port} --log", log)
+        # A planner that tracks: its tracks stream beside the true obstacles.
+        proc = _run(f"--world 0 --planner predictive --live rerun --rate 50 --connect {port} --log", log)
         _, err = proc.communicate(timeout=180)
         assert proc.returncode == 0, err
         time.sleep(1.0)
@@ -172,6 +173,7 @@ def test_rerun_live_stream_is_received(tmp_path):
             server.wait(timeout=30)
     printed = subprocess.run([RERUN, "rrd", "print", str(rrd)], capture_output=True, text=True, check=True).stdout
     entities = ("/runs/live/scan", "/runs/live/robot", "/runs/live/obstacles", "/world/walls", "/metrics/v/runs/live")
+    entities += ("/runs/live/tracks", "/runs/live/track_velocities")
     for entity in entities:
         assert entity in printed, f"{entity} not received"
     scan_rows = r"with (\d+) rows .*? - /runs/live/scan - data columns: \[Points3D:positions"

@@ -120,3 +120,21 @@ def test_shaped_and_static_obstacles_replay_as_their_archetypes(tmp_path):
     assert rows["/runs/stop_s0/obstacle_boxes"]["Boxes3D:quaternions"] == n
     assert rows["/runs/stop_s0/obstacle_capsules"]["Capsules3D:quaternions"] == n
     assert "Cylinders3D:centers" in rows["/world/static_obstacles"]
+
+
+def test_tracks_replay_beside_the_true_obstacles(tmp_path):
+    """A planner that tracks: one row of track circles and velocity arrows per control tick,
+    each row holding that tick's tracks."""
+    mcap = tmp_path / "p.mcap"
+    run_episode(
+        resolve_world(0), get_planner("predictive"), get_protocol("barn"), seed=0, observers=[McapRecorder(mcap)]
+    )
+    rec = read_recording(mcap)
+    rrd = tmp_path / "p.rrd"
+    save_rrd([rec], rrd)
+    rows = _rows_per_entity(rrd)
+    ticks = rec.topic("/perception/tracks")
+    assert len(ticks) > 50 and any(len(m["ids"]) for _, m in ticks)
+    assert rows["/runs/predictive_s0/tracks"]["LineStrips3D:strips"] == len(ticks)
+    assert rows["/runs/predictive_s0/track_velocities"]["Arrows3D:vectors"] == len(ticks)
+    assert rows["/runs/predictive_s0/obstacles"]["Cylinders3D:centers"] == len(rec.topic("/world/obstacles"))

@@ -27,6 +27,7 @@ from dynabarn.replay import (
     log_robot_body,
     log_robot_poses,
     log_static_world,
+    log_tracks,
 )
 from dynabarn.robot import JACKAL
 
@@ -86,6 +87,12 @@ class RerunLive:
             if plan is not None and len(plan) >= 2:
                 p = np.asarray(plan)[:, :2]
                 s.log(f"{RUN}/{key}", rr.LineStrips3D([np.column_stack([p, np.full(len(p), 0.05)])]))
+        tracks = tick.tracks
+        if tracks is not None:
+            times = np.array([tick.time])
+            log_tracks(
+                s, RUN, times, [len(tracks)], tracks.positions, tracks.sizes, tracks.velocities, style=self.ticks == 0
+            )
         for topic, name in plotted():
             message = topic.per_tick(tick) if topic.per_tick is not None else None
             if message is not None and message.get(name) is not None and math.isfinite(message[name]):
