@@ -121,10 +121,18 @@ class EpisodeResult:
             body = f"in {self.time:.2f} s, score {self.score:.3f}, SPL {self.spl:.2f}"
         else:
             body = f"after {self.time:.2f} s ({self.reason})"
-        return (
+        line = (
             f"{head} {body}; path {self.path_length:.1f} m, min clearance {self.min_clearance:.2f} m, "
             f"planner {self.planner_ms_mean:.2f} ms, {self.rtf:.0f}x real time"
         )
+        t = self.tracking
+        if t and t.get("recall") is not None and t.get("position_error_median") is not None:
+            line += (
+                f"; tracking: recall {t['recall']:.2f}, position error {1000 * t['position_error_median']:.1f} mm "
+                f"(p95 {1000 * t['position_error_p95']:.0f} mm), velocity error {t['velocity_error_median']:.2f} m/s, "
+                f"{t['id_switches']} identity switches"
+            )
+        return line
 
 
 def path_length(xy: np.ndarray) -> float:

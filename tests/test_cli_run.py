@@ -176,6 +176,10 @@ def test_json_keys_in_help_are_the_printed_keys(tmp_path, capsys):
     assert run_main(["--world", "0", "--planner", "stop", "--no-log", "--json"]) == 0
     printed = json.loads(capsys.readouterr().out)
     assert list(printed) == sorted(result_keys())
+    assert run_main(["--world", "0", "--planner", "predictive", "--no-log", "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert list(printed) == sorted(result_keys(tracked=True))
+    assert set(printed["tracking"]) >= {"recall", "precision", "position_error_median", "id_switches"}
     with pytest.raises(SystemExit):
         run_main(["--help"])
     help_text = " ".join(capsys.readouterr().out.split())

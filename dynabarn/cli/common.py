@@ -135,14 +135,20 @@ def add_trial_seed(p: argparse.ArgumentParser) -> None:
     )
 
 
-def result_keys(extra: tuple[str, ...] = ()) -> list[str]:
+TRACKED_ONLY = ("tracking",)
+"""Result keys printed only for planners that track obstacles (`Planner.tracks`)."""
+
+
+def result_keys(extra: tuple[str, ...] = (), *, tracked: bool = False) -> list[str]:
     """The keys of `--json`'s result, read off `EpisodeResult` (so `--help` and the
-    documentation list exactly what is printed)."""
+    documentation list exactly what is printed); `tracked`: also those of a planner that
+    tracks obstacles."""
     from dataclasses import fields
 
     from dynabarn.metrics import EpisodeResult
 
-    return [f.name for f in fields(EpisodeResult)] + ["recording", *extra]
+    names = [f.name for f in fields(EpisodeResult) if tracked or f.name not in TRACKED_ONLY]
+    return [*names, "recording", *extra]
 
 
 def add_recording(p: argparse.ArgumentParser, planner: str = "<planner>", extra_keys: tuple[str, ...] = ()) -> None:
@@ -161,7 +167,10 @@ def add_recording(p: argparse.ArgumentParser, planner: str = "<planner>", extra_
     p.add_argument(
         "--json",
         action="store_true",
-        help="print the full result as JSON instead of one line; its keys: " + ", ".join(result_keys(extra_keys)),
+        help="print the full result as JSON instead of one line; its keys: "
+        + ", ".join(result_keys(extra_keys))
+        + "; and, for planners that track obstacles, "
+        + ", ".join(TRACKED_ONLY),
     )
 
 
