@@ -342,6 +342,11 @@ CONFIG_CASES = [
     ("teb", "n_poses=100000", "n_poses=100000: out of range"),
     ("teb", "max_iterations=0", "max_iterations=0: out of range"),
     ("oracle", "dt=0", "dt=0: out of range"),
+    ("predictive", "tracker.gate=-1", "predictive tracker gate=-1: out of range"),
+    ("predictive", "tracker=null", "tracker=None: expected an object of tracker parameters"),
+    ("predictive", "tracker.detector.min_points=0", "tracker detector min_points=0: out of range"),
+    ("predictive", "tracker.bogus=1", "unknown predictive tracker parameter"),
+    ("teb", "include_dynamic_obstacles=1", "include_dynamic_obstacles=1: expected true or false"),
     ("straight", "speed=1e9", "speed=1000000000.0: out of range"),
 ]
 
