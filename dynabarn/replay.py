@@ -20,7 +20,8 @@ Entity tree (one per recording; several recordings of one world go under
 
 Everything per-time is sent in bulk with `rr.send_columns`, one call per entity. rerun's
 own `rerun mcap convert` leaves LaserScan as raw columns; this module does the mapping.
-All `rr.` calls of the package live here and in `live.rerun_live` (the same entities, tick by tick).
+All `rr.` calls of the package live here, in `rerun_scene` (the entities themselves) and in
+`live.rerun_live` (the same entities, tick by tick).
 """
 
 from __future__ import annotations
@@ -42,17 +43,23 @@ from dynabarn.recording import (
     TOPIC_SCAN,
     TOPIC_TRACKS,
     Recording,
-    obstacle_pose,
     obstacle_track,
     recorded_world,
     returns_in_world,
     scan_lasers,
 )
 from dynabarn.recording.topics import plotted
-from dynabarn.worlds.spec import WorldSpec
+from dynabarn.rerun_scene import (
+    TIMELINE,
+    log_obstacles,
+    log_robot_body,
+    log_robot_poses,
+    log_static_world,
+    log_tracks,
+    time_column,
+)
 
 APP_ID = "dynabarn_replay"
-TIMELINE = "sim_time"
 PATH_VERTICES = 400
 BEAM_STRIDE = 4
 
@@ -69,83 +76,8 @@ class ReplayCounts:
     ticks: int
 
 
-def _quat_z(yaw: np.ndarray) -> np.ndarray:
-    """(n, 4) xyzw quaternions of rotations by yaw about z."""
-    return np.column_stack([np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2), np.cos(yaw / 2)])
-
-
 def _times(msgs: list) -> np.ndarray:
     return np.array([t for t, _ in msgs], dtype=np.float64)
-
-
-def _time_column(times: np.ndarray) -> rr.TimeColumn:
-    return rr.TimeColumn(TIMELINE, duration=times)
-
-
-def log_static_world(meta: dict, stream: rr.RecordingStream) -> None:
-    """Walls, goal and the description; static."""
-    layout = meta["world"]["layout"]
-    walls = layout["walls"]
-    stream.log(
-        "world/walls",
-        rr.Boxes3D(
-            centers=[[w["centre"][0], w["centre"][1], w["size"][2] / 2] for w in walls],
-            sizes=[w["size"] for w in walls],
-            colors=[(140, 140, 155)] * len(walls),
-            fill_mode="solid",
-        ),
-        static=True,
-    )
-    gx, gy = layout["goal"]
-    tol = meta["protocol"]["goal_tolerance"]
-    stream.log(
-        "world/goal",
-        rr.Cylinders3D(lengths=[0.02], radii=[tol], centers=[[gx, gy, 0.01]], colors=[(30, 200, 60, 120)]),
-        static=True,
-    )
-    static = np.asarray(layout.get("cylinders", []), dtype=np.float64).reshape(-1, 3)
-    if len(static):  # static BARN or mixed worlds
-        stream.log(
-            "world/static_obstacles",
-            rr.Cylinders3D(
-                centers=np.column_stack([static[:, :2], np.full(len(static), 0.5)]),
-                radii=static[:, 2],
-                lengths=np.ones(len(static)),
-                colors=[(140, 140, 155)],
-                fill_mode="solid",
-            ),
-            static=True,
-        )
-    stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-
-
-def log_robot_poses(stream: rr.RecordingStream, run: str, t: np.ndarray, xy: np.ndarray, yaw: np.ndarray) -> None:
-    """The robot's poses at times t (T,): centres xy (T, 2), headings yaw (T,)."""
-    stream.send_columns(
-        f"{run}/robot",
-        indexes=[_time_column(t)],
-        columns=rr.Transform3D.columns(translation=np.column_stack([xy, np.zeros(len(t))]), quaternion=_quat_z(yaw)),
-    )
-
-
-def log_robot_body(stream: rr.RecordingStream, run: str, footprint: tuple[float, float], color) -> None:
-    """The robot's footprint box and heading arrow, static under its pose."""
-    length, width = footprint
-    stream.log(
-        f"{run}/robot/body",
-        rr.Boxes3D(
-            half_sizes=[[length / 2, width / 2, 0.125]], centers=[[0, 0, 0.125]], colors=[color], fill_mode="solid"
-        ),
-        static=True,
-    )
-    stream.log(
-        f"{run}/robot/heading", rr.Arrows3D(origins=[[0, 0, 0.26]], vectors=[[0.5, 0, 0]], colors=[color]), static=True
-    )
-
-
-TRACK_HEIGHT = 1.2
-"""[m] Track circles float just above the obstacles (1 m tall), so truth and estimate both show."""
-_CIRCLE = np.linspace(0.0, 2.0 * np.pi, 25)
 
 
 def _log_tracks(stream, run: str, rec: Recording) -> None:
@@ -164,88 +96,8 @@ def _log_tracks(stream, run: str, rec: Recording) -> None:
     )
 
 
-def log_tracks(
-    stream,
-    run: str,
-    times: np.ndarray,
-    counts: list[int],
-    centres: np.ndarray,
-    sizes: np.ndarray,
-    velocities: np.ndarray,
-    *,
-    style: bool = True,
-) -> None:
-    """Tracks against the true obstacles: a circle of each track's size and an arrow of its
-    velocity (1 s of motion), `counts[i]` tracks at `times[i]` (rows of centres (N, 2),
-    sizes (N,), velocities (N, 2) in time order); `style`: also their colour (static, once)."""
-    import rerun as rr
-
-    cos, sin = np.cos(_CIRCLE), np.sin(_CIRCLE)
-    circles = [
-        np.column_stack([x + r * cos, y + r * sin, np.full(len(cos), TRACK_HEIGHT)])
-        for (x, y), r in zip(centres.tolist(), sizes.tolist(), strict=True)
-    ]
-    index = [_time_column(times)]
-    strips = rr.LineStrips3D.columns(strips=circles).partition(counts)
-    stream.send_columns(f"{run}/tracks", indexes=index, columns=strips)
-    origins = np.column_stack([centres, np.full(len(centres), TRACK_HEIGHT)])
-    vectors = np.column_stack([velocities, np.zeros(len(velocities))])
-    arrows = rr.Arrows3D.columns(origins=origins, vectors=vectors).partition(counts)
-    stream.send_columns(f"{run}/track_velocities", indexes=index, columns=arrows)
-    if style:
-        stream.log(f"{run}/tracks", rr.LineStrips3D.from_fields(colors=[(255, 140, 0)], radii=[0.03]), static=True)
-        stream.log(f"{run}/track_velocities", rr.Arrows3D.from_fields(colors=[(255, 140, 0)]), static=True)
-
-
-def log_obstacles(
-    stream: rr.RecordingStream, run: str, world: WorldSpec, t: np.ndarray, xy: np.ndarray, *, style: bool = True
-) -> None:
-    """The obstacles at times t (T,), centres xy (T, n, 2); `style`: also their colour and fill (static, once)."""
-    index = [_time_column(t)]
-    red = [(215, 40, 30)]
-    shapes = np.array([o.shape for o in world.obstacles])
-    for shape, entity in (("cylinder", "obstacles"), ("box", "obstacle_boxes"), ("capsule", "obstacle_capsules")):
-        sel = np.flatnonzero(shapes == shape)
-        if not len(sel):
-            continue
-        obs = [world.obstacles[i] for i in sel]
-        n = len(t)
-        centres = xy[:, sel].reshape(-1, 2)
-        poses = [obstacle_pose(o) for o in obs]  # the recorder's heights and orientations
-        z = np.tile([p[0] for p in poses], n)
-        quaternions = np.tile([p[1] for p in poses], (n, 1))
-        if shape == "cylinder":
-            columns = rr.Cylinders3D.columns(
-                centers=np.column_stack([centres, z]),
-                radii=np.tile([o.radius for o in obs], n),
-                lengths=np.tile([o.height for o in obs], n),
-            )
-            archetype = rr.Cylinders3D
-        elif shape == "box":
-            columns = rr.Boxes3D.columns(
-                centers=np.column_stack([centres, z]),
-                half_sizes=np.tile([[o.half_length, o.half_width, o.height / 2] for o in obs], (n, 1)),
-                quaternions=quaternions,
-            )
-            archetype = rr.Boxes3D
-        else:  # a capsule's segment starts at its translation and runs along its local +z
-            hl = np.tile([o.half_length for o in obs], n)
-            yaw = np.tile([o.yaw for o in obs], n)
-            start = centres - hl[:, None] * np.column_stack([np.cos(yaw), np.sin(yaw)])
-            columns = rr.Capsules3D.columns(
-                translations=np.column_stack([start, z]),
-                lengths=2 * hl,
-                radii=np.tile([o.radius for o in obs], n),
-                quaternions=quaternions,
-            )
-            archetype = rr.Capsules3D
-        stream.send_columns(f"{run}/{entity}", indexes=index, columns=columns.partition([len(sel)] * n))
-        if style:
-            stream.log(f"{run}/{entity}", archetype.from_fields(colors=red, fill_mode="solid"), static=True)
-
-
 # Over 80 lines on purpose: one short section per rerun entity (poses, scan, obstacles, path,
-# plan, plots), each one batched send; apart, they would pass the same ten locals around.
+# plan, tracks, plots), each one batched send; apart, they would pass the same ten locals around.
 def log_recording(
     rec: Recording, stream: rr.RecordingStream, *, run: str = "run", color_index: int = 0
 ) -> ReplayCounts:
@@ -290,13 +142,13 @@ def log_recording(
     if len(st):
         stream.send_columns(
             f"{run}/scan",
-            indexes=[_time_column(st)],
+            indexes=[time_column(st)],
             columns=rr.Points3D.columns(positions=np.concatenate(pts_all)).partition(n_pts),
         )
         strips = [b for per_scan in beams_all for b in per_scan]
         stream.send_columns(
             f"{run}/scan_beams",
-            indexes=[_time_column(st)],
+            indexes=[time_column(st)],
             columns=rr.LineStrips3D.columns(strips=strips).partition(n_beams),
         )
         stream.log(f"{run}/scan", rr.Points3D.from_fields(colors=[color], radii=[0.04]), static=True)
@@ -318,7 +170,7 @@ def log_recording(
             idx = np.unique(np.linspace(0, max(k - 1, 0), min(k, PATH_VERTICES)).astype(int))
             strips.append(np.column_stack([pxy[idx], np.full(len(idx), 0.02)]))
         stream.send_columns(
-            f"{run}/robot_path", indexes=[_time_column(tt)], columns=rr.LineStrips3D.columns(strips=strips)
+            f"{run}/robot_path", indexes=[time_column(tt)], columns=rr.LineStrips3D.columns(strips=strips)
         )
         stream.log(f"{run}/robot_path", rr.LineStrips3D.from_fields(colors=[color], radii=[0.03]), static=True)
 
@@ -329,7 +181,7 @@ def log_recording(
             continue
         stream.send_columns(
             f"{run}/{key}",
-            indexes=[_time_column(np.array([t for t, _ in plans]))],
+            indexes=[time_column(np.array([t for t, _ in plans]))],
             columns=rr.LineStrips3D.columns(
                 strips=[np.column_stack([np.asarray(p)[:, :2], np.full(len(p), z)]) for _, p in plans]
             ),
@@ -345,7 +197,7 @@ def log_recording(
             continue
         values = np.array([np.nan if m.get(name) is None else m[name] for _, m in msgs], dtype=np.float64)
         stream.send_columns(
-            f"metrics/{name}/{run}", indexes=[_time_column(_times(msgs))], columns=rr.Scalars.columns(scalars=values)
+            f"metrics/{name}/{run}", indexes=[time_column(_times(msgs))], columns=rr.Scalars.columns(scalars=values)
         )
         stream.log(f"metrics/{name}/{run}", rr.SeriesLines(colors=[color], names=[f"{run} {name}"]), static=True)
     return ReplayCounts(scans=len(st), poses=len(pt), obstacle_updates=len(ot), ticks=len(tt))

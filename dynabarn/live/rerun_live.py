@@ -17,12 +17,9 @@ import rerun as rr
 from dynabarn.errors import EndEpisode
 from dynabarn.recording import returns_in_world
 from dynabarn.recording.topics import plotted
-from dynabarn.replay import (
-    APP_ID,
-    COLORS,
-    PATH_VERTICES,
+from dynabarn.replay import APP_ID, COLORS, PATH_VERTICES, blueprint
+from dynabarn.rerun_scene import (
     TIMELINE,
-    blueprint,
     log_obstacles,
     log_robot_body,
     log_robot_poses,

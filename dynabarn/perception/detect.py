@@ -29,6 +29,7 @@ import numpy as np
 
 from dynabarn.determinism import sincos
 from dynabarn.perception.map_distance import BOUNDS, MapDistance
+from dynabarn.sim.observation import EpisodeInfo
 
 
 @dataclass
@@ -118,6 +119,18 @@ class ObstacleDetector:
         self.angles = np.asarray(laser_angles, dtype=np.float64)
         self.offset = np.asarray(laser_offset, dtype=np.float64)
         self.range_max = float(range_max)
+
+    @classmethod
+    def for_episode(cls, cfg: DetectorConfig, info: EpisodeInfo) -> ObstacleDetector:
+        """The detector of an episode: its known map and laser from `info`."""
+        return cls(
+            cfg,
+            walls=info.walls,
+            static_obstacles=info.static_obstacles,
+            laser_angles=info.laser_angles,
+            laser_offset=info.laser_offset,
+            range_max=info.laser_range[1],
+        )
 
     def laser_origin(self, pose: np.ndarray) -> np.ndarray:
         """The laser's position in the world (2,) for a robot pose (x, y, yaw)."""

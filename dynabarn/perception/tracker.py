@@ -35,6 +35,7 @@ from scipy.optimize import linear_sum_assignment
 from dynabarn.determinism import STATE_RESOLUTION, snap_array
 from dynabarn.perception.detect import Detections, DetectorConfig, ObstacleDetector
 from dynabarn.perception.tracks import Tracks
+from dynabarn.sim.observation import EpisodeInfo
 
 _NO_MATCH = 1e6
 
@@ -70,32 +71,15 @@ class ObstacleTracker:
     """Tracks moving obstacles from scans and odometry (world frame).
 
     Args:
-        cfg: the tracker's parameters.
-        walls, static_obstacles: the known map (`EpisodeInfo.walls`, `.static_obstacles`).
-        laser_angles, laser_offset, range_max: the laser (`EpisodeInfo`).
+        cfg: the tracker's parameters (its detector's parameters are `detector.cfg`).
+        detector: the episode's detector (its known map and laser).
     """
 
-    def __init__(
-        self,
-        cfg: TrackerConfig,
-        *,
-        walls: np.ndarray,
-        static_obstacles: np.ndarray,
-        laser_angles: np.ndarray,
-        laser_offset: np.ndarray,
-        range_max: float,
-    ) -> None:
+    def __init__(self, cfg: TrackerConfig, detector: ObstacleDetector) -> None:
         self.cfg = cfg
-        self.detector = ObstacleDetector(
-            cfg.detector,
-            walls=walls,
-            static_obstacles=static_obstacles,
-            laser_angles=laser_angles,
-            laser_offset=laser_offset,
-            range_max=range_max,
-        )
-        self.angles = self.detector.angles
-        self.range_max = float(range_max)
+        self.detector = detector
+        self.angles = detector.angles
+        self.range_max = detector.range_max
         self._next_id = 0
         self.time: float | None = None
         self.detections: Detections | None = None
@@ -110,6 +94,11 @@ class ObstacleTracker:
         self.born = np.zeros(n)
         self.seen = np.zeros(n)
         self.unseen_in_view = np.zeros(n)
+
+    @classmethod
+    def for_episode(cls, cfg: TrackerConfig, info: EpisodeInfo) -> ObstacleTracker:
+        """An episode's tracker: its known map and laser from `info`."""
+        return cls(cfg, ObstacleDetector.for_episode(cfg.detector, info))
 
     # -- the filter ---------------------------------------------------------------------------
     def _predict(self, dt: float) -> None:

@@ -25,14 +25,7 @@ def with_tracker(kwargs: dict, what: str) -> dict:
 
 def make_tracker(cfg: TrackerConfig, info: EpisodeInfo) -> ObstacleTracker:
     """An episode's tracker: its map and laser from `info`."""
-    return ObstacleTracker(
-        cfg,
-        walls=info.walls,
-        static_obstacles=info.static_obstacles,
-        laser_angles=info.laser_angles,
-        laser_offset=info.laser_offset,
-        range_max=info.laser_range[1],
-    )
+    return ObstacleTracker.for_episode(cfg, info)
 
 
 def tracked_beams(tracker: ObstacleTracker, n_beams: int) -> np.ndarray:
