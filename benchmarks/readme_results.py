@@ -40,6 +40,13 @@ SETS = {
     "original60_barn": "original 60",
     "unseen_barn": "unseen 240",
 }
+OTHER_SETS = {
+    "mixed_barn": "mixed shapes and a static BARN field (`--static barn-grid --shapes mixed`), 300 worlds",
+    "shaped_hard_barn": "mixed shapes (`--shapes mixed`), hard worlds 200-299",
+    "yield_hard_barn": "obstacles that yield (`--behavior yield`), hard worlds 200-299",
+    "avoid_hard_barn": "obstacles that steer around the robot (`--behavior avoid`), hard worlds 200-299",
+}
+"""Beyond the paper's worlds: one trial per world (folders written by the commands in docs/results.md)."""
 PLANNERS = {
     FLOOR: "Blind floor (`straight`)",
     "dwa": "DWA, our defaults (ROS's DWA biases, 2 m/s)",
@@ -248,8 +255,30 @@ def tracking_quality(summaries: dict[str, list[dict]]) -> str:
     return "\n".join(lines)
 
 
+def other_worlds(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
+    """Success and skill over the floor on the worlds beyond the paper's."""
+    lines = [
+        "| worlds | planner | episodes | easy | medium | hard | all | skill over floor, all |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for folder, title in OTHER_SETS.items():
+        _, summary = folders.get(folder, ([], []))
+        by = _by(summary)
+        for planner in PLANNERS:
+            if (planner, "all") not in by:
+                continue
+            cells = [f"{by[(planner, d)]['success']:.2f}" if (planner, d) in by else "-" for d in DIFFICULTIES]
+            lines.append(
+                f"| {title} | `{planner}` | {by[(planner, 'all')]['episodes']} | "
+                + " | ".join(cells)
+                + f" | {_ci(by[(planner, 'all')])} | {_skill(by[(planner, 'all')])} |"
+            )
+    return "\n".join(lines)
+
+
 BLOCKS = {
     "headline": lambda f, s: headline_table(s),
+    "other-worlds": lambda f, s: other_worlds(f),
     "ladder": lambda f, s: ladder_table(s),
     "tracking": lambda f, s: tracking_quality(s),
     "fig5": lambda f, s: fig5_table(s),
@@ -261,7 +290,7 @@ BLOCKS = {
 
 PAGES = {
     README: ("headline", "ladder"),
-    DOCS / "results.md": ("fig5", "skill", "floor", "ladder", "tracking"),
+    DOCS / "results.md": ("fig5", "skill", "floor", "ladder", "tracking", "other-worlds"),
     DOCS / "tutorials" / "training.md": ("td3-training",),
 }
 """Each page and the blocks it must hold (every block of BLOCKS is on some page)."""
@@ -293,8 +322,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="compare only; exit 1 when a page differs")
     args = parser.parse_args(argv)
-    folders = {folder: load(folder) for folder in SETS}
-    summaries = {folder: s for folder, (_, s) in folders.items()}
+    folders = {folder: load(folder) for folder in (*SETS, *OTHER_SETS)}
+    summaries = {folder: s for folder, (_, s) in folders.items() if folder in SETS}
     stale = []
     for page, blocks in PAGES.items():
         text = page.read_text()
