@@ -8,6 +8,8 @@ Measures, on one core:
 5. converting a 60 s recording to a rerun .rrd (and its ratio to the recording's length);
 6. the Gymnasium environment's control steps per second (with the learn extra);
 7. the speed-up of a 2-worker benchmark sweep over 1 worker;
+   the laser tracker's time per scan on a hard world (every obstacle in play), and the
+   planners that use it;
 8. video frames per second, the default renderer against `--quality high` (MuJoCo's
    defaults, what every video used before).
 Each figure is the best of `--repeat` runs (the least disturbed by other processes).
@@ -28,7 +30,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 import mujoco
 import numpy as np
 
-from dynabarn.planners import get_planner
+from dynabarn.planners import get_planner, planner_spec
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, read_recording
 from dynabarn.sim import Laser, Simulation, run_episode
@@ -90,10 +92,47 @@ def planner_compute(planner: str, worlds: tuple[int, ...] = (0, 15, 105, 155, 20
         def on_poses(self, t, p): ...
         def on_end(self, result): ...
 
+    name, config, _ = planner_spec(planner)
     for w in worlds:
-        run_episode(resolve_world(w), get_planner(planner), get_protocol("barn"), seed=0, observers=[Timer()])
+        run_episode(resolve_world(w), get_planner(name, **config), get_protocol("barn"), seed=0, observers=[Timer()])
     arr = np.array(times)
     return float(arr.mean()), float(np.percentile(arr, 95)), len(arr)
+
+
+def tracker_cost(world_id: int = HARD_WORLD, n_scans: int = 300) -> tuple[float, float, int]:
+    """(mean, p95 [ms], obstacles) of `ObstacleTracker.update` on the scans of a robot
+    driving blind through a hard world (the scans gathered first, then tracked alone)."""
+    from dynabarn.perception import TrackerConfig
+    from dynabarn.planners.base import Planner
+    from dynabarn.planners.tracking import make_tracker
+
+    scans: list = []
+
+    class Gather(Planner):
+        name = "gather"
+
+        def reset(self, info):
+            self.info = info
+            self.inner = get_planner("straight")
+            self.inner.reset(info)
+
+        def act(self, obs):
+            scans.append((obs.time, obs.scan.copy(), obs.pose.copy()))
+            return self.inner.act(obs)
+
+    gather = Gather()
+    seed = 0
+    while len(scans) < n_scans:
+        run_episode(resolve_world(world_id), gather, get_protocol("barn"), seed=seed)
+        seed += 1
+    tracker = make_tracker(TrackerConfig(), gather.info)
+    times = []
+    for t, scan, pose in scans[:n_scans]:
+        t0 = time.perf_counter()
+        tracker.update(t, scan, pose)
+        times.append((time.perf_counter() - t0) * 1e3)
+    arr = np.array(times)
+    return float(arr.mean()), float(np.percentile(arr, 95)), len(Simulation(resolve_world(world_id)).radii)
 
 
 def recovery_speed() -> float:
@@ -279,9 +318,12 @@ def main(argv: list[str] | None = None) -> int:
         slow, fast = scan_cost(path, closed_form=False), scan_cost(path)
         print(f"{'  its scan with every cylinder in mj_multiRay [ms]':<52}{slow:>11.2f}{'':>11}{slow / fast:>8.1f}x")
     print(f"{'planner compute per call':<44}{'mean [ms]':>11}{'p95 [ms]':>11}{'calls':>8}")
-    for planner in ("dwa", "teb"):
+    for planner in ("dwa", "teb", "dwa@dwa_dynamic", "teb@teb_dynamic", "predictive", "oracle"):
         mean, p95, calls = planner_compute(planner)
         print(f"{planner:<44}{mean:>11.2f}{p95:>11.2f}{calls:>8}")
+    mean, p95, n_obstacles = min(tracker_cost() for _ in range(args.repeat))
+    label = f"laser tracker, one scan of world_{HARD_WORLD:03d} ({n_obstacles} obstacles)"
+    print(f"{label:<44}{mean:>11.2f}{p95:>11.2f}{300:>8}")
     print(f"{'read back a recording [MB/s]':<66}{recovery_speed():>12.1f}")
     sps = env_steps_per_second()
     if sps is not None:
