@@ -25,6 +25,7 @@ _WHERE = {
     "Layout": "dynabarn.worlds.spec",
     "McapRecorder": "dynabarn.recording",
     "MotionProfile": "dynabarn.worlds.profiles",
+    "ObstacleTracker": "dynabarn.perception",
     "Observation": "dynabarn.planners",
     "Obstacle": "dynabarn.worlds.spec",
     "ObstacleState": "dynabarn.planners",
@@ -43,6 +44,8 @@ _WHERE = {
     "SimConfig": "dynabarn.sim",
     "Simulation": "dynabarn.sim",
     "StaticField": "dynabarn.worlds.profiles",
+    "TrackerConfig": "dynabarn.perception",
+    "Tracks": "dynabarn.perception",
     "Trajectory": "dynabarn.worlds.trajectory",
     "WorldError": "dynabarn.errors",
     "WorldSpec": "dynabarn.worlds.spec",
@@ -78,6 +81,7 @@ __all__ = [
     "Observation",
     "Obstacle",
     "ObstacleState",
+    "ObstacleTracker",
     "Outcome",
     "Planner",
     "ProfileError",
@@ -88,6 +92,8 @@ __all__ = [
     "SimConfig",
     "Simulation",
     "StaticField",
+    "TrackerConfig",
+    "Tracks",
     "Trajectory",
     "WorldError",
     "WorldSpec",
@@ -129,6 +135,7 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from dynabarn.errors import DynabarnError, ProfileError, WorldError
     from dynabarn.metrics import EpisodeResult, Outcome
     from dynabarn.mjcf import load_model, read_world, write_world
+    from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
     from dynabarn.planners import (
         EpisodeInfo,
         Observation,
