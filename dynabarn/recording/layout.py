@@ -1,7 +1,7 @@
 """The Foxglove layout shipped for recordings and live runs (`assets/foxglove/dynabarn.json`).
 
 Built from the topic table with foxglove-sdk's layout classes: a 3D panel following the
-robot's `base_link` in the `world` frame (scan, obstacles, walls, goal, plans), a top-down
+robot's `base_link` in the `world` frame (scan, obstacles, walls, goal, plans, tracks), a top-down
 3D panel of the whole arena, one plot per field the table marks for plotting, the episode's
 result and the frame tree. Import the file in Foxglove (Layouts -> Import from file).
 `python -m dynabarn.recording.layout --out assets/foxglove/dynabarn.json` regenerates it (a
@@ -26,12 +26,13 @@ from dynabarn.recording.topics import (
     TOPIC_RESULT,
     TOPIC_SCAN,
     TOPIC_STATIC,
+    TOPIC_TRACK_SCENE,
     plotted,
 )
 
 LAYOUT_FILE = Path(__file__).resolve().parents[2] / "assets" / "foxglove" / "dynabarn.json"
 """The shipped copy, in a checkout of the repository."""
-SCENE_TOPICS = (TOPIC_STATIC, TOPIC_OBSTACLES, TOPIC_PLANS, TOPIC_SCAN, TOPIC_GOAL)
+SCENE_TOPICS = (TOPIC_STATIC, TOPIC_OBSTACLES, TOPIC_PLANS, TOPIC_TRACK_SCENE, TOPIC_SCAN, TOPIC_GOAL)
 """What the 3D panels draw (the frame tree on `/tf` places them)."""
 
 
