@@ -41,7 +41,7 @@ SETS = {
     "unseen_barn": "unseen 240",
 }
 OTHER_SETS = {
-    "mixed_hard_barn": "mixed shapes and a static BARN field (`--static barn-grid --shapes mixed`), hard worlds 200-299",
+    "mixed_hard_barn": "mixed shapes, a static BARN field (`--static barn-grid --shapes mixed`), hard worlds 200-299",
     "shaped_hard_barn": "mixed shapes (`--shapes mixed`), hard worlds 200-299",
     "yield_hard_barn": "obstacles that yield (`--behavior yield`), hard worlds 200-299",
     "avoid_hard_barn": "obstacles that steer around the robot (`--behavior avoid`), hard worlds 200-299",
