@@ -164,6 +164,8 @@ class ObstacleTracker:
             origin = self.detector.laser_origin(pose)
             rel = self.x[k] - origin
             dist = np.sqrt(rel[:, 0] ** 2 + rel[:, 1] ** 2)
+            # libm's atan2, a few calls per scan: numpy's differs between CPUs in the last bits,
+            # which could move a bearing across a beam boundary.
             bearing = np.array([math.atan2(y, x) for x, y in rel.tolist()]) - pose[2]
             bearing = (bearing + np.pi) % (2.0 * np.pi) - np.pi
             step = (self.angles[-1] - self.angles[0]) / (len(self.angles) - 1)
