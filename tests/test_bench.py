@@ -257,3 +257,42 @@ def test_fig5_draws_only_the_difficulties_that_ran(tmp_path):
     assert fig5_groups([*hard_only, row("dwa", "easy", 0.8)]) == ["easy", "hard"]
     path = plot_fig5(hard_only, tmp_path / "fig5.png")
     assert path.stat().st_size > 1000
+
+
+def test_summary_marks_privileged_planners_and_summarises_tracking():
+    """The oracles are marked privileged; a planner's tracking columns are the medians of its
+    episodes' values (identity switches: the mean), and None for planners that do not track."""
+    from dynabarn.bench.summary import format_table, tracking_table
+
+    def row(planner, world, outcome, tracking=None):
+        r = {"planner": planner, "difficulty": "hard", "world": world, "seed": 0, "outcome": outcome}
+        return r | ({"tracking": tracking} if tracking else {})
+
+    def quality(recall, pos, switches):
+        return {
+            "recall": recall,
+            "precision": 1.0,
+            "position_error_median": pos,
+            "position_error_p95": 10 * pos,
+            "velocity_error_median": 0.01,
+            "velocity_error_p95": 0.3,
+            "id_switches": switches,
+            "ticks": 100,
+        }
+
+    rows = [row("straight", w, "collision") for w in ("a", "b", "c")]
+    rows += [row("oracle", w, "success") for w in ("a", "b", "c")]
+    rows += [
+        row("predictive", "a", "success", quality(0.90, 0.001, 2)),
+        row("predictive", "b", "success", quality(0.99, 0.003, 4)),
+        row("predictive", "c", "collision", quality(0.95, 0.100, 9)),
+    ]
+    by = {(s["planner"], s["difficulty"]): s for s in bench.summarise(rows)}
+    assert by[("oracle", "hard")]["privileged"] and not by[("predictive", "hard")]["privileged"]
+    assert by[("oracle", "hard")]["track_recall"] is None
+    p = by[("predictive", "hard")]
+    assert p["track_recall"] == 0.95 and p["track_pos_err"] == 0.003 and p["track_pos_err_p95"] == 0.03
+    assert p["track_id_switches"] == 5.0
+    table = format_table(list(by.values()))
+    assert "oracle (privileged)" in table and "predictive (privileged)" not in table
+    assert "0.950" in tracking_table([p])
