@@ -315,7 +315,7 @@ def draw(summaries: dict[str, list[dict]]) -> None:
             ladder = [s for s in summary if s["planner"] in rungs]
             if ladder:
                 title = f"the ladder from blind to all-knowing, {SETS[folder]} worlds (95% Wilson intervals)"
-                plot_fig5(ladder, FIGURES / f"ladder_{folder}.png", title=title)
+                plot_fig5(ladder, FIGURES / f"ladder_{folder}.png", title=title, order=tuple(p for p, _, _ in LADDER))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -79,6 +79,16 @@ def _mean(values: list[float]) -> float:
 
 
 PAPER_PROTOCOLS = ("barn", "paper2022")
+PAPER_PRESETS = ("dwa_dynabarn_authors", "teb_ros_defaults")
+"""Presets that are the paper's planners as its authors configured them: compared with its
+bars. Other presets (e.g. `dwa@dwa_dynamic`) are planners the paper does not have."""
+
+
+def paper_planner(planner: str) -> str | None:
+    """The paper's planner a result row's planner stands for (`dwa`, `dwa@dwa_dynabarn_authors`
+    -> dwa), or None when it stands for none the paper ran."""
+    base, _, preset = planner.partition("@")
+    return base if base in PAPER_FIG5 and (not preset or preset in PAPER_PRESETS) else None
 
 
 TRACKING_SUMMARY = {
@@ -158,7 +168,7 @@ def summarise(rows: list[dict], paper_worlds: set[str] = frozenset()) -> list[di
                 "min_clearance": _mean([r.get("min_clearance") for r in rs]),
                 "privileged": privileged(planner),
                 # The paper's Fig. 5 only compares with runs in the paper's worlds under its protocols.
-                "paper": PAPER_FIG5.get(planner.split("@")[0], {}).get(difficulty)
+                "paper": PAPER_FIG5.get(paper_planner(planner) or "", {}).get(difficulty)
                 if all(r.get("protocol") in PAPER_PROTOCOLS and r.get("world") in paper_worlds for r in rs)
                 else None,
                 **(
@@ -280,15 +290,17 @@ def fig5_groups(summary: list[dict]) -> list[str]:
     return [d for d in DIFFICULTIES if d in present]
 
 
-def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
-    """Bars of success per difficulty with 95% intervals, the paper's values as hatched bars."""
+def plot_fig5(summary: list[dict], path: Path, *, title: str = "", order: tuple[str, ...] = ()) -> Path:
+    """Bars of success per difficulty with 95% intervals, the paper's values as hatched bars;
+    planners in `order` first, in that order (default: the floor, then by name)."""
     # A Figure of its own, not pyplot: no global backend switch, no figure registry.
     import numpy as np
     from matplotlib import colormaps
     from matplotlib.figure import Figure
 
     groups = fig5_groups(summary)
-    planners = sorted({s["planner"] for s in summary}, key=lambda p: (p != FLOOR, p))  # the floor first
+    rank = {p: i for i, p in enumerate(order or (FLOOR,))}
+    planners = sorted({s["planner"] for s in summary}, key=lambda p: (rank.get(p, len(rank)), p))
     fig = Figure(figsize=(2.2 + 2.4 * len(planners), 4.0), dpi=120)
     ax = fig.subplots()
     width = 0.8 / (2 * len(planners))
@@ -321,8 +333,8 @@ def plot_fig5(summary: list[dict], path: Path, *, title: str = "") -> Path:
     ax.set_ylim(0, 1.05)
     ax.set_ylabel("success rate")
     ax.grid(axis="y", alpha=0.3)
-    ax.legend(fontsize=8, ncol=2)
+    ax.legend(fontsize=8, ncol=min(4, max(1, len(planners))), loc="upper center", bbox_to_anchor=(0.5, -0.08))
     ax.set_title(title or "success rate per difficulty (95% Wilson intervals)", fontsize=10)
     fig.tight_layout()
-    save_atomically(path, lambda f: fig.savefig(f, format="png"))
+    save_atomically(path, lambda f: fig.savefig(f, format="png", bbox_inches="tight"))
     return path
