@@ -239,7 +239,7 @@ def ladder_table(summaries: dict[str, list[dict]]) -> str:
 def tracking_quality(summaries: dict[str, list[dict]]) -> str:
     """The tracker's quality against the truth, per planner that uses it and world set."""
     lines = [
-        "| planner | worlds | difficulty | recall | precision | position error median / p95 [m] "
+        "| planner | worlds | difficulty | recall | precision | position error median / p95 [mm] "
         "| velocity error median / p95 [m/s] | identity switches per episode |",
         "|---|---|---|---|---|---|---|---|",
     ]
@@ -249,7 +249,7 @@ def tracking_quality(summaries: dict[str, list[dict]]) -> str:
                 continue
             lines.append(
                 f"| `{s['planner']}` | {SETS[folder]} | {s['difficulty']} | {s['track_recall']:.3f} "
-                f"| {s['track_precision']:.3f} | {s['track_pos_err']:.3f} / {s['track_pos_err_p95']:.3f} "
+                f"| {s['track_precision']:.3f} | {1000 * s['track_pos_err']:.1f} / {1000 * s['track_pos_err_p95']:.0f} "
                 f"| {s['track_vel_err']:.3f} / {s['track_vel_err_p95']:.3f} | {s['track_id_switches']:.1f} |"
             )
     return "\n".join(lines)

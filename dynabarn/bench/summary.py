@@ -219,6 +219,10 @@ def _num(value, fmt: str) -> str:
     return "-" if value is None else format(value, fmt)
 
 
+def _mm(metres, fmt: str) -> str:
+    return "-" if metres is None else format(1000 * metres, fmt)
+
+
 def tracking_table(summary: list[dict], *, markdown: bool = True) -> str:
     """Tracking quality of the planners with a tracker (medians over episodes)."""
     head = [
@@ -226,7 +230,7 @@ def tracking_table(summary: list[dict], *, markdown: bool = True) -> str:
         "difficulty",
         "recall",
         "precision",
-        "position error median / p95 [m]",
+        "position error median / p95 [mm]",
         "velocity error median / p95 [m/s]",
         "identity switches per episode",
     ]
@@ -236,7 +240,7 @@ def tracking_table(summary: list[dict], *, markdown: bool = True) -> str:
             s["difficulty"],
             _num(s["track_recall"], ".3f"),
             _num(s["track_precision"], ".3f"),
-            f"{_num(s['track_pos_err'], '.3f')} / {_num(s['track_pos_err_p95'], '.3f')}",
+            f"{_mm(s['track_pos_err'], '.1f')} / {_mm(s['track_pos_err_p95'], '.0f')}",
             f"{_num(s['track_vel_err'], '.3f')} / {_num(s['track_vel_err_p95'], '.3f')}",
             _num(s["track_id_switches"], ".1f"),
         ]
