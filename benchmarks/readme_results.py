@@ -236,19 +236,20 @@ def ladder_table(summaries: dict[str, list[dict]]) -> str:
     return "\n".join(lines)
 
 
-def tracking_quality(summaries: dict[str, list[dict]]) -> str:
+def tracking_quality(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
     """The tracker's quality against the truth, per planner that uses it and world set."""
     lines = [
         "| planner | worlds | difficulty | recall | precision | position error median / p95 [mm] "
         "| velocity error median / p95 [m/s] | identity switches per episode |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for folder in ("paper60_barn", "original60_barn"):
-        for s in summaries.get(folder, []):
-            if s.get("track_recall") is None:
+    names = {**SETS, **{k: v.split(" (")[0] + " (hard)" for k, v in OTHER_SETS.items()}}
+    for folder in ("paper60_barn", "original60_barn", *OTHER_SETS):
+        for s in folders.get(folder, ([], []))[1]:
+            if s.get("track_recall") is None or (folder in OTHER_SETS and s["difficulty"] != "all"):
                 continue
             lines.append(
-                f"| `{s['planner']}` | {SETS[folder]} | {s['difficulty']} | {s['track_recall']:.3f} "
+                f"| `{s['planner']}` | {names[folder]} | {s['difficulty']} | {s['track_recall']:.3f} "
                 f"| {s['track_precision']:.3f} | {1000 * s['track_pos_err']:.1f} / {1000 * s['track_pos_err_p95']:.0f} "
                 f"| {s['track_vel_err']:.3f} / {s['track_vel_err_p95']:.3f} | {s['track_id_switches']:.1f} |"
             )
@@ -280,7 +281,7 @@ BLOCKS = {
     "headline": lambda f, s: headline_table(s),
     "other-worlds": lambda f, s: other_worlds(f),
     "ladder": lambda f, s: ladder_table(s),
-    "tracking": lambda f, s: tracking_quality(s),
+    "tracking": lambda f, s: tracking_quality(f),
     "fig5": lambda f, s: fig5_table(s),
     "skill": lambda f, s: skill_table(s),
     "floor": lambda f, s: floor_table(f),
