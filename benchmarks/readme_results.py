@@ -91,6 +91,13 @@ def load(folder: str) -> tuple[list[dict], list[dict]]:
     return rows, summarise(rows, paper_worlds(RESULTS_DIR / folder)) if rows else []
 
 
+def load_all() -> tuple[dict, dict]:
+    """(folders, summaries): every results folder the pages use as (rows, summary), and the
+    summaries of the paper's two world sets and the unseen worlds."""
+    folders = {folder: load(folder) for folder in (*SETS, *OTHER_SETS)}
+    return folders, {folder: s for folder, (_, s) in folders.items() if folder in SETS}
+
+
 def _by(summary: list[dict]) -> dict[tuple[str, str], dict]:
     return {(s["planner"], s["difficulty"]): s for s in summary}
 
@@ -323,8 +330,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="compare only; exit 1 when a page differs")
     args = parser.parse_args(argv)
-    folders = {folder: load(folder) for folder in (*SETS, *OTHER_SETS)}
-    summaries = {folder: s for folder, (_, s) in folders.items() if folder in SETS}
+    folders, summaries = load_all()
     stale = []
     for page, blocks in PAGES.items():
         text = page.read_text()

@@ -41,8 +41,7 @@ def test_the_check_fails_when_a_table_is_edited(tmp_path):
         import readme_results
     finally:
         sys.path.remove(str(SCRIPT.parent))
-    folders = {f: readme_results.load(f) for f in readme_results.SETS}
-    summaries = {f: s for f, (_, s) in folders.items()}
+    folders, summaries = readme_results.load_all()
     pages = readme_results.PAGES
     assert {b for blocks in pages.values() for b in blocks} == set(readme_results.BLOCKS)
     results_page = ROOT / "docs" / "results.md"
