@@ -102,9 +102,8 @@ def planner_compute(planner: str, worlds: tuple[int, ...] = (0, 15, 105, 155, 20
 def tracker_cost(world_id: int = HARD_WORLD, n_scans: int = 300) -> tuple[float, float, int]:
     """(mean, p95 [ms], obstacles) of `ObstacleTracker.update` on the scans of a robot
     driving blind through a hard world (the scans gathered first, then tracked alone)."""
-    from dynabarn.perception import TrackerConfig
+    from dynabarn.perception import ObstacleTracker, TrackerConfig
     from dynabarn.planners.base import Planner
-    from dynabarn.planners.tracking import make_tracker
 
     scans: list = []
 
@@ -125,7 +124,7 @@ def tracker_cost(world_id: int = HARD_WORLD, n_scans: int = 300) -> tuple[float,
     while len(scans) < n_scans:
         run_episode(resolve_world(world_id), gather, get_protocol("barn"), seed=seed)
         seed += 1
-    tracker = make_tracker(TrackerConfig(), gather.info)
+    tracker = ObstacleTracker.for_episode(TrackerConfig(), gather.info)
     times = []
     for t, scan, pose in scans[:n_scans]:
         t0 = time.perf_counter()

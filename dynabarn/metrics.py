@@ -47,6 +47,11 @@ OUTCOME_MESSAGES = {
 }
 
 
+TRACKED_ONLY = ("tracking",)
+"""`EpisodeResult` fields only planners that track obstacles have (`Planner.tracks`): left
+out of `to_dict` (and the JSON of a run, a results row, a recording) for the rest."""
+
+
 def _json_number(v):
     """Floats rounded to 6 decimals, and null where no finite number exists (strict JSON)."""
     return (round(v, 6) if np.isfinite(v) else None) if isinstance(v, float) else v
@@ -106,10 +111,11 @@ class EpisodeResult:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["outcome"] = self.outcome.value
-        if d["tracking"] is None:  # planners without a tracker: the row as it always was
-            del d["tracking"]
-        else:
-            d["tracking"] = {k: _json_number(v) for k, v in d["tracking"].items()}
+        for name in TRACKED_ONLY:  # planners without a tracker: the row as it always was
+            if d[name] is None:
+                del d[name]
+            else:
+                d[name] = {k: _json_number(v) for k, v in d[name].items()}
         # Strict JSON: a value with no finite number (min_clearance in a world without
         # obstacles, rtf of an instant episode) is null, never NaN or Infinity.
         return {k: _json_number(v) for k, v in d.items()}

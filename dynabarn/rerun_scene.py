@@ -9,6 +9,7 @@ import numpy as np
 import rerun as rr
 
 from dynabarn.recording import obstacle_pose
+from dynabarn.recording.scene import TRACK_HEIGHT
 from dynabarn.worlds.spec import WorldSpec
 
 TIMELINE = "sim_time"
@@ -85,9 +86,8 @@ def log_robot_body(stream: rr.RecordingStream, run: str, footprint: tuple[float,
     )
 
 
-TRACK_HEIGHT = 1.2
-"""[m] Track circles float just above the obstacles (1 m tall), so truth and estimate both show."""
 _CIRCLE = np.linspace(0.0, 2.0 * np.pi, 25)
+_COS, _SIN = np.cos(_CIRCLE), np.sin(_CIRCLE)
 
 
 def log_tracks(
@@ -106,9 +106,8 @@ def log_tracks(
     sizes (N,), velocities (N, 2) in time order); `style`: also their colour (static, once)."""
     import rerun as rr
 
-    cos, sin = np.cos(_CIRCLE), np.sin(_CIRCLE)
     circles = [
-        np.column_stack([x + r * cos, y + r * sin, np.full(len(cos), TRACK_HEIGHT)])
+        np.column_stack([x + r * _COS, y + r * _SIN, np.full(len(_COS), TRACK_HEIGHT)])
         for (x, y), r in zip(centres.tolist(), sizes.tolist(), strict=True)
     ]
     index = [time_column(times)]

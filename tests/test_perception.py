@@ -9,10 +9,9 @@ import numpy as np
 import pytest
 
 from dynabarn.errors import EndEpisode
-from dynabarn.perception import DetectorConfig, ObstacleDetector, TrackerConfig
+from dynabarn.perception import DetectorConfig, ObstacleDetector, ObstacleTracker, TrackerConfig
 from dynabarn.planners import get_planner
 from dynabarn.planners.base import Planner
-from dynabarn.planners.tracking import make_tracker
 from dynabarn.protocol import get_protocol
 from dynabarn.provenance import SHIPPED_WORLDS
 from dynabarn.robot import JACKAL
@@ -37,7 +36,7 @@ class Watcher(Planner):
         self.log: list[tuple[float, object, np.ndarray, np.ndarray]] = []
 
     def reset(self, info):
-        self.tracker = make_tracker(TrackerConfig(), info)
+        self.tracker = ObstacleTracker.for_episode(TrackerConfig(), info)
         if self.inner is not None:
             self.inner.reset(info)
 

@@ -135,17 +135,13 @@ def add_trial_seed(p: argparse.ArgumentParser) -> None:
     )
 
 
-TRACKED_ONLY = ("tracking",)
-"""Result keys printed only for planners that track obstacles (`Planner.tracks`)."""
-
-
 def result_keys(extra: tuple[str, ...] = (), *, tracked: bool = False) -> list[str]:
     """The keys of `--json`'s result, read off `EpisodeResult` (so `--help` and the
     documentation list exactly what is printed); `tracked`: also those of a planner that
     tracks obstacles."""
     from dataclasses import fields
 
-    from dynabarn.metrics import EpisodeResult
+    from dynabarn.metrics import TRACKED_ONLY, EpisodeResult
 
     names = [f.name for f in fields(EpisodeResult) if tracked or f.name not in TRACKED_ONLY]
     return [*names, "recording", *extra]
@@ -154,6 +150,8 @@ def result_keys(extra: tuple[str, ...] = (), *, tracked: bool = False) -> list[s
 def add_recording(p: argparse.ArgumentParser, planner: str = "<planner>", extra_keys: tuple[str, ...] = ()) -> None:
     """--log / --no-log / --runs-dir / --json: where one episode is recorded and how it is printed."""
     from pathlib import Path
+
+    from dynabarn.metrics import TRACKED_ONLY
 
     log = p.add_mutually_exclusive_group()
     log.add_argument(

@@ -30,11 +30,11 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
-from dynabarn.perception import TrackerConfig, Tracks
+from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.planners.tracking import make_tracker, tracked_beams, with_tracker
+from dynabarn.planners.tracking import track_moving, with_tracker
 
 
 @dataclass
@@ -156,7 +156,9 @@ class DWAPlanner(Planner):
         self._last_plan = np.zeros((0, 2))
         self._global_plan = np.zeros((0, 2))
         self._prev = np.zeros(2)
-        self.tracker = make_tracker(self.cfg.tracker, info) if self.cfg.include_dynamic_obstacles else None
+        self.tracker = (
+            ObstacleTracker.for_episode(self.cfg.tracker, info) if self.cfg.include_dynamic_obstacles else None
+        )
         self._tracks: Tracks | None = None
 
     def tracks(self) -> Tracks | None:
@@ -171,9 +173,8 @@ class DWAPlanner(Planner):
         pose = obs.pose
         scan = obs.scan
         if self.tracker is not None:
-            self._tracks = self.tracker.update(obs.time, obs.scan, pose)
             # The moving obstacles are the tracker's: the costmap holds what stands still.
-            scan = np.where(tracked_beams(self.tracker, len(scan)), info.laser_range[1], scan)
+            self._tracks, _, scan = track_moving(self.tracker, obs, info.laser_range[1])
         self.costmap.update(pose, scan, info.laser_angles, info.laser_offset, info.laser_range[1])
         path = self.global_planner.plan_around(pose[0], pose[1], self.costmap, block_radius=cfg.collision_radius)
         local_goal, path = self.global_planner.local_goal(pose[0], pose[1], cfg.lookahead, path)

@@ -25,7 +25,7 @@ import numpy as np
 
 from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
 from dynabarn.perception.map_distance import MapDistance, grid_indices
-from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
+from dynabarn.planners.base import EpisodeInfo, Observation, ObstacleState, Planner, config_from_kwargs
 from dynabarn.planners.global_planner import GlobalPlanner
 
 
@@ -153,9 +153,13 @@ class OraclePlanner(Planner):
         """Where the moving obstacles will be at the rollout times `obs.time + self._steps`:
         centres (K, n, 2) and the radius to keep clear of, (n,) or (K, n). Here: their exact
         future, from the schedules; subclasses predict it from less."""
+        state = self._true_state(obs)
+        return state.predict(obs.time + self._steps), state.radii
+
+    def _true_state(self, obs: Observation) -> ObstacleState:
         if obs.obstacles is None:
             raise RuntimeError(f"{self.name} needs privileged observations (Planner.privileged)")
-        return obs.obstacles.predict(obs.time + self._steps), obs.obstacles.radii
+        return obs.obstacles
 
     def act(self, obs: Observation) -> tuple[float, float]:
         c = self.cfg
@@ -207,7 +211,5 @@ class PresentStateOraclePlanner(OraclePlanner):
     name = "oracle_present"
 
     def obstacle_future(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
-        if obs.obstacles is None:
-            raise RuntimeError(f"{self.name} needs privileged observations (Planner.privileged)")
-        state = obs.obstacles
+        state = self._true_state(obs)
         return state.positions[None] + state.velocities[None] * self._steps[:, None, None], state.radii

@@ -17,10 +17,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.perception import TrackerConfig, Tracks
+from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
 from dynabarn.planners.base import EpisodeInfo, Observation, config_from_kwargs
 from dynabarn.planners.oracle import OracleConfig, OraclePlanner
-from dynabarn.planners.tracking import make_tracker, with_tracker
+from dynabarn.planners.tracking import with_tracker
 
 
 @dataclass
@@ -56,7 +56,7 @@ class PredictivePlanner(OraclePlanner):
 
     def reset(self, info: EpisodeInfo) -> None:
         super().reset(info)
-        self.tracker = make_tracker(self.cfg.tracker, info)
+        self.tracker = ObstacleTracker.for_episode(self.cfg.tracker, info)
         self._tracks = Tracks.empty()
 
     def tracks(self) -> Tracks:

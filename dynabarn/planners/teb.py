@@ -39,12 +39,12 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import STATE_RESOLUTION, exp, sincos, snap_array
-from dynabarn.perception import TrackerConfig, Tracks
+from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.levenberg_marquardt import levenberg_marquardt
-from dynabarn.planners.tracking import make_tracker, tracked_beams, with_tracker
+from dynabarn.planners.tracking import track_moving, with_tracker
 
 
 @dataclass
@@ -178,7 +178,9 @@ class TEBPlanner(Planner):
         self._rerouted = self._was_rerouted = False
         self.costmap = LocalCostmap(self.cfg.costmap)
         self._beams = np.arange(0, len(info.laser_angles), self.cfg.obstacle_stride)
-        self.tracker = make_tracker(self.cfg.tracker, info) if self.cfg.include_dynamic_obstacles else None
+        self.tracker = (
+            ObstacleTracker.for_episode(self.cfg.tracker, info) if self.cfg.include_dynamic_obstacles else None
+        )
         self._tracks: Tracks | None = None
 
     def tracks(self) -> Tracks | None:
@@ -337,11 +339,10 @@ class TEBPlanner(Planner):
         info = self.info
         scan, moving, moving_beams = obs.scan, None, None
         if self.tracker is not None:
-            moving = self._tracks = self.tracker.update(obs.time, obs.scan, obs.pose)
-            moving_beams = tracked_beams(self.tracker, len(scan))
             # The moving obstacles are the tracker's: the costmap (and with it the replanning
             # around blocked stretches of the plan) sees only what stands still.
-            scan = np.where(moving_beams, info.laser_range[1], scan)
+            moving, moving_beams, scan = track_moving(self.tracker, obs, info.laser_range[1])
+            self._tracks = moving
         self.costmap.update(start, scan, info.laser_angles, info.laser_offset, info.laser_range[1])
         path = self.global_planner.plan_around(start[0], start[1], self.costmap, block_radius=cfg.min_obstacle_dist)
         rerouted = len(path) != len(self.global_planner.plan(start[0], start[1]))

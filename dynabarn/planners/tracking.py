@@ -1,13 +1,14 @@
 """What every planner that tracks obstacles shares: its tracker's configuration (the
-`tracker.*` and `tracker.detector.*` keys), one tracker per episode, and which beams its
-detections used (so a planner can leave the moving obstacles out of its static picture)."""
+`tracker.*` and `tracker.detector.*` keys), and each scan split into the tracked, moving
+obstacles and what stands still (so a planner can leave the moving ones out of its static
+picture). A planner's tracker: `ObstacleTracker.for_episode(cfg.tracker, info)`."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from dynabarn.perception import DetectorConfig, ObstacleTracker, TrackerConfig
-from dynabarn.planners.base import EpisodeInfo, config_from_kwargs, nested_config
+from dynabarn.perception import DetectorConfig, ObstacleTracker, TrackerConfig, Tracks
+from dynabarn.planners.base import Observation, config_from_kwargs, nested_config
 
 
 def with_tracker(kwargs: dict, what: str) -> dict:
@@ -23,15 +24,13 @@ def with_tracker(kwargs: dict, what: str) -> dict:
     return nested_config(kwargs, "tracker", build, what)
 
 
-def make_tracker(cfg: TrackerConfig, info: EpisodeInfo) -> ObstacleTracker:
-    """An episode's tracker: its map and laser from `info`."""
-    return ObstacleTracker.for_episode(cfg, info)
-
-
-def tracked_beams(tracker: ObstacleTracker, n_beams: int) -> np.ndarray:
-    """(n_beams,) True where the last scan's beam ended on a detected (moving) obstacle."""
-    mask = np.zeros(n_beams, dtype=bool)
+def track_moving(tracker: ObstacleTracker, obs: Observation, range_max: float) -> tuple[Tracks, np.ndarray, np.ndarray]:
+    """Update `tracker` with the observation's scan; (the tracks, which beams ended on a
+    detected obstacle (n_beams,), the scan with those beams reading no return): the moving
+    obstacles are the tracker's, the rest of the scan is what stands still."""
+    tracks = tracker.update(obs.time, obs.scan, obs.pose)
+    moving = np.zeros(len(obs.scan), dtype=bool)
     det = tracker.detections
     if det is not None and len(det.beams):
-        mask[det.beams[det.segment_of_point >= 0]] = True
-    return mask
+        moving[det.beams[det.segment_of_point >= 0]] = True
+    return tracks, moving, np.where(moving, range_max, obs.scan)

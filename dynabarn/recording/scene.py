@@ -22,7 +22,8 @@ GLOBAL_PLAN_COLOR = wire.color(0.2, 0.45, 1.0, 0.8)
 TRACK_COLOR = wire.color(1.0, 0.55, 0.0, 0.45)
 TRACK_VELOCITY_COLOR = wire.color(1.0, 0.55, 0.0, 1.0)
 TRACK_HEIGHT = 1.2
-"""[m] Drawn a little taller than the obstacles (1 m), so a track shows around its obstacle."""
+"""[m] Tracks are drawn a little taller than the obstacles (1 m), so a track shows around its
+obstacle (in Foxglove's scene and rerun's alike)."""
 PLANS = (
     # debug key, colour, height [m], width [m]
     ("global_plan", GLOBAL_PLAN_COLOR, 0.03, 0.05),

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from dynabarn.metrics import EpisodeResult, Outcome
+from dynabarn.metrics import TRACKED_ONLY, EpisodeResult, Outcome
 
 DIALECT = "https://json-schema.org/draft/2020-12/schema"
 
@@ -61,8 +61,6 @@ _JSON_TYPES = {
     "bool": "boolean",
     "dict | None": "object",
 }
-_OPTIONAL_RESULT_FIELDS = ("tracking",)
-"""Result fields only some episodes have (planners with a tracker)."""
 
 
 def result_schema() -> dict:
@@ -77,7 +75,7 @@ def result_schema() -> dict:
         else:
             properties[f.name] = {"type": _JSON_TYPES[kind]}
     required = [f.name for f in dataclasses.fields(EpisodeResult) if f.name in properties]
-    required = [name for name in required if name not in _OPTIONAL_RESULT_FIELDS]
+    required = [name for name in required if name not in TRACKED_ONLY]
     return obj("the episode's outcome and metrics (dynabarn.metrics.EpisodeResult)", properties, tuple(required))
 
 
