@@ -53,6 +53,8 @@ paced to real time (needs a display). `camera`: `top` (the arena) or `follow`.
 | parameter | type | default | description |
 |---|---|---|---|
 | world_set | str | "paper60" | paper60, dynabarn300, or a folder with index.json |
+| split | str or None | None | "train" or "validation": worlds drawn on the fly from Alg. 1 and 2 (`dynabarn.learn.split`), never a shipped or imported one; overrides world_set |
+| split_seed | int | 0 | the split's seed (a run's worlds are the same for the same seed) |
 | difficulty | str or None | None | easy, medium, hard, or all |
 | worlds | list[int] or None | None | explicit world ids (overrides difficulty) |
 | protocol | str | "barn" | barn, paper2022 or a .json file |
@@ -66,16 +68,24 @@ Registered as `dynabarn/DynaBARN-v0` (and `DynaBARN-v0`) when `dynabarn.learn` i
 imported, or by `import dynabarn` once gymnasium is imported; from a fresh interpreter
 `gymnasium.make("dynabarn.learn:dynabarn/DynaBARN-v0")` imports it.
 
+With `split`, `reset(options={"world_index": k})` picks the split's world k (any
+k >= 0) and `info["fingerprint"]` names the world (a trainer records what it met).
+
 ## Version history
-- v0: first version (rendering, `is_success`, the time-limit spec and the `privileged`
-  reset option added without changing dynamics, observations or rewards).
+- v0: first version (rendering, `is_success`, the time-limit spec, the `privileged`
+  reset option and the procedural `split` added without changing dynamics, observations
+  or rewards).
 """
 
 from __future__ import annotations
 
 import math
 import os
+import shutil
+import tempfile
 import threading
+from functools import cache
+from pathlib import Path
 from typing import Any, ClassVar
 
 import gymnasium
@@ -83,6 +93,7 @@ import numpy as np
 from gymnasium import spaces
 
 from dynabarn.errors import DynabarnError
+from dynabarn.learn.split import ProceduralWorlds, reserved_fingerprints
 from dynabarn.metrics import Outcome
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.learned.spaces import action_to_command, policy_input
@@ -99,6 +110,12 @@ REWARD_TIME = -0.01
 REWARD_COLLISION = -10.0
 REWARD_SUCCESS = 20.0
 PAPER_SETS = ("paper60", "dynabarn300")
+
+
+@cache
+def shipped_fingerprints() -> frozenset[str]:
+    """The shipped 300 worlds' fingerprints, once per process (a training world never is one)."""
+    return reserved_fingerprints()
 
 
 def episode_step_limit(protocol: str = "barn") -> int:
@@ -119,6 +136,8 @@ class DynaBARNEnv(gymnasium.Env):
     def __init__(
         self,
         world_set: str = "paper60",
+        split: str | None = None,
+        split_seed: int = 0,
         difficulty: str | None = None,
         worlds: list[int] | None = None,
         protocol: str = "barn",
@@ -151,6 +170,19 @@ class DynaBARNEnv(gymnasium.Env):
             worlds = [int(i) for i in worlds]
             if not worlds:
                 raise ValueError("worlds is empty")
+        self.procedural: ProceduralWorlds | None = None
+        if split is not None:
+            if worlds is not None or difficulty not in (None, "all"):
+                raise ValueError("a procedural split draws its own worlds: give split or worlds/difficulty, not both")
+            try:
+                self.procedural = ProceduralWorlds(
+                    Path(tempfile.mkdtemp(prefix=f"dynabarn-{split}-")),
+                    split=split,
+                    seed=int(split_seed),
+                    reserved=shipped_fingerprints(),
+                )
+            except DynabarnError as exc:
+                raise ValueError(str(exc)) from None
         # Explicit ids choose from the whole folder: paper60's ids are a subset of the 300.
         set_name = "dynabarn300" if worlds is not None and world_set in PAPER_SETS else world_set
         try:
@@ -196,7 +228,13 @@ class DynaBARNEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         options = options or {}
-        if "world_index" in options:
+        if self.procedural is not None:
+            k = int(options.get("world_index", self.np_random.integers(2**31)))
+            drawn = self.procedural.world(k)
+            wid, file, difficulty = k, str(drawn.path), drawn.difficulty
+            for old in [f for f in self._sims if not Path(f).is_file()]:  # dropped from the split's cache
+                del self._sims[old], self._planners[old]
+        elif "world_index" in options:
             wid, file, difficulty = self.entries[int(options["world_index"]) % len(self.entries)]
         else:
             wid, file, difficulty = self.entries[int(self.np_random.integers(len(self.entries)))]
@@ -215,7 +253,13 @@ class DynaBARNEnv(gymnasium.Env):
         self.episode = Episode(sim, self.protocol, seed=trial, privileged=bool(options.get("privileged", False)))
         observation = self._observe()
         self._cost_to_go = self._planner.cost_to_go(float(self._pose[0]), float(self._pose[1]))
-        self._info = {"world": sim.world.name, "world_id": wid, "difficulty": difficulty, "trial_seed": trial}
+        self._info = {
+            "world": sim.world.name,
+            "world_id": wid,
+            "difficulty": difficulty,
+            "trial_seed": trial,
+            "fingerprint": sim.world_fingerprint,
+        }
         if self.render_mode == "human":
             self._show()
         return observation, {**self._info, "is_success": False}
@@ -313,6 +357,8 @@ class DynaBARNEnv(gymnasium.Env):
             renderer.close()
         self._renderers.clear()
         self._close_viewer()
+        if self.procedural is not None:
+            shutil.rmtree(self.procedural.cache_dir, ignore_errors=True)
         super().close()
 
     def _close_viewer(self) -> None:

@@ -15,7 +15,7 @@ from pathlib import Path
 from dynabarn.errors import DynabarnError, unknown_choice
 from dynabarn.planners.base import Planner
 from dynabarn.planners.dwa import DWAPlanner
-from dynabarn.planners.learned import BCPlanner, TD3Planner
+from dynabarn.planners.learned import BCPlanner, DaggerPlanner, TD3Planner
 from dynabarn.planners.oracle import OraclePlanner, PresentStateOraclePlanner
 from dynabarn.planners.predictive import PredictivePlanner
 from dynabarn.planners.simple import StopPlanner, StraightPlanner
@@ -32,6 +32,7 @@ _BUILTIN: dict[str, Callable[..., Planner]] = {
     "predictive": PredictivePlanner,
     "bc": BCPlanner,  # the learned ones import torch only when built
     "td3": TD3Planner,
+    "dagger": DaggerPlanner,
     "straight": StraightPlanner,
     "stop": StopPlanner,
 }

@@ -74,6 +74,8 @@ class EpisodeInfo:
         goal: (2,) goal in the world frame [m]; goal_tolerance [m].
         seed: the episode's seed, for planners that randomise.
         static_obstacles: (n, 3) static cylinders (x, y, radius) [m]: also the known map.
+        world_fingerprint: what makes the world the world it is (`worlds.fingerprint`),
+            for a learned planner's check that it never trained on it ("" when unknown).
     """
 
     laser_angles: np.ndarray
@@ -89,4 +91,5 @@ class EpisodeInfo:
     goal_tolerance: float
     seed: int = 0
     static_obstacles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    world_fingerprint: str = ""
     extra: dict = field(default_factory=dict)

@@ -20,6 +20,7 @@ from dynabarn.sim.behaviors import check_behaviors
 from dynabarn.sim.config import SimConfig
 from dynabarn.sim.laser import Laser
 from dynabarn.sim.observation import EpisodeInfo
+from dynabarn.worlds.fingerprint import world_fingerprint
 
 CLEARANCE_CHUNK = 1000
 """Poses per batch of the clearance metric."""
@@ -34,6 +35,7 @@ class Simulation:
         self.world = read_world(self.world_path, data)
         check_behaviors(self.world.obstacles)
         self.world_sha256 = hashlib.sha256(data).hexdigest()
+        self.world_fingerprint = world_fingerprint(self.world)
         self.world_xml = data
         self.config = config
         # The runner casts its own scans with mj_multiRay, so it compiles the world with the
@@ -108,4 +110,5 @@ class Simulation:
             goal_tolerance=protocol.goal_tolerance,
             seed=seed,
             static_obstacles=self.static_cylinders.copy(),
+            world_fingerprint=self.world_fingerprint,
         )

@@ -15,7 +15,9 @@ from pathlib import Path
 from dynabarn.errors import LEARN_EXTRA, DynabarnError
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner
 from dynabarn.planners.global_planner import GlobalPlanner
+from dynabarn.planners.learned.features import Features
 from dynabarn.planners.learned.spaces import action_to_command, policy_input
+from dynabarn.planners.learned.trained_on import check_unseen, trained_fingerprints
 
 SHIPPED = Path(__file__).resolve().parents[2] / "policies"
 
@@ -73,3 +75,55 @@ class BCPlanner(LearnedPlanner):
 class TD3Planner(LearnedPlanner):
     name = "td3"
     kind = "td3"
+
+
+class DaggerPlanner(Planner):
+    """`dagger`: the student of `dynabarn-train dagger` (a network over `Features`).
+
+    It sees what its features name (the scan and the local goal; scan history, measured
+    velocity and the laser tracker's tracks where its file says so), never the truth. It
+    refuses to drive in a world its policy trained on (`trained_on.check_unseen`).
+    """
+
+    name = "dagger"
+
+    def __init__(self, policy: str | None = None) -> None:
+        try:
+            import torch
+
+            from dynabarn.planners.learned.student import load_student
+        except ImportError:
+            raise DynabarnError(f"planner {self.name!r} needs {LEARN_EXTRA}") from None
+        self._torch = torch
+        path = Path(policy) if policy else SHIPPED / "dagger.pt"
+        actor, self.features_config, self.header = load_student(path)
+        self.actor = actor.double()  # float64, as LearnedPlanner: far from the command grid
+        self.features = Features(self.features_config)
+        self.seen = trained_fingerprints(self.header["trained_on"])
+        self.policy_path = str(path)
+        self.policy_sha256 = hashlib.sha256(path.read_bytes()).hexdigest()
+
+    def config(self) -> dict:
+        shipped = Path(self.policy_path).resolve().parent == SHIPPED
+        return {
+            "policy": f"dynabarn/policies/{Path(self.policy_path).name}" if shipped else self.policy_path,
+            "policy_sha256": self.policy_sha256,
+            "kind": "dagger",
+            "features": self.features_config.names(),
+        }
+
+    def versions(self) -> dict[str, str]:
+        return {"torch": self._torch.__version__}
+
+    def reset(self, info: EpisodeInfo) -> None:
+        check_unseen(self.seen, info.world_fingerprint, self.policy_path)
+        self.features.reset(info)
+
+    def tracks(self):
+        return self.features.last_tracks
+
+    def act(self, obs: Observation) -> tuple[float, float]:
+        x = self.features(obs)[None]
+        with self._torch.no_grad():
+            a = self.actor(self._torch.from_numpy(x)).numpy()[0]
+        return action_to_command(a)

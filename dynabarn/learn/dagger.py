@@ -1,0 +1,238 @@
+"""DAgger (Ross et al. 2011) with a privileged teacher: the `dagger` planner's training.
+
+Iteration i: the student drives `episodes` procedural training worlds (`split="train"`,
+fresh worlds every iteration) in `DynaBARN-v0`, except that at every step the teacher's
+command is executed instead with probability beta_i = `beta_decay` ** i (iteration 0:
+the teacher alone, i.e. behaviour cloning's data); the teacher, which sees the obstacles'
+true present positions and velocities (`oracle_present`), labels every state the robot
+reaches, whoever drove. The labelled states join one dataset (aggregation), and the
+student is trained on all of it by regression onto the teacher's normalised actions
+(mean squared error, Adam), continuing from its last weights. After each iteration the
+student alone drives a fixed set of validation worlds (another seed namespace): the
+learning curve.
+
+Collection runs in `workers` processes (the teacher's search is most of the time); an
+episode's data depends only on the weights, the seed and the world, so results do not
+depend on which worker ran what. Resumable: every finished iteration is on disk (its data
+in `data/`, the weights and the optimiser in `state.pt`); running the same command again
+continues after the last one.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from dynabarn.errors import DynabarnError
+from dynabarn.files import save_atomically, write_atomically
+from dynabarn.learn.dagger_rollout import EpisodeData, run_episodes
+from dynabarn.planners.learned.features import FeatureConfig
+from dynabarn.planners.learned.student import StudentActor, save_student
+
+STATE, LOG, DATA = "state.pt", "train.log", "data"
+
+
+@dataclass
+class DaggerConfig:
+    iterations: int = 12
+    episodes: int = 240
+    """Training episodes per iteration (fresh procedural worlds each)."""
+    max_steps: int = 400
+    """A training episode ends after this many steps (40 s; the protocol allows 100 s): a
+    student that stalls early in training would otherwise fill the dataset with waiting."""
+    beta_decay: float = 0.5
+    """The teacher's share of control in iteration i is beta_decay ** i."""
+    teacher: str = "oracle_present"
+    updates: int = 4000
+    """Gradient steps per iteration, on batches drawn from the whole aggregated dataset."""
+    batch_size: int = 512
+    lr: float = 1e-3
+    validation_episodes: int = 60
+    history: int = 2
+    history_every: int = 2
+    velocity: bool = True
+    tracks: int = 8
+    protocol: str = "barn"
+    workers: int = 2
+    threads: int = 2
+    seed: int = 0
+    profile_sets: list[str] = field(default_factory=lambda: ["table1", "release2022"])
+
+    def features(self) -> FeatureConfig:
+        return FeatureConfig(
+            history=self.history, history_every=self.history_every, velocity=self.velocity, tracks=self.tracks
+        )
+
+
+@dataclass
+class DaggerReport:
+    iterations: list[dict] = field(default_factory=list)
+    fingerprints: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def _log(out: Path, line: str) -> None:
+    with (out / LOG).open("a") as f:
+        f.write(line + "\n")
+
+
+def _identity(cfg: dict | None) -> dict | None:
+    return None if cfg is None else {k: v for k, v in cfg.items() if k not in ("threads", "workers", "iterations")}
+
+
+def _rates(eps: list[EpisodeData]) -> dict:
+    out = {"episodes": len(eps), "success": float(np.mean([e.outcome == "success" for e in eps])) if eps else 0.0}
+    for d in ("easy", "medium", "hard"):
+        sub = [e.outcome == "success" for e in eps if e.difficulty == d]
+        out[f"success_{d}"] = float(np.mean(sub)) if sub else None
+    return out
+
+
+class Dataset:
+    """The aggregated states (float16 features) and the teacher's actions, iteration files on disk."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+        folder.mkdir(parents=True, exist_ok=True)
+        self.x: list[np.ndarray] = []
+        self.y: list[np.ndarray] = []
+
+    def add(self, iteration: int, eps: list[EpisodeData]) -> int:
+        x = np.concatenate([e.features for e in eps]).astype(np.float16)
+        y = np.concatenate([e.labels for e in eps]).astype(np.float32)
+        path = self.folder / f"iteration_{iteration:03d}.npz"
+        save_atomically(path, lambda f: np.savez(f, x=x, y=y))
+        self.x.append(x)
+        self.y.append(y)
+        return len(x)
+
+    def load(self, iterations: int) -> None:
+        for i in range(iterations):
+            with np.load(self.folder / f"iteration_{i:03d}.npz") as z:
+                self.x.append(z["x"])
+                self.y.append(z["y"])
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.concatenate(self.x), np.concatenate(self.y)
+
+
+def fit(actor: StudentActor, opt: torch.optim.Optimizer, x: np.ndarray, y: np.ndarray, cfg: DaggerConfig, seed: int):
+    """`cfg.updates` Adam steps of mean squared error on batches drawn from (x, y); mean loss of the last tenth."""
+    rng = np.random.default_rng(seed)
+    actor.train()
+    losses = []
+    xt, yt = torch.from_numpy(x), torch.from_numpy(y)
+    for _ in range(cfg.updates):
+        idx = torch.from_numpy(rng.integers(0, len(x), cfg.batch_size))
+        loss = torch.nn.functional.mse_loss(actor(xt[idx].float()), yt[idx])
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        losses.append(float(loss.detach()))
+    actor.eval()
+    return float(np.mean(losses[-max(1, len(losses) // 10) :]))
+
+
+# Over 80 lines on purpose: the DAgger loop as the algorithm box reads (collect with the
+# mixed policy, relabel, aggregate, fit, validate), with its checkpoint and resume around it.
+def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerReport:
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    features = cfg.features()
+    n_inputs = features.size(720)
+    actor = StudentActor(n_inputs)
+    opt = torch.optim.Adam(actor.parameters(), lr=cfg.lr)
+    report = DaggerReport()
+    data = Dataset(out / DATA)
+    config_path = out / "config.json"
+    done = 0
+    if (out / STATE).is_file():
+        old = json.loads(config_path.read_text()) if config_path.is_file() else None
+        if _identity(old) != _identity(json.loads(json.dumps(asdict(cfg)))):
+            raise DynabarnError(f"{out} holds a run with another configuration; choose another --out")
+        state = torch.load(out / STATE, weights_only=False)
+        actor.load_state_dict(state["actor"])
+        opt.load_state_dict(state["optimizer"])
+        report = DaggerReport(**state["report"])
+        done = len(report.iterations)
+        data.load(done)
+    write_atomically(config_path, json.dumps(asdict(cfg), indent=1))
+    bar = progress(total=cfg.iterations, initial=done) if progress else None
+    ctx = get_context("spawn")  # workers import torch afresh: no fork of a threaded parent
+    t0 = time.perf_counter() - report.seconds
+    with ProcessPoolExecutor(max_workers=cfg.workers, mp_context=ctx) as pool:
+        for it in range(done, cfg.iterations):
+            beta = cfg.beta_decay**it
+            weights = None if it == 0 else {k: v.clone() for k, v in actor.state_dict().items()}
+            ks = range(it * cfg.episodes, (it + 1) * cfg.episodes)
+            eps = run_episodes(pool, cfg, "train", ks, beta=beta, weights=weights, label=True)
+            rows = data.add(it, eps)
+            report.fingerprints.extend(e.fingerprint for e in eps)
+            x, y = data.arrays()
+            loss = fit(actor, opt, x, y, cfg, seed=cfg.seed * 1000 + it)
+            weights = {k: v.clone() for k, v in actor.state_dict().items()}
+            val = run_episodes(
+                pool, cfg, "validation", range(cfg.validation_episodes), beta=0.0, weights=weights, label=False
+            )
+            entry = {
+                "iteration": it,
+                "beta": beta,
+                "rows": rows,
+                "dataset": len(x),
+                "loss": loss,
+                "collection": _rates(eps),
+                "teacher_share": float(np.mean([e.teacher_share for e in eps])),
+                "validation": _rates(val),
+                "seconds": time.perf_counter() - t0,
+            }
+            report.iterations.append(entry)
+            report.seconds = entry["seconds"]
+            state = {"actor": actor.state_dict(), "optimizer": opt.state_dict(), "report": asdict(report)}
+            save_atomically(out / STATE, lambda f, s=state: torch.save(s, f))
+            _log(out, json.dumps(entry))
+            if bar is not None:
+                bar.update(1)
+    if bar is not None:
+        bar.close()
+    split = run_episodes_split_description(cfg)
+    trained_on = {**split, "worlds": len(set(report.fingerprints)), "fingerprints": sorted(set(report.fingerprints))}
+    notes = {"config": asdict(cfg), "final": report.iterations[-1] if report.iterations else None}
+    save_student(actor, out / "policy.pt", features=features, trained_on=trained_on, notes=notes)
+    write_atomically(out / "training.json", json.dumps({"config": asdict(cfg), **asdict(report)}, indent=1))
+    plot_learning_curve(report, out / "learning_curve.png")
+    return report
+
+
+def run_episodes_split_description(cfg: DaggerConfig) -> dict:
+    from dynabarn.learn.split import ProceduralWorlds
+
+    return ProceduralWorlds(Path("."), split="train", seed=cfg.seed, profile_sets=tuple(cfg.profile_sets)).describe()
+
+
+def plot_learning_curve(report: DaggerReport, path: Path) -> Path:
+    from matplotlib.figure import Figure
+
+    its = [e["iteration"] for e in report.iterations]
+    fig = Figure(figsize=(6, 3.5), dpi=120)
+    ax = fig.subplots()
+    for d, style in (("easy", "o-"), ("medium", "s-"), ("hard", "^-")):
+        ax.plot(its, [e["validation"][f"success_{d}"] for e in report.iterations], style, label=f"student, {d}")
+    ax.plot(its, [e["beta"] for e in report.iterations], "k:", label="teacher's share of control")
+    ax.set_xlabel("DAgger iteration")
+    ax.set_ylabel("success rate (validation worlds)")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title("DAgger student on unseen procedural worlds", fontsize=10)
+    fig.tight_layout()
+    save_atomically(path, lambda f: fig.savefig(f, format="png"))
+    return path

@@ -1,0 +1,112 @@
+"""DAgger's episodes: the mixed policy drives, the privileged teacher labels every state.
+
+Runs in worker processes (`run_episodes` hands them jobs of a few episodes, results in
+the order asked): each keeps its `DynaBARN-v0` environment and teacher between jobs.
+Everything an episode does follows from (config, split, world k, weights, beta): the
+trial seed and the coin that picks who drives are drawn from `SeedSequence([seed, k])`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from dynabarn.planners.learned.features import Features
+from dynabarn.planners.learned.spaces import command_to_action
+from dynabarn.planners.learned.student import StudentActor
+from dynabarn.planners.registry import get_planner
+
+JOB_EPISODES = 4
+"""Episodes per job: small enough to balance two workers, large enough to keep them busy."""
+_WORKER: dict = {}
+
+
+@dataclass
+class EpisodeData:
+    k: int
+    difficulty: str
+    fingerprint: str
+    outcome: str
+    steps: int
+    teacher_share: float
+    features: np.ndarray  # (steps, n) float16; empty when not labelled
+    labels: np.ndarray  # (steps, 2) the teacher's normalised actions
+
+
+def _env(cfg, split: str):
+    from dynabarn.learn.env import DynaBARNEnv
+
+    key = (split, cfg.seed, tuple(cfg.profile_sets), cfg.protocol)
+    if _WORKER.get("key") != key:
+        if "env" in _WORKER:
+            _WORKER["env"].close()
+        torch.set_num_threads(1)
+        _WORKER["env"] = DynaBARNEnv(split=split, split_seed=cfg.seed, protocol=cfg.protocol)
+        _WORKER["env"].procedural.profile_sets = tuple(cfg.profile_sets)
+        _WORKER["key"] = key
+    return _WORKER["env"]
+
+
+def episode(cfg, split: str, k: int, beta: float, actor: StudentActor | None, label: bool) -> EpisodeData:
+    """One episode of world k of `split`: who drives is drawn per step (teacher with probability beta)."""
+    env = _env(cfg, split)
+    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, k, 0 if split == "train" else 1]))
+    trial = int(rng.integers(2**31))
+    _, info = env.reset(options={"world_index": k, "trial_seed": trial, "privileged": label})
+    ep_info = env.episode.info
+    features = Features(cfg.features())
+    features.reset(ep_info)
+    teacher = get_planner(cfg.teacher) if label else None
+    if teacher is not None:
+        teacher.reset(ep_info)
+    xs, ys, teacher_steps = [], [], 0
+    outcome = "error"
+    while True:
+        obs = env.observation
+        x = features(obs)
+        a_teacher = command_to_action(*teacher.act(obs)) if teacher is not None else None
+        if actor is None or (teacher is not None and rng.random() < beta):
+            action, teacher_steps = a_teacher, teacher_steps + 1
+        else:
+            with torch.no_grad():
+                action = actor(torch.from_numpy(x[None]).float()).numpy()[0]
+        if label:
+            xs.append(x.astype(np.float16))
+            ys.append(a_teacher)
+        _, _, terminated, truncated, step_info = env.step(action)
+        if terminated or truncated:
+            outcome = step_info["outcome"] or "error"
+            break
+        if label and len(xs) >= cfg.max_steps:
+            outcome = "cut"
+            break
+    n = len(xs)
+    return EpisodeData(
+        k=k,
+        difficulty=info["difficulty"],
+        fingerprint=info["fingerprint"],
+        outcome=outcome,
+        steps=env.episode.n_ticks,
+        teacher_share=teacher_steps / max(1, env.episode.n_ticks),
+        features=np.stack(xs) if n else np.zeros((0, cfg.features().size(720)), np.float16),
+        labels=np.stack(ys).astype(np.float32) if n else np.zeros((0, 2), np.float32),
+    )
+
+
+def _job(cfg, split: str, ks: list[int], beta: float, weights: dict | None, label: bool) -> list[EpisodeData]:
+    actor = None
+    if weights is not None:
+        actor = StudentActor(cfg.features().size(720))
+        actor.load_state_dict(weights)
+        actor.eval()
+    return [episode(cfg, split, k, beta, actor, label) for k in ks]
+
+
+def run_episodes(pool, cfg, split: str, ks, *, beta: float, weights: dict | None, label: bool) -> list[EpisodeData]:
+    """Episodes of worlds `ks` of `split`, spread over the pool's workers, in the order of ks."""
+    ks = list(ks)
+    chunks = [ks[i : i + JOB_EPISODES] for i in range(0, len(ks), JOB_EPISODES)]
+    futures = [pool.submit(_job, cfg, split, c, beta, weights, label) for c in chunks]
+    return [e for f in futures for e in f.result()]

@@ -1,0 +1,166 @@
+"""What a student policy sees, as named options, in numpy (`FeatureConfig`, `Features`).
+
+The paper's 722 inputs come first: the 720 ranges and the local goal (g_x, g_y) from the
+Dijkstra plan `lookahead` metres ahead. The options beyond them (each a named departure
+in the results where it is used):
+
+- `history`: the last K scans before this one, `history_every` ticks apart, each
+  min-pooled over `history_pool` neighbouring beams (a 720-beam frame every tick would
+  quadruple the inputs; the nearest return in each pool is what avoidance needs). Motion
+  becomes visible as the difference between frames (as in LfH-CP and Dyna-LfLH).
+- `velocity`: the robot's measured forward speed and turn rate.
+- `tracks`: the N nearest tracks of the laser tracker (`dynabarn.perception`): position
+  and velocity in the robot frame, size, and a flag that the slot holds a track; empty
+  slots read zero.
+
+Every input is scaled here to about [-1, 1] (ranges by `range_scale`, clipped there:
+beyond 10 m nothing needs avoiding yet), so the network takes the vector as it is.
+The builder keeps its buffers between ticks: nothing is allocated per step but the
+output vector.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from dynabarn.perception import ObstacleTracker, TrackerConfig
+from dynabarn.planners.base import EpisodeInfo, Observation, config_from_kwargs
+from dynabarn.planners.global_planner import GlobalPlanner
+from dynabarn.planners.tracking import with_tracker
+
+TRACK_FIELDS = 6
+"""Per track slot: x, y, vx, vy (robot frame), size, present."""
+SPEED_SCALE = 2.0
+"""Velocities [m/s] and turn rates [rad/s] are divided by this."""
+
+
+@dataclass
+class FeatureConfig:
+    history: int = 0
+    """Earlier scans given beside the current one (0: the paper's single scan)."""
+    history_every: int = 2
+    """Control ticks between history frames (2: 0.2 s)."""
+    history_pool: int = 4
+    """Beams min-pooled into one history input (720 / 4 = 180 per frame)."""
+    velocity: bool = False
+    """Give the robot's measured (v, w)."""
+    tracks: int = 0
+    """Nearest tracks of the laser tracker given (0: no tracker)."""
+    range_scale: float = 10.0
+    """Ranges are clipped here and divided by it [m]."""
+    lookahead: float = 2.0
+    """Local goal distance along the global plan [m]."""
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+
+    LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        "history": (0, 16),
+        "history_every": (1, 50),
+        "history_pool": (1, 720),
+        "tracks": (0, 64),
+        "range_scale": (0.5, 30.0),
+        "lookahead": (0.1, 30.0),
+    }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> FeatureConfig:
+        d = dict(d)
+        tracker = d.pop("tracker", {})
+        built = with_tracker({"tracker": tracker}, "features")
+        return config_from_kwargs(cls, {**d, **built}, "features")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def size(self, n_beams: int) -> int:
+        """Length of the feature vector for a laser of `n_beams` beams."""
+        pooled = math.ceil(n_beams / self.history_pool)
+        return n_beams + 2 + self.history * pooled + (2 if self.velocity else 0) + self.tracks * TRACK_FIELDS
+
+    def names(self) -> list[str]:
+        """The option names in use, for tables ("scan+goal", "history 2", ...)."""
+        out = ["scan+goal"]
+        if self.history:
+            out.append(f"history {self.history}x{self.history_every * 0.1:.1f}s")
+        if self.velocity:
+            out.append("velocity")
+        if self.tracks:
+            out.append(f"tracks {self.tracks}")
+        return out
+
+
+class Features:
+    """One episode's feature builder: call `reset(info)` per episode, then once per tick."""
+
+    def __init__(self, cfg: FeatureConfig) -> None:
+        self.cfg = cfg
+        self.tracker: ObstacleTracker | None = None
+        self.global_planner: GlobalPlanner | None = None
+        self.last_tracks = None
+
+    def reset(self, info: EpisodeInfo) -> None:
+        c = self.cfg
+        self.n_beams = len(info.laser_angles)
+        self.size = c.size(self.n_beams)
+        self.global_planner = GlobalPlanner.for_robot(info.walls, info.goal, info.footprint, info.static_obstacles)
+        self.tracker = ObstacleTracker.for_episode(c.tracker, info) if c.tracks else None
+        self.last_tracks = None
+        pooled = math.ceil(self.n_beams / c.history_pool)
+        self._pad = pooled * c.history_pool - self.n_beams
+        # Ring of pooled frames: the last history * history_every ticks (frame 0 repeated
+        # until the episode is old enough, as a robot standing still would see).
+        self._ring = np.zeros((max(1, c.history * c.history_every), pooled))
+        self._ticks = 0
+
+    def local_goal(self, obs: Observation) -> np.ndarray:
+        return self.global_planner.local_goal_in_robot(obs.pose, self.cfg.lookahead)
+
+    def __call__(self, obs: Observation) -> np.ndarray:
+        c = self.cfg
+        out = np.zeros(self.size)
+        scan = np.minimum(obs.scan, c.range_scale) / c.range_scale
+        n = self.n_beams
+        out[:n] = scan
+        out[n : n + 2] = self.local_goal(obs) / c.lookahead
+        i = n + 2
+        if c.history:
+            pooled = np.pad(scan, (0, self._pad), constant_values=1.0).reshape(-1, c.history_pool).min(axis=1)
+            ring, m = self._ring, len(self._ring)
+            if self._ticks == 0:
+                ring[:] = pooled
+            # Frames k * every ticks ago, k = 1..history, read before this tick is stored.
+            for k in range(1, c.history + 1):
+                out[i : i + ring.shape[1]] = ring[(self._ticks - k * c.history_every) % m]
+                i += ring.shape[1]
+            ring[self._ticks % m] = pooled
+        self._ticks += 1
+        if c.velocity:
+            out[i : i + 2] = obs.velocity / SPEED_SCALE
+            i += 2
+        if c.tracks:
+            out[i : i + c.tracks * TRACK_FIELDS] = self._track_slots(obs)
+        return out
+
+    def _track_slots(self, obs: Observation) -> np.ndarray:
+        c = self.cfg
+        tracks = self.last_tracks = self.tracker.update(obs.time, obs.scan, obs.pose)
+        slots = np.zeros((c.tracks, TRACK_FIELDS))
+        if len(tracks):
+            x, y, yaw = obs.pose
+            cs, sn = math.cos(yaw), math.sin(yaw)
+            d = tracks.positions - (x, y)
+            rel = np.column_stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]])
+            v = tracks.velocities
+            vel = np.column_stack([cs * v[:, 0] + sn * v[:, 1], -sn * v[:, 0] + cs * v[:, 1]])
+            gap = np.hypot(rel[:, 0], rel[:, 1]) - tracks.sizes
+            # Nearest first; equal gaps by track id, so the order never depends on the sort.
+            order = np.lexsort((tracks.ids, gap))[: c.tracks]
+            k = len(order)
+            slots[:k, 0:2] = np.clip(rel[order] / c.range_scale, -1.0, 1.0)
+            slots[:k, 2:4] = np.clip(vel[order] / SPEED_SCALE, -2.0, 2.0)
+            slots[:k, 4] = tracks.sizes[order]
+            slots[:k, 5] = 1.0
+        return slots.ravel()
