@@ -25,6 +25,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import ClassVar
 
+import numpy as np
+
 from dynabarn.errors import DynabarnError, unknown_choice
 
 
@@ -113,6 +115,18 @@ class EvalProtocol:
         """The robot at (x, y) has left its spawn far enough for the clock to run."""
         dx, dy = x - self.spawn[0], y - self.spawn[1]
         return dx**2 + dy**2 >= self.timer_start_distance**2
+
+    def timers_started(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """`timer_started` for arrays of positions (the same arithmetic, elementwise)."""
+        dx, dy = x - self.spawn[0], y - self.spawn[1]
+        return dx**2 + dy**2 >= self.timer_start_distance**2
+
+    def reached_all(self, x: np.ndarray, y: np.ndarray, goal: tuple[float, float]) -> np.ndarray:
+        """`reached` for arrays of positions (the same arithmetic, elementwise)."""
+        dx, dy = x - goal[0], y - goal[1]
+        if self.goal_region == GoalRegion.DISC:
+            return dx * dx + dy * dy < self.goal_tolerance * self.goal_tolerance
+        return (np.abs(dx) < self.goal_tolerance) & (np.abs(dy) < self.goal_tolerance)
 
     def reached(self, x: float, y: float, goal: tuple[float, float]) -> bool:
         """The robot centre at (x, y) is inside the success region around `goal`."""

@@ -27,7 +27,10 @@ def register_envs() -> None:
     for env_id in ENV_IDS:
         if env_id not in gymnasium.registry:
             gymnasium.register(
-                id=env_id, entry_point="dynabarn.learn.env:DynaBARNEnv", max_episode_steps=episode_step_limit("barn")
+                id=env_id,
+                entry_point="dynabarn.learn.env:DynaBARNEnv",
+                vector_entry_point="dynabarn.learn.vector_env:DynaBARNVectorEnv",
+                max_episode_steps=episode_step_limit("barn"),
             )
 
 

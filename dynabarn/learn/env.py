@@ -220,8 +220,11 @@ class DynaBARNEnv(gymnasium.Env):
         after `reset(options={"privileged": True})`), for an expert acting in the loop."""
         return self._observation
 
-    def _observe(self) -> np.ndarray:
-        obs = self._observation = self.episode.observe()
+    def _observe(self, ranges: np.ndarray | None = None) -> np.ndarray:
+        """The policy's observation now; `ranges`: noise-free ranges a batch of worlds cast
+        after `episode.place_obstacles()` (the vector environment), instead of casting here."""
+        ep = self.episode
+        obs = self._observation = ep.observe() if ranges is None else ep.observe_ranges(ranges)
         self._pose = obs.pose
         return policy_input(obs.scan, self._planner.local_goal_in_robot(obs.pose, self.lookahead), np.float32)
 
@@ -265,11 +268,19 @@ class DynaBARNEnv(gymnasium.Env):
         return observation, {**self._info, "is_success": False}
 
     def step(self, action):
+        outcome = self._apply(action)
+        observation = self._observe() if outcome is None else self._last_observation()
+        return self._conclude(outcome, observation)
+
+    def _apply(self, action) -> Outcome | None:
+        """Run one control period of the action; the outcome if the episode ended."""
         if self.episode is None:
             raise RuntimeError("call reset() before step()")
         v, w = action_to_command(action)
-        outcome = self.episode.apply(v, w)
-        observation = self._observe() if outcome is None else self._last_observation()
+        return self.episode.apply(v, w)
+
+    def _conclude(self, outcome: Outcome | None, observation: np.ndarray):
+        """`step`'s five values once the observation after the period is known."""
         ctg = self._planner.cost_to_go(float(self._pose[0]), float(self._pose[1]))
         progress = self._cost_to_go - ctg if math.isfinite(ctg) and math.isfinite(self._cost_to_go) else 0.0
         self._cost_to_go = ctg

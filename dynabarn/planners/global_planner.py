@@ -146,11 +146,12 @@ class GlobalPlanner:
         c = _cell(x, y, f.nx, f.ny, self.resolution)
         return float(f.cost.flat[c])
 
-    def plan(self, x: float, y: float) -> np.ndarray:
+    def plan(self, x: float, y: float, max_cells: int | None = None) -> np.ndarray:
         """The path (n, 2) [m] from (x, y) to the goal: robot position, cell centres, goal.
 
         Falls back to the straight line when the robot's cell is unreachable (e.g. inside
-        the inflated walls).
+        the inflated walls). With `max_cells`, only the path's first cells (without the goal
+        unless it is reached within them): what a local goal needs, without walking on.
         """
         f = self.field
         c = _cell(x, y, f.nx, f.ny, self.resolution)
@@ -158,11 +159,14 @@ class GlobalPlanner:
             return np.array([[x, y], self.goal])
         cells = []
         pred = f.pred
-        while c >= 0 and len(cells) < f.nx * f.ny:
+        limit = f.nx * f.ny if max_cells is None else min(max_cells, f.nx * f.ny)
+        while c >= 0 and len(cells) < limit:
             cells.append(c)
             c = pred[c]
         ij = np.divmod(np.array(cells), f.nx)
         pts = np.column_stack([self._cx[ij[1]], self._cy[ij[0]]])
+        if c >= 0 and max_cells is not None:  # cut short before the goal
+            return np.vstack([[x, y], pts[1:]])
         return np.vstack([[x, y], pts[1:], self.goal])
 
     def plan_around(self, x: float, y: float, costmap, *, block_radius: float) -> np.ndarray:
@@ -218,8 +222,13 @@ class GlobalPlanner:
     def local_goal(
         self, x: float, y: float, lookahead: float, path: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(point `lookahead` metres along the path from (x, y), the path itself), world frame."""
-        path = self.plan(x, y) if path is None else path
+        """(point `lookahead` metres along the path from (x, y), the path walked), world frame.
+
+        Without `path`, only the plan's first floor(lookahead / resolution) + 3 cells are
+        walked: consecutive cells are at least a resolution apart, so the point lies among
+        them, and a cumulative sum's prefix is the prefix of the whole one (the same bits)."""
+        if path is None:
+            path = self.plan(x, y, max_cells=math.floor(lookahead / self.resolution) + 3)
         seg = np.hypot(*np.diff(path, axis=0).T)
         along = np.concatenate([[0.0], np.cumsum(seg)])
         if along[-1] <= lookahead:

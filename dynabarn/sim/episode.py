@@ -84,6 +84,8 @@ class Episode:
         self.raw_command = (0.0, 0.0)
         self.wall_t0 = time.perf_counter()
         self._batch_xy = self._batch_vel = None
+        self._schedule: tuple[np.ndarray, np.ndarray] | None = None
+        """This period's obstacle positions and velocities when a batch of worlds evaluated them."""
         self.track_scorer: TrackScorer | None = None
         """Tracking quality of a planner with a tracker (`score_tracks`), else None."""
         # Reactive obstacles run on their own clocks (a yielding one pauses its schedule);
@@ -105,21 +107,35 @@ class Episode:
 
     def observe(self) -> Observation:
         """Place the obstacles for now, cast the scan, and return what a planner sees."""
+        self.place_obstacles()
         sim = self.sim
-        model, data = sim.model, sim.data
+        return self.observe_ranges(sim.laser.cast(sim.model, sim.data, float(sim.data.qpos[2])))
+
+    def place_obstacles(self) -> None:
+        """The obstacles of this control period (all its physics steps at once), placed for
+        now, with the kinematics updated: what a scan is cast against."""
+        sim = self.sim
         t = self.time
-        # All obstacle positions of this control period in one vectorised call.
         if self.reactive is not None:
-            self._batch_xy, self._batch_vel = self.reactive.batch(data.qpos[:2])
+            self._batch_xy, self._batch_vel = self.reactive.batch(sim.data.qpos[:2])
+        elif self._schedule is not None:  # a batch of worlds evaluated them all at once
+            self._batch_xy, self._batch_vel = self._schedule
+            self._schedule = None
         else:
             self._batch_xy, self._batch_vel = self.player.positions_at(t + self._step_offsets)
         sim.set_obstacles(self._batch_xy[0])
-        mujoco.mj_kinematics(model, data)
-        qpos, qvel = data.qpos, data.qvel
+        mujoco.mj_kinematics(sim.model, sim.data)
+
+    def observe_ranges(self, ranges: np.ndarray) -> Observation:
+        """The observation from noise-free ranges cast after `place_obstacles` (the laser's
+        noise drawn from this episode's generator, then the 1 mm grid)."""
+        sim = self.sim
+        t = self.time
+        qpos, qvel = sim.data.qpos, sim.data.qvel
         pose = qpos[:3].copy()
         c, s = math.cos(pose[2]), math.sin(pose[2])
         velocity = np.array([c * qvel[0] + s * qvel[1], qvel[2]])
-        scan = sim.laser.scan(model, data, pose[2], self.rng)
+        scan = sim.laser.noisy(ranges, self.rng)
         privileged = None
         if self.privileged:
             privileged = ObstacleState(
@@ -191,25 +207,54 @@ class Episode:
             log = self.reactive.log
             n_log = min(self.k, len(log) - step)
             log[step : step + n_log] = batch_xy[:n_log]
+        # The physics steps first (MuJoCo stops only for a contact), then the protocol's
+        # checks of every step at once, in the order a step-by-step loop makes them
+        # (contact, clock start, goal, time limit): the same outcome at the same step.
+        first = step + 1
+        contact = False
         for j in range(self.k):
             mocap_xy[...] = batch_xy[j]
             mujoco.mj_step(model, data)
-            step += 1
-            poses[step] = robot_qpos
-            x, y = robot_qpos[0], robot_qpos[1]
+            poses[first + j] = robot_qpos
             if data.ncon:
-                self.reason = f"hit {_contact_partner(model, data, sim.robot_geoms)}"
-                outcome = Outcome.COLLISION
+                contact = True
                 break
-            ts = step * dt
-            if t_start is None and protocol.timer_started(x, y):
-                t_start = ts
-            if protocol.reached(x, y, goal):
+        m = j + 1
+        xy = poses[first : first + m, :2]
+        ts = np.arange(first, first + m) * dt
+        if t_start is None:
+            started = protocol.timers_started(xy[:, 0], xy[:, 1])
+            if contact:
+                started[-1] = False  # the loop ends at a contact before the clock is looked at
+            begun = np.flatnonzero(started)
+            clock0 = np.zeros(m)
+            if len(begun):
+                t_start = float(ts[begun[0]])
+                clock0[begun[0] :] = t_start
+        else:
+            clock0 = np.full(m, t_start)
+        ended = protocol.reached_all(xy[:, 0], xy[:, 1], goal)
+        timeout = ts - clock0 >= limit
+        event = ended | timeout
+        if contact:
+            event[-1] = False
+        hits = np.flatnonzero(event)
+        if len(hits):
+            j = int(hits[0])
+            if ended[j]:
                 outcome, self.reason = Outcome.SUCCESS, "reached the goal"
-                break
-            if ts - (t_start if t_start is not None else 0.0) >= limit:
+            else:
                 outcome, self.reason = Outcome.TIMEOUT, f"time limit {limit:g} s"
-                break
+            # The clock as it stood when the loop would have ended.
+            if self.t_start is None and t_start is not None and begun[0] > j:
+                t_start = None
+            step = first + j
+        elif contact:
+            self.reason = f"hit {_contact_partner(model, data, sim.robot_geoms)}"
+            outcome = Outcome.COLLISION
+            step = first + m - 1
+        else:
+            step = first + m - 1
         self.step, self.t_start, self.outcome = step, t_start, outcome
         return outcome
 

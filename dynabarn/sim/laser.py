@@ -109,7 +109,10 @@ class Laser:
         return out
 
     def scan(self, model: mujoco.MjModel, data: mujoco.MjData, yaw: float, rng: np.random.Generator) -> np.ndarray:
-        ranges = self.cast(model, data, yaw)
+        return self.noisy(self.cast(model, data, yaw), rng)
+
+    def noisy(self, ranges: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Noise-free ranges (changed in place) -> the scan: Gaussian noise, clipped, 1 mm grid."""
         ranges += rng.normal(0.0, self.params.laser_noise_std, self.n)
         np.clip(ranges, self.params.laser_range_min, self.params.laser_range_max, out=ranges)
         # Whole millimetres, as the UST-10 reports: also what keeps last-bit differences of

@@ -1,0 +1,237 @@
+"""`DynaBARNVectorEnv`: many DynaBARN-v0 worlds stepped at once (Gymnasium's `VectorEnv`).
+
+`num_envs` sub-environments, each exactly a `DynaBARNEnv` (same worlds, seeds, dynamics,
+rewards and observations: a test steps both side by side), split over `workers`
+processes (default: one per core, at most 2 here). Inside a process the worlds advance
+together (`WorldBatch`):
+
+1. each world's physics period: MuJoCo's C step, 20 per control period;
+2. the obstacles of every world placed for the new period;
+3. every world's 720 rays in one vectorised closed-form pass (`sim.ray_batch`) for worlds
+   of the paper's kind (walls and standing cylinders); others cast with `mj_multiRay`;
+4. each world's laser noise from its own generator, then the 1 mm grid, the local goal
+   and the reward, as the single environment does.
+
+The scan agrees with the single environment's to the laser's 1 mm grid (the closed form
+and `mj_multiRay` differ by rounding, 1e-12 m, which can move a range across a grid line
+only when it lands within that of one). Autoreset is Gymnasium's default (`NEXT_STEP`):
+the step after an episode ends resets that world and returns its first observation.
+Workers are started with `spawn`, talk over pipes, and end with the environment (or with
+their parent: they exit when the pipe closes).
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from dynabarn.learn.env import DynaBARNEnv
+from dynabarn.sim.ray_batch import BatchCaster, supports
+from dynabarn.worlds.schedule_batch import ScheduleBatch, batchable
+
+
+class WorldBatch:
+    """Sub-environments stepped together in one process."""
+
+    def __init__(self, n: int, env_kwargs: dict) -> None:
+        self.envs = [DynaBARNEnv(**env_kwargs) for _ in range(n)]
+        self.needs_reset = np.ones(n, dtype=bool)
+        self._caster: BatchCaster | None = None
+        self._caster_sims: list | None = None
+        self._schedule: ScheduleBatch | None = None
+        self._players: list | None = None
+
+    def reset(self, seeds: list[int | None], options: dict | None) -> tuple[np.ndarray, list[dict]]:
+        out = [env.reset(seed=s, options=options) for env, s in zip(self.envs, seeds, strict=True)]
+        self.needs_reset[:] = False
+        return np.stack([o for o, _ in out]), [i for _, i in out]
+
+    def step(self, actions: np.ndarray):
+        n = len(self.envs)
+        obs = np.zeros((n, *self.envs[0].observation_space.shape), np.float32)
+        rewards, terminated, truncated = np.zeros(n), np.zeros(n, bool), np.zeros(n, bool)
+        infos: list[dict] = [{} for _ in range(n)]
+        outcomes: list = [None] * n
+        running = []
+        for i, env in enumerate(self.envs):
+            if self.needs_reset[i]:
+                obs[i], infos[i] = env.reset()
+                continue
+            outcomes[i] = env._apply(actions[i])
+            if outcomes[i] is None:
+                running.append(i)
+            else:
+                obs[i], rewards[i], terminated[i], truncated[i], infos[i] = env._conclude(
+                    outcomes[i], env._last_observation()
+                )
+        self._schedules(running)
+        for i in running:
+            self.envs[i].episode.place_obstacles()
+        ranges = self._cast(running)
+        for i in running:
+            env = self.envs[i]
+            obs[i], rewards[i], terminated[i], truncated[i], infos[i] = env._conclude(None, env._observe(ranges[i]))
+        self.needs_reset = terminated | truncated
+        return obs, rewards, terminated, truncated, infos
+
+    def _schedules(self, running: list[int]) -> None:
+        """This period's obstacle positions of every scripted running world in one pass
+        (`ScheduleBatch`: the bits of each world's own player), handed to its episode."""
+        eps = [self.envs[i].episode for i in running if self.envs[i].episode.reactive is None]
+        players = [ep.player for ep in eps]
+        if not players or not batchable(players):
+            return
+        if self._players != players:
+            self._schedule, self._players = ScheduleBatch(players), players
+        times = np.array([ep.time for ep in eps])[None, :] + eps[0]._step_offsets[:, None]
+        pos, vel = self._schedule.positions_at(times)
+        for ep, p, v in zip(eps, pos, vel, strict=True):
+            ep._schedule = (p, v)
+
+    def _cast(self, running: list[int]) -> dict[int, np.ndarray]:
+        """Noise-free ranges of the running worlds: in closed form, all at once, where the
+        world allows it; by `mj_multiRay` otherwise."""
+        sims = [self.envs[i].episode.sim for i in running]
+        batched = [i for i, s in zip(running, sims, strict=True) if supports(s)]
+        out = {}
+        if batched:
+            bsims = [self.envs[i].episode.sim for i in batched]
+            if self._caster_sims != bsims:
+                self._caster, self._caster_sims = BatchCaster(bsims), bsims
+            origins = np.array([s.data.site_xpos[s.laser.site] for s in bsims])
+            yaws = np.array([s.data.qpos[2] for s in bsims])
+            centres = np.concatenate([self.envs[i].episode._batch_xy[0] for i in batched])
+            for i, r in zip(batched, self._caster.cast(origins, yaws, centres), strict=True):
+                out[i] = r
+        for i, s in zip(running, sims, strict=True):
+            if i not in out:
+                out[i] = s.laser.cast(s.model, s.data, float(s.data.qpos[2]))
+        return out
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
+
+
+def _worker(conn, n: int, env_kwargs: dict) -> None:
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    batch = WorldBatch(n, env_kwargs)
+    try:
+        while True:
+            try:
+                cmd, payload = conn.recv()
+            except EOFError:  # the parent is gone
+                return
+            if cmd == "step":
+                conn.send(batch.step(payload))
+            elif cmd == "reset":
+                conn.send(batch.reset(*payload))
+            elif cmd == "close":
+                conn.send(None)
+                return
+    finally:
+        batch.close()
+
+
+class DynaBARNVectorEnv(VectorEnv):
+    """`num_envs` DynaBARN-v0 worlds in `workers` processes (0: in this process).
+
+    Args: `num_envs`, `workers` (default: the cores, at most 2), and every keyword of
+    `DynaBARNEnv` but rendering (`world_set`, `split`, `split_seed`, `difficulty`,
+    `worlds`, `protocol`, `lookahead`). `reset(seed=s)` seeds world i with s + i.
+    """
+
+    metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 8, *, workers: int | None = None, **env_kwargs) -> None:
+        if not (isinstance(num_envs, int) and num_envs >= 1):
+            raise ValueError(f"num_envs must be a whole number >= 1, got {num_envs!r}")
+        if "render_mode" in env_kwargs:
+            raise ValueError("the vector environment does not render; use DynaBARNEnv for pictures")
+        workers = min(2, os.cpu_count() or 1) if workers is None else workers
+        if not (isinstance(workers, int) and 0 <= workers <= num_envs):
+            raise ValueError(f"workers must be a whole number in [0, num_envs], got {workers!r}")
+        probe = DynaBARNEnv(**env_kwargs)  # checks the arguments here, with one clear error
+        self.single_observation_space = probe.observation_space
+        self.single_action_space = probe.action_space
+        probe.close()
+        self.num_envs = num_envs
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self.workers = workers
+        sizes = [len(part) for part in np.array_split(np.arange(num_envs), max(1, workers))]
+        self._slices = np.cumsum([0, *sizes])
+        self._local: WorldBatch | None = None
+        self._conns: list = []
+        self._procs: list = []
+        if workers == 0:
+            self._local = WorldBatch(num_envs, env_kwargs)
+        else:
+            ctx = mp.get_context("spawn")
+            for n in sizes:
+                parent, child = ctx.Pipe()
+                p = ctx.Process(target=_worker, args=(child, n, env_kwargs), daemon=True)
+                p.start()
+                child.close()
+                self._conns.append(parent)
+                self._procs.append(p)
+        self.closed = False
+
+    def _parts(self, cmd: str, payloads: list) -> list:
+        if self._local is not None:
+            return [getattr(self._local, cmd)(*payloads[0]) if cmd == "reset" else self._local.step(payloads[0])]
+        for conn, payload in zip(self._conns, payloads, strict=True):
+            conn.send((cmd, payload))
+        return [conn.recv() for conn in self._conns]
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        seeds = [None if seed is None else seed + i for i in range(self.num_envs)]
+        payloads = [(seeds[a:b], options) for a, b in zip(self._slices[:-1], self._slices[1:], strict=True)]
+        parts = self._parts("reset", payloads)
+        obs = np.concatenate([p[0] for p in parts])
+        return obs, _infos([i for p in parts for i in p[1]])
+
+    def step(self, actions):
+        actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)
+        payloads = [actions[a:b] for a, b in zip(self._slices[:-1], self._slices[1:], strict=True)]
+        parts = self._parts("step", payloads)
+        obs, rew, term, trunc = (np.concatenate([p[k] for p in parts]) for k in range(4))
+        return obs, rew, term, trunc, _infos([i for p in parts for i in p[4]])
+
+    def close_extras(self, **kwargs) -> None:
+        if self._local is not None:
+            self._local.close()
+        for conn in self._conns:
+            try:
+                conn.send(("close", None))
+                conn.recv()
+            except (EOFError, OSError, BrokenPipeError):
+                pass
+            conn.close()
+        for p in self._procs:
+            p.join(timeout=10)
+            if p.is_alive():
+                p.kill()
+        self._conns, self._procs = [], []
+
+
+INFO_KEYS = ("is_success", "world_id", "difficulty", "trial_seed", "outcome")
+
+
+def _infos(items: list[dict]) -> dict:
+    """Gymnasium's vector info: one array per key, and `_key` saying which worlds have it."""
+    out: dict[str, np.ndarray] = {}
+    for key in INFO_KEYS:
+        have = np.array([key in i for i in items])
+        if not have.any():
+            continue
+        values = [i.get(key) for i in items]
+        kind = bool if key == "is_success" else np.int64 if key in ("world_id", "trial_seed") else object
+        out[key] = np.array([v if v is not None or kind is object else 0 for v in values], dtype=kind)
+        out["_" + key] = have
+    return out

@@ -1,0 +1,87 @@
+"""Many worlds' schedules evaluated at once, with the bits of each world's own player.
+
+`SchedulePlayer` finds every obstacle's segment with one `searchsorted` over its world's
+keyframes, each obstacle's times shifted by its index x 1e6 s. Joining worlds would shift
+them by more, which rounds differently and could pick the neighbouring segment when a
+clock lies within rounding of a keyframe. So here each obstacle's keys keep the shift
+its own world gives them, and the segment is counted (keys at or before the clock, the
+same comparisons `searchsorted` makes) over the obstacle's own keys only. The rest is
+`SchedulePlayer._evaluate`'s arithmetic on the joined arrays, elementwise: the same
+positions and velocities, bit for bit, as each world's player (a test checks).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dynabarn.worlds.schedule import SchedulePlayer
+from dynabarn.worlds.spec import EndBehavior, Interpolation
+
+
+def batchable(players: list[SchedulePlayer]) -> bool:
+    """One interpolation and one end behaviour across the worlds (what one pass computes)."""
+    return len({(p.interpolation, p.end_behavior) for p in players}) == 1
+
+
+class ScheduleBatch:
+    """Positions and velocities of every obstacle of `players`' worlds at per-world times."""
+
+    def __init__(self, players: list[SchedulePlayer]) -> None:
+        if not batchable(players):
+            raise ValueError("players of one interpolation and end behaviour only")
+        self.interpolation = players[0].interpolation
+        self.loop = players[0].end_behavior is EndBehavior.LOOP
+        counts = np.array([p.n_obstacles for p in players], dtype=np.int64)
+        self.world_of = np.repeat(np.arange(len(players)), counts)
+        self.splits = np.cumsum(counts)[:-1]
+        live = [p for p in players if p.n_obstacles]
+        self.n = int(counts.sum())
+        if not self.n:
+            return
+        self.offset = np.concatenate([np.full(p.n_obstacles, p.clock_offset) for p in live])
+        self.durations = np.concatenate([p.durations for p in live])
+        self.stride = np.concatenate([p._stride_offsets for p in live])
+        n_key = np.concatenate([p.n_keyframes for p in live])
+        self._flat_t = np.concatenate([p._flat_t for p in live])
+        self._flat_p = np.concatenate([p._flat_p for p in live])
+        self._flat_m = np.concatenate([p._flat_m for p in live])
+        start = np.concatenate([[0], np.cumsum(n_key)[:-1]]).astype(np.int64)
+        self._start = start
+        self._seg_lo = start
+        self._seg_hi = start + np.maximum(n_key - 2, 0)
+        # Every obstacle's own keys (shifted as its world's player shifts them), +inf padded.
+        keys = np.full((self.n, int(n_key.max())), np.inf)
+        own = np.concatenate([p._flat_key for p in live])
+        col = np.arange(len(own)) - np.repeat(start, n_key)
+        keys[np.repeat(np.arange(self.n), n_key), col] = own
+        self._keys = keys
+
+    def positions_at(self, times: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """times (T, W): world w's T query times. Per world: positions and velocities (T, n_w, 2)."""
+        if not self.n:
+            empty = np.zeros((times.shape[0], 0, 2))
+            return [empty] * (len(self.splits) + 1), [empty] * (len(self.splits) + 1)
+        tl = times[:, self.world_of] + self.offset  # as SchedulePlayer.local_time: t + clock_offset
+        tl = np.mod(tl, self.durations) if self.loop else np.minimum(tl, self.durations)
+        q = tl + self.stride
+        seg = self._start + (self._keys[None] <= q[..., None]).sum(axis=-1) - 1
+        np.clip(seg, self._seg_lo, self._seg_hi, out=seg)
+        pos, vel = self._evaluate(tl, seg)
+        return np.split(pos, self.splits, axis=1), np.split(vel, self.splits, axis=1)
+
+    def _evaluate(self, tl: np.ndarray, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        t0 = self._flat_t[seg]
+        dt = self._flat_t[seg + 1] - t0
+        u = np.clip((tl - t0) / dt, 0.0, 1.0)[..., None]
+        p0 = self._flat_p[seg]
+        p1 = self._flat_p[seg + 1]
+        dt = dt[..., None]
+        if self.interpolation is Interpolation.LINEAR:
+            return p0 + (p1 - p0) * u, (p1 - p0) / dt
+        m0 = self._flat_m[seg]
+        m1 = self._flat_m[seg + 1]
+        u2 = u * u
+        u3 = u2 * u
+        pos = (2 * u3 - 3 * u2 + 1) * p0 + (u3 - 2 * u2 + u) * m0 + (-2 * u3 + 3 * u2) * p1 + (u3 - u2) * m1
+        vel = ((6 * u2 - 6 * u) * p0 + (3 * u2 - 4 * u + 1) * m0 + (-6 * u2 + 6 * u) * p1 + (3 * u2 - 2 * u) * m1) / dt
+        return pos, vel
