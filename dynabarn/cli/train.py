@@ -65,6 +65,45 @@ TD3_OPTIONS = (
 )
 
 
+@dataclass
+class _DaggerDefaults:
+    """`dynabarn.learn.dagger.DaggerConfig`'s defaults (a test checks the two agree)."""
+
+    iterations: int = 12
+    episodes: int = 240
+    max_steps: int = 400
+    beta_decay: float = 0.5
+    updates: int = 4000
+    batch_size: int = 512
+    lr: float = 1e-3
+    validation_episodes: int = 60
+    history: int = 2
+    history_every: int = 2
+    tracks: int = 8
+    workers: int = 2
+    threads: int = 2
+    seed: int = 0
+
+
+DAGGER_DEFAULTS = _DaggerDefaults()
+DAGGER_OPTIONS = (
+    ("iterations", int, 1, 10_000, "DAgger iterations (collect, relabel, aggregate, fit, validate)"),
+    ("episodes", int, 1, 1_000_000, "training episodes per iteration, each in a fresh procedural world"),
+    ("max_steps", int, 10, 100_000, "steps after which a training episode is cut"),
+    ("beta_decay", float, 0.0, 1.0, "the teacher drives with probability beta_decay ** iteration"),
+    ("updates", int, 1, 100_000_000, "gradient steps per iteration over the whole aggregated dataset"),
+    ("batch_size", int, 1, 1_000_000, "rows per gradient step"),
+    ("lr", float, 1e-8, 1.0, "Adam learning rate"),
+    ("validation_episodes", int, 0, 100_000, "student-only episodes on validation worlds per iteration"),
+    ("history", int, 0, 16, "earlier scans the student sees (0: the paper's single scan)"),
+    ("history_every", int, 1, 50, "control ticks between history frames"),
+    ("tracks", int, 0, 64, "nearest laser-tracker tracks the student sees (0: no tracker)"),
+    ("workers", int, 1, MAX_JOBS, "collection processes"),
+    ("threads", int, 1, MAX_JOBS, "PyTorch threads for fitting"),
+    ("seed", int, 0, MAX_SEED, "seed of the split, the trials, the coin and torch"),
+)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-train`'s parser (its `--help`, and the documentation's page of the command)."""
     parser = make_parser(
@@ -94,6 +133,26 @@ def build_parser() -> argparse.ArgumentParser:
             "--" + name.replace("_", "-"), type=ranged(kind, lo, hi), default=getattr(TD3_DEFAULTS, name), help=text
         )
     td.add_argument("--out", type=Path, required=True, help="folder for checkpoints, policy.pt and the learning curve")
+    dg = sub.add_parser(
+        "dagger",
+        help="DAgger with the present-state oracle as teacher on procedural training worlds "
+        "(resumes from --out's last iteration when run again)",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    add_protocol(dg)
+    for name, kind, lo, hi, text in DAGGER_OPTIONS:
+        dg.add_argument(
+            "--" + name.replace("_", "-"), type=ranged(kind, lo, hi), default=getattr(DAGGER_DEFAULTS, name), help=text
+        )
+    dg.add_argument(
+        "--no-velocity", dest="velocity", action="store_false", help="leave the measured (v, w) out of the inputs"
+    )
+    dg.add_argument(
+        "--profile-sets",
+        default="table1,release2022",
+        help="comma-separated profile sets the training worlds are drawn from",
+    )
+    dg.add_argument("--out", type=Path, required=True, help="folder for data, checkpoints, policy.pt and the curve")
     return parser
 
 
@@ -127,6 +186,8 @@ def _train(args: argparse.Namespace) -> int:
             f"loss {report.losses[0]:.4f} -> {report.losses[-1]:.4f}"
         )
         return 0
+    if args.command == "dagger":
+        return _train_dagger(args, tqdm)
     from dynabarn.learn.td3 import TD3Config, train_td3
     from dynabarn.worlds.profiles import Difficulty
     from dynabarn.worldset import world_set
@@ -149,5 +210,30 @@ def _train(args: argparse.Namespace) -> int:
         f"wrote {args.out / 'policy.pt'} after {report.steps} steps ({report.episodes} episodes) in "
         f"{report.seconds:.0f} s; last evaluation: success {last['success']:.2f}, return {last['return']:.1f}; "
         f"curve: {args.out / 'learning_curve.png'}"
+    )
+    return 0
+
+
+def _train_dagger(args: argparse.Namespace, tqdm) -> int:
+    from dynabarn.learn.dagger import DaggerConfig, train_dagger
+    from dynabarn.worlds.profiles import get_profile_set
+
+    profile_sets = [p for p in args.profile_sets.split(",") if p]
+    for name in profile_sets:
+        get_profile_set(name)  # one line for an unknown name, before any worker starts
+    cfg = DaggerConfig(
+        protocol=args.protocol,
+        velocity=args.velocity,
+        profile_sets=profile_sets,
+        **{name: getattr(args, name) for name, *_ in DAGGER_OPTIONS},
+    )
+    report = train_dagger(
+        cfg, args.out, progress=lambda total, initial=0: tqdm(total=total, initial=initial, desc="iterations")
+    )
+    last = report.iterations[-1]
+    print(
+        f"wrote {args.out / 'policy.pt'} after {len(report.iterations)} iterations ({last['dataset']} labelled "
+        f"states, {len(set(report.fingerprints))} training worlds) in {report.seconds:.0f} s; validation success "
+        f"{last['validation']['success']:.2f}; curve: {args.out / 'learning_curve.png'}"
     )
     return 0

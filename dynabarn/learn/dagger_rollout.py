@@ -43,8 +43,9 @@ def _env(cfg, split: str):
         if "env" in _WORKER:
             _WORKER["env"].close()
         torch.set_num_threads(1)
-        _WORKER["env"] = DynaBARNEnv(split=split, split_seed=cfg.seed, protocol=cfg.protocol)
-        _WORKER["env"].procedural.profile_sets = tuple(cfg.profile_sets)
+        _WORKER["env"] = DynaBARNEnv(
+            split=split, split_seed=cfg.seed, split_profile_sets=tuple(cfg.profile_sets), protocol=cfg.protocol
+        )
         _WORKER["key"] = key
     return _WORKER["env"]
 

@@ -53,8 +53,12 @@ paced to real time (needs a display). `camera`: `top` (the arena) or `follow`.
 | parameter | type | default | description |
 |---|---|---|---|
 | world_set | str | "paper60" | paper60, dynabarn300, or a folder with index.json |
-| split | str or None | None | "train" or "validation": worlds drawn on the fly from Alg. 1 and 2 (`dynabarn.learn.split`), never a shipped or imported one; overrides world_set |
-| split_seed | int | 0 | the split's seed (a run's worlds are the same for the same seed) |
+| split | str or None | None | "train" or "validation": worlds drawn on the fly |
+| split_seed | int | 0 | the split's seed (the same worlds for the same seed) |
+| split_profile_sets | tuple[str] | ("table1", "release2022") | profile sets of the split |
+
+`split` draws worlds from Alg. 1 and 2 (`dynabarn.learn.split`), never a shipped or
+imported one, and overrides `world_set`.
 | difficulty | str or None | None | easy, medium, hard, or all |
 | worlds | list[int] or None | None | explicit world ids (overrides difficulty) |
 | protocol | str | "barn" | barn, paper2022 or a .json file |
@@ -93,7 +97,7 @@ import numpy as np
 from gymnasium import spaces
 
 from dynabarn.errors import DynabarnError
-from dynabarn.learn.split import ProceduralWorlds, reserved_fingerprints
+from dynabarn.learn.split import DEFAULT_PROFILE_SETS, ProceduralWorlds, reserved_fingerprints
 from dynabarn.metrics import Outcome
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.learned.spaces import action_to_command, policy_input
@@ -138,6 +142,7 @@ class DynaBARNEnv(gymnasium.Env):
         world_set: str = "paper60",
         split: str | None = None,
         split_seed: int = 0,
+        split_profile_sets: tuple[str, ...] = DEFAULT_PROFILE_SETS,
         difficulty: str | None = None,
         worlds: list[int] | None = None,
         protocol: str = "barn",
@@ -179,6 +184,7 @@ class DynaBARNEnv(gymnasium.Env):
                     Path(tempfile.mkdtemp(prefix=f"dynabarn-{split}-")),
                     split=split,
                     seed=int(split_seed),
+                    profile_sets=tuple(split_profile_sets),
                     reserved=shipped_fingerprints(),
                 )
             except DynabarnError as exc:

@@ -91,7 +91,7 @@ class ProceduralWorlds:
             "split": f"procedural-{self.split}",
             "generator": "dynabarn Alg. 1 and 2",
             "profile_sets": list(self.profile_sets),
-            "seed_sequence": f"generate_world(branch id, base_seed=(({SPLITS[self.split]} + {self.seed}) << 40) + (k << 8) + redraw)",
+            "base_seed": f"(({SPLITS[self.split]} + {self.seed}) << 40) + (k << 8) + redraw",
         }
 
     def _base_seed(self, k: int, attempt: int) -> int:

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -146,9 +146,14 @@ class DynaBARNVectorEnv(VectorEnv):
     `worlds`, `protocol`, `lookahead`). `reset(seed=s)` seeds world i with s + i.
     """
 
-    metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.NEXT_STEP}
+    metadata: ClassVar[dict[str, Any]] = {"autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 8, *, workers: int | None = None, **env_kwargs) -> None:
+    def __init__(
+        self, num_envs: int = 8, *, workers: int | None = None, max_episode_steps: int | None = None, **env_kwargs
+    ) -> None:
+        # `gymnasium.make_vec` passes the registered max_episode_steps; the protocol always
+        # ends an episode first (see DynaBARNEnv's docstring), so it is only recorded.
+        self.max_episode_steps = max_episode_steps
         if not (isinstance(num_envs, int) and num_envs >= 1):
             raise ValueError(f"num_envs must be a whole number >= 1, got {num_envs!r}")
         if "render_mode" in env_kwargs:

@@ -67,6 +67,9 @@ class BatchCaster:
         ux, uy = np.cos(a), np.sin(a)
         out = self._walls(origins, ux, uy)
         self._cylinders(out, origins, yaws, centres, ux, uy)
+        # Like mj_multiRay, a hit beyond the range is reported as it is (the scan clips it
+        # after the noise); only a beam that hits nothing reads range_max.
+        out[np.isinf(out)] = self.range_max
         return out
 
     def _walls(self, origins: np.ndarray, ux: np.ndarray, uy: np.ndarray) -> np.ndarray:
@@ -82,14 +85,7 @@ class BatchCaster:
         # mj_multiRay leaves out a geom whose bounding sphere lies beyond the range.
         culled = np.linalg.norm(self.wall_centre - origins[:, None, :], axis=-1) - self.wall_rbound > self.range_max
         hit = (near <= far) & (near > 0.0) & ~culled[..., None]
-        # Like mj_multiRay, a hit beyond the range is reported as it is (the scan clips it
-        # after the noise); only a beam that hits nothing reads range_max.
-        return self._no_hit(near, hit)
-
-    def _no_hit(self, near: np.ndarray, hit: np.ndarray) -> np.ndarray:
-        t = np.where(hit, near, np.inf).min(axis=1)
-        t[np.isinf(t)] = self.range_max
-        return t
+        return np.where(hit, near, np.inf).min(axis=1)  # inf: no wall on the beam
 
     def _cylinders(self, out, origins, yaws, centres, ux, uy) -> None:
         if len(centres) == 0:
