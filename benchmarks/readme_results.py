@@ -28,6 +28,9 @@ from dynabarn.bench import DIFFICULTIES, PAPER_FIG5, paper_worlds, read_results,
 from dynabarn.bench.results import RESULTS, WORLDS
 from dynabarn.bench.summary import FLOOR, plot_fig5
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from learning_tables import dagger_training, generalisation_table
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS_DIR = ROOT / "results"
 README = ROOT / "README.md"
@@ -55,6 +58,7 @@ PLANNERS = {
     "teb@teb_ros_defaults": "TEB, teb_local_planner's defaults as the authors ran it (`teb@teb_ros_defaults`)",
     "bc": "BC (shipped `bc.pt`)",
     "td3": "TD3 (shipped `td3.pt`)",
+    "dagger": "DAgger student, procedural training worlds only (shipped `dagger.pt`)",
     "dwa@dwa_dynamic": "DWA with the laser tracker's predictions (`dwa@dwa_dynamic`)",
     "teb@teb_dynamic": "TEB with the laser tracker's predictions (`teb@teb_dynamic`)",
     "predictive": "The laser tracker feeding the oracle's search (`predictive`)",
@@ -293,13 +297,15 @@ BLOCKS = {
     "skill": lambda f, s: skill_table(s),
     "floor": lambda f, s: floor_table(f),
     "td3-training": lambda f, s: td3_training(),
+    "generalisation": lambda f, s: generalisation_table(s),
+    "dagger-training": lambda f, s: dagger_training(),
 }
 
 
 PAGES = {
-    README: ("headline", "ladder"),
-    DOCS / "results.md": ("fig5", "skill", "floor", "ladder", "tracking", "other-worlds"),
-    DOCS / "tutorials" / "training.md": ("td3-training",),
+    README: ("headline", "ladder", "generalisation"),
+    DOCS / "results.md": ("fig5", "skill", "floor", "ladder", "tracking", "other-worlds", "generalisation"),
+    DOCS / "tutorials" / "training.md": ("td3-training", "dagger-training"),
 }
 """Each page and the blocks it must hold (every block of BLOCKS is on some page)."""
 

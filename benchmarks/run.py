@@ -203,6 +203,43 @@ def env_steps_per_second(n_steps: int = 3000) -> float | None:
     return n_steps / (time.perf_counter() - t0)
 
 
+def vector_env_speed(num_envs: int = 32, seconds: float = 8.0) -> tuple[float, float, float] | None:
+    """Control steps per second with random actions on paper60: one DynaBARN-v0, the vector
+    environment in this process (one core), and with 2 worker processes (None without the
+    learn extra). The same action distribution for all three (episodes end and reset)."""
+    try:
+        from dynabarn.learn.env import DynaBARNEnv
+        from dynabarn.learn.vector_env import DynaBARNVectorEnv
+    except ImportError:
+        return None
+    rng = np.random.default_rng(0)
+
+    def timed(step_batch, n_per_call: int) -> float:
+        calls, t0 = 0, time.perf_counter()
+        while time.perf_counter() - t0 < seconds:
+            step_batch()
+            calls += 1
+        return calls * n_per_call / (time.perf_counter() - t0)
+
+    env = DynaBARNEnv(world_set="paper60")
+    env.reset(seed=0)
+
+    def single():
+        _, _, term, trunc, _ = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+        if term or trunc:
+            env.reset()
+
+    out = [timed(single, 1)]
+    for workers in (0, 2):
+        vec = DynaBARNVectorEnv(num_envs, workers=workers, world_set="paper60")
+        vec.reset(seed=0)
+        for _ in range(30):  # every world compiled before the clock starts
+            vec.step(rng.uniform(-1, 1, (num_envs, 2)).astype(np.float32))
+        out.append(timed(lambda v=vec: v.step(rng.uniform(-1, 1, (num_envs, 2)).astype(np.float32)), num_envs))
+        vec.close()
+    return out[0], out[1], out[2]
+
+
 def sweep_speedup(workers: int = 2) -> tuple[float, float]:
     """(wall seconds with 1 worker, with `workers`) for the same 40 DWA episodes of paper60."""
     from dynabarn import bench, worldset
@@ -327,6 +364,13 @@ def main(argv: list[str] | None = None) -> int:
     sps = env_steps_per_second()
     if sps is not None:
         print(f"{'DynaBARN-v0 control steps per second (720-ray scan)':<66}{sps:>12.0f}")
+    speeds = vector_env_speed()
+    if speeds is not None:
+        single, batch, two = speeds
+        print(f"{'random actions, paper60 [control steps/s]':<66}{'steps/s':>12}{'/ single':>9}")
+        print(f"{'  DynaBARN-v0, one environment':<66}{single:>12.0f}{1.0:>9.2f}")
+        print(f"{'  DynaBARNVectorEnv, 32 worlds in this process (one core)':<66}{batch:>12.0f}{batch / single:>9.2f}")
+        print(f"{'  DynaBARNVectorEnv, 32 worlds in 2 worker processes':<66}{two:>12.0f}{two / single:>9.2f}")
     one, two = sweep_speedup()
     print(f"{'bench sweep, 40 DWA episodes: 1 worker / 2 workers [s]':<66}{one:>6.1f} /{two:>5.1f}{one / two:>9.2f}x")
     fast, high = best(video_speed, "fast"), best(video_speed, "high")

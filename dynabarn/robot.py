@@ -260,6 +260,9 @@ if __name__ == "__main__":  # pragma: no cover
 def to_robot_frame(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
     """World points (n, 2) into the robot frame of pose (x, y, yaw)."""
     c, s = math.cos(pose[2]), math.sin(pose[2])
+    if len(points) == 1:  # one point (a goal): the same products and sums on Python floats
+        dx, dy = float(points[0][0]) - float(pose[0]), float(points[0][1]) - float(pose[1])
+        return np.array([[c * dx + s * dy, -s * dx + c * dy]])
     d = np.asarray(points) - pose[:2]
     out = np.empty((len(d), 2))
     # The same products and sums as two column expressions, written into one array.

@@ -13,8 +13,8 @@ torch = require("torch", "learn")
 
 from dynabarn.cli import train_main  # noqa: E402
 from dynabarn.errors import DynabarnError  # noqa: E402
-from dynabarn.learn.dagger import Dataset, DaggerConfig, train_dagger  # noqa: E402
-from dynabarn.learn.dagger_rollout import EpisodeData, episode  # noqa: E402
+from dynabarn.learn.dagger import DaggerConfig, Dataset  # noqa: E402
+from dynabarn.learn.dagger_rollout import episode  # noqa: E402
 from dynabarn.learn.env import DynaBARNEnv, shipped_fingerprints  # noqa: E402
 from dynabarn.learn.split import ProceduralWorlds, reserved_fingerprints  # noqa: E402
 from dynabarn.mjcf import read_world  # noqa: E402
@@ -96,7 +96,7 @@ def test_dagger_cli_refusal_is_one_line(tmp_path, capsys):
 
 def test_student_file_round_trip_and_bad_headers(tmp_path):
     path = _student_file(tmp_path, ["abc"])
-    actor, features, header = load_student(path)
+    _, features, header = load_student(path)
     assert features.history == 1 and features.tracks == 2 and header["trained_on"]["fingerprints"] == ["abc"]
     blob = torch.load(path, weights_only=True)
     blob["n_inputs"] = 5

@@ -10,7 +10,7 @@ gymnasium = require("gymnasium", "learn")
 
 import mujoco  # noqa: E402
 
-import dynabarn.learn  # noqa: E402, F401  (registers DynaBARN-v0)
+import dynabarn.learn  # noqa: E402  (registers DynaBARN-v0)
 from dynabarn.learn.env import DynaBARNEnv  # noqa: E402
 from dynabarn.learn.vector_env import DynaBARNVectorEnv  # noqa: E402
 from dynabarn.mjcf import read_world  # noqa: E402

@@ -44,7 +44,10 @@ def build_parser() -> argparse.ArgumentParser:
         + f"({', '.join(planner_presets())}; each file in dynabarn/planners/presets/ says its source)",
     )
     parser.add_argument(
-        "--policy", type=Path, default=None, help="weights for bc, td3 or dagger (default: the policy shipped in the package)"
+        "--policy",
+        type=Path,
+        default=None,
+        help="weights for bc, td3 or dagger (default: the policy shipped in the package)",
     )
     add_protocol(parser)
     add_trial_seed(parser)

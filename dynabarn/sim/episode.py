@@ -195,14 +195,10 @@ class Episode:
         self.tick_v[n], self.tick_w[n], self.tick_w_cmd[n] = self._obs.velocity[0], self._obs.velocity[1], w
         self.n_ticks += 1
 
-        protocol = self.protocol
-        dt, poses, batch_xy = self.dt, self.poses, self._batch_xy
+        poses, batch_xy = self.poses, self._batch_xy
         robot_qpos = data.qpos[:3]  # views reused every physics step
         mocap_xy = data.mocap_pos[: sim.radii.size, :2]
-        goal = (float(sim.goal[0]), float(sim.goal[1]))
-        limit = protocol.time_limit
         step, t_start = self.step, self.t_start
-        outcome = None
         if self.reactive is not None:  # what the obstacles really did, for the clearance metric
             log = self.reactive.log
             n_log = min(self.k, len(log) - step)
@@ -219,9 +215,19 @@ class Episode:
             if data.ncon:
                 contact = True
                 break
-        m = j + 1
-        xy = poses[first : first + m, :2]
+        outcome, step, t_start = self._judge(first, j + 1, contact, t_start)
+        self.step, self.t_start, self.outcome = step, t_start, outcome
+        return outcome
+
+    def _judge(self, first: int, m: int, contact: bool, t_start: float | None):
+        """The protocol's checks of physics steps first..first+m-1 at once, in the order a
+        step-by-step loop makes them (contact, clock start, goal, time limit): (outcome,
+        the step it ended at or the last one, the clock's start)."""
+        protocol, dt, limit = self.protocol, self.dt, self.protocol.time_limit
+        goal = (float(self.sim.goal[0]), float(self.sim.goal[1]))
+        xy = self.poses[first : first + m, :2]
         ts = np.arange(first, first + m) * dt
+        begun = np.zeros(0, dtype=np.int64)
         if t_start is None:
             started = protocol.timers_started(xy[:, 0], xy[:, 1])
             if contact:
@@ -229,13 +235,11 @@ class Episode:
             begun = np.flatnonzero(started)
             clock0 = np.zeros(m)
             if len(begun):
-                t_start = float(ts[begun[0]])
-                clock0[begun[0] :] = t_start
+                clock0[begun[0] :] = float(ts[begun[0]])
         else:
             clock0 = np.full(m, t_start)
         ended = protocol.reached_all(xy[:, 0], xy[:, 1], goal)
-        timeout = ts - clock0 >= limit
-        event = ended | timeout
+        event = ended | (ts - clock0 >= limit)
         if contact:
             event[-1] = False
         hits = np.flatnonzero(event)
@@ -245,18 +249,15 @@ class Episode:
                 outcome, self.reason = Outcome.SUCCESS, "reached the goal"
             else:
                 outcome, self.reason = Outcome.TIMEOUT, f"time limit {limit:g} s"
-            # The clock as it stood when the loop would have ended.
-            if self.t_start is None and t_start is not None and begun[0] > j:
-                t_start = None
-            step = first + j
-        elif contact:
-            self.reason = f"hit {_contact_partner(model, data, sim.robot_geoms)}"
-            outcome = Outcome.COLLISION
-            step = first + m - 1
         else:
-            step = first + m - 1
-        self.step, self.t_start, self.outcome = step, t_start, outcome
-        return outcome
+            j = m - 1
+            outcome = None
+            if contact:
+                self.reason = f"hit {_contact_partner(self.sim.model, self.sim.data, self.sim.robot_geoms)}"
+                outcome = Outcome.COLLISION
+        if t_start is None and len(begun) and begun[0] <= j:  # the clock as it stood when the loop ended
+            t_start = float(ts[begun[0]])
+        return outcome, first + j, t_start
 
     def tick_record(self, debug: dict, tracks=None) -> Tick:
         """The last observation and command (as received, on its grid), for observers."""

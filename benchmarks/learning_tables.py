@@ -1,0 +1,84 @@
+"""The learned planners' blocks of the results pages: generalisation and the DAgger run.
+
+Imported by `readme_results.py` (which owns the pages and their blocks); nothing here
+runs an episode.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from dynabarn.bench import DIFFICULTIES
+from dynabarn.bench.summary import FLOOR
+
+ROOT = Path(__file__).resolve().parents[1]
+DAGGER_TRAINING = ROOT / "results" / "dagger_training" / "training.json"
+GENERALISATION_SETS = {
+    "original60_barn": "release's 60",
+    "unseen_barn": "unseen 240",
+    "paper60_barn": "paper60",
+}
+LEARNED = (
+    (FLOOR, "-", "blind floor (`straight`)"),
+    ("bc", "oracle demonstrations on the 300 worlds", "BC, paper-faithful (`bc`)"),
+    ("td3", "paper60", "TD3, paper-faithful (`td3`)"),
+    ("dagger", "procedural worlds only", "DAgger student (`dagger`)"),
+    ("oracle_present", "- (privileged)", "its teacher (`oracle_present`)"),
+)
+"""(planner, what it trained on, row title)."""
+SEEN = {("td3", "paper60_barn"), ("bc", "paper60_barn"), ("bc", "unseen_barn")}
+"""Cells where the policy trained on the worlds it is evaluated on (marked, not generalisation)."""
+
+
+def _cell(by: dict, planner: str, d: str, *, skill: bool) -> str:
+    s = by.get((planner, d))
+    if s is None:
+        return "-"
+    if not skill:
+        return f"{s['success']:.2f} [{s['success_lo']:.2f}, {s['success_hi']:.2f}]"
+    if s.get("skill") is None:
+        return "-"
+    return f"{s['skill']:+.2f} [{s['skill_lo']:+.2f}, {s['skill_hi']:+.2f}]"
+
+
+def generalisation_table(summaries: dict[str, list[dict]]) -> str:
+    """Success [95% interval] of the learned planners, the floor and the teacher on every
+    evaluation set, then each one's skill over the floor; seen worlds marked with *."""
+    out = []
+    for skill in (False, True):
+        what = "skill over the floor [95% CI]" if skill else "success [95% CI]"
+        head = " | ".join(f"{name}: {d}" for name in GENERALISATION_SETS.values() for d in DIFFICULTIES)
+        lines = [f"| {what} | trained on | {head} |", "|---|---|" + "---|" * 3 * len(GENERALISATION_SETS)]
+        for planner, trained, title in LEARNED:
+            if skill and planner == FLOOR:
+                continue
+            cells = []
+            for folder in GENERALISATION_SETS:
+                by = {(s["planner"], s["difficulty"]): s for s in summaries.get(folder, [])}
+                mark = "\\*" if (planner, folder) in SEEN else ""
+                cells += [
+                    _cell(by, planner, d, skill=skill) + (mark if (planner, d) in by else "") for d in DIFFICULTIES
+                ]
+            if any(c != "-" for c in cells):
+                lines.append(f"| {title} | {trained} | " + " | ".join(cells) + " |")
+        out.append("\n".join(lines))
+    return "\n\n".join(out)
+
+
+def dagger_training() -> str:
+    """The shipped student's run: time, data, worlds, and its validation curve."""
+    if not DAGGER_TRAINING.is_file():
+        return "(no training record)"
+    t = json.loads(DAGGER_TRAINING.read_text())
+    its = t["iterations"]
+    last = its[-1]
+    curve = ", ".join(f"{e['validation']['success']:.2f}" for e in its)
+    return (
+        f"{len(its)} iterations in {t['seconds'] / 60:.0f} min on this machine's 2 cores; "
+        f"{last['dataset']:,} states labelled by the teacher, from {len(set(t['fingerprints'])):,} procedural "
+        f"training worlds (none of them a shipped or imported one); the teacher's share of control "
+        f"{its[0]['beta']:.2f} -> {last['beta']:.3f}; imitation error (mean squared, normalised actions) "
+        f"{its[0]['loss']:.4f} -> {last['loss']:.4f}; the student alone on {last['validation']['episodes']} "
+        f"validation worlds, success per iteration: {curve}."
+    )
