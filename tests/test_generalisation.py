@@ -159,8 +159,14 @@ def test_dagger_aggregates_student_states_with_teacher_labels(tmp_path):
     assert np.array_equal(again.arrays()[0], x)
 
 
-def _imitation_error(report_dir) -> list[float]:
-    return [json.loads(line)["loss"] for line in (report_dir / "train.log").read_text().splitlines()]
+def test_train_help_defaults_match_the_dagger_configuration():
+    from dataclasses import asdict
+
+    from dynabarn.cli.train import DAGGER_DEFAULTS, DAGGER_OPTIONS
+
+    cfg = asdict(DaggerConfig())
+    for name, *_ in DAGGER_OPTIONS:
+        assert getattr(DAGGER_DEFAULTS, name) == cfg[name], name
 
 
 @pytest.mark.slow
@@ -169,8 +175,10 @@ def test_short_dagger_run_learns_saves_resumes_and_drives(tmp_path, capsys):
     args = ["dagger", "--out", str(out), "--episodes", "4", "--max-steps", "80", "--updates", "150"]
     args += ["--batch-size", "128", "--validation-episodes", "2", "--workers", "2", "--threads", "1"]
     assert train_main([*args, "--iterations", "1"]) == 0
-    assert train_main([*args, "--iterations", "2"]) == 0  # resumes after iteration 0
+    assert train_main([*args, "--iterations", "2", "--final-updates", "50"]) == 0  # resumes after iteration 0
     log = [json.loads(line) for line in (out / "train.log").read_text().splitlines()]
+    final = log.pop()["final"]
+    assert final["updates"] == 50 and final["validation"]["episodes"] == 2
     assert [e["iteration"] for e in log] == [0, 1]
     assert log[0]["beta"] == 1.0 and log[1]["beta"] == 0.5 and log[1]["dataset"] > log[0]["dataset"]
     # The fit reduces the imitation error from that of an untrained network (~0.3 on

@@ -74,6 +74,7 @@ class _DaggerDefaults:
     max_steps: int = 400
     beta_decay: float = 0.5
     updates: int = 4000
+    final_updates: int = 0
     batch_size: int = 512
     lr: float = 1e-3
     validation_episodes: int = 60
@@ -92,6 +93,7 @@ DAGGER_OPTIONS = (
     ("max_steps", int, 10, 100_000, "steps after which a training episode is cut"),
     ("beta_decay", float, 0.0, 1.0, "the teacher drives with probability beta_decay ** iteration"),
     ("updates", int, 1, 100_000_000, "gradient steps per iteration over the whole aggregated dataset"),
+    ("final_updates", int, 0, 100_000_000, "updates after the last iteration, the learning rate falling to 0"),
     ("batch_size", int, 1, 1_000_000, "rows per gradient step"),
     ("lr", float, 1e-8, 1.0, "Adam learning rate"),
     ("validation_episodes", int, 0, 100_000, "student-only episodes on validation worlds per iteration"),

@@ -52,6 +52,9 @@ class DaggerConfig:
     teacher: str = "oracle_present"
     updates: int = 4000
     """Gradient steps per iteration, on batches drawn from the whole aggregated dataset."""
+    final_updates: int = 0
+    """After the last iteration, this many more updates on the whole dataset with the
+    learning rate falling linearly to 0 (then one more validation)."""
     batch_size: int = 512
     lr: float = 1e-3
     validation_episodes: int = 60
@@ -74,6 +77,7 @@ class DaggerConfig:
 @dataclass
 class DaggerReport:
     iterations: list[dict] = field(default_factory=list)
+    final: dict | None = None
     fingerprints: list[str] = field(default_factory=list)
     seconds: float = 0.0
 
@@ -83,8 +87,15 @@ def _log(out: Path, line: str) -> None:
         f.write(line + "\n")
 
 
+RUN_LENGTH = ("threads", "workers", "iterations", "final_updates")
+"""Settings a run may change when resumed: where it ends and how it runs, not what it did."""
+
+
 def _identity(cfg: dict | None) -> dict | None:
-    return None if cfg is None else {k: v for k, v in cfg.items() if k not in ("threads", "workers", "iterations")}
+    if cfg is None:
+        return None
+    full = {**asdict(DaggerConfig()), **cfg}  # a field newer than the file: its default
+    return {k: v for k, v in full.items() if k not in RUN_LENGTH}
 
 
 def _rates(eps: list[EpisodeData]) -> dict:
@@ -123,13 +134,18 @@ class Dataset:
         return np.concatenate(self.x), np.concatenate(self.y)
 
 
-def fit(actor: StudentActor, opt: torch.optim.Optimizer, x: np.ndarray, y: np.ndarray, cfg: DaggerConfig, seed: int):
-    """`cfg.updates` Adam steps of mean squared error on batches drawn from (x, y); mean loss of the last tenth."""
+def fit(actor, opt, x: np.ndarray, y: np.ndarray, cfg: DaggerConfig, seed: int, *, updates=None, decay=False):
+    """Adam steps (`cfg.updates`) of mean squared error on batches drawn from (x, y), the
+    learning rate falling linearly to 0 with `decay`; mean loss of the last tenth."""
     rng = np.random.default_rng(seed)
     actor.train()
     losses = []
     xt, yt = torch.from_numpy(x), torch.from_numpy(y)
-    for _ in range(cfg.updates):
+    n = cfg.updates if updates is None else updates
+    for k in range(n):
+        if decay:
+            for group in opt.param_groups:
+                group["lr"] = cfg.lr * (1.0 - k / n)
         idx = torch.from_numpy(rng.integers(0, len(x), cfg.batch_size))
         loss = torch.nn.functional.mse_loss(actor(xt[idx].float()), yt[idx])
         opt.zero_grad()
@@ -171,6 +187,7 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
     t0 = time.perf_counter() - report.seconds
     with ProcessPoolExecutor(max_workers=cfg.workers, mp_context=ctx) as pool:
         for it in range(done, cfg.iterations):
+            report.final = None  # a run extended after its final fit fits again at its new end
             beta = cfg.beta_decay**it
             weights = None if it == 0 else {k: v.clone() for k, v in actor.state_dict().items()}
             ks = range(it * cfg.episodes, (it + 1) * cfg.episodes)
@@ -201,11 +218,26 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
             _log(out, json.dumps(entry))
             if bar is not None:
                 bar.update(1)
+        if cfg.final_updates and report.final is None and report.iterations:
+            x, y = data.arrays()
+            loss = fit(actor, opt, x, y, cfg, seed=cfg.seed * 1000 + 999, updates=cfg.final_updates, decay=True)
+            for group in opt.param_groups:
+                group["lr"] = cfg.lr
+            weights = {k: v.clone() for k, v in actor.state_dict().items()}
+            val = run_episodes(
+                pool, cfg, "validation", range(cfg.validation_episodes), beta=0.0, weights=weights, label=False
+            )
+            report.final = {"updates": cfg.final_updates, "loss": loss, "validation": _rates(val)}
+            report.seconds = time.perf_counter() - t0
+            state = {"actor": actor.state_dict(), "optimizer": opt.state_dict(), "report": asdict(report)}
+            save_atomically(out / STATE, lambda f, s=state: torch.save(s, f))
+            _log(out, json.dumps({"final": report.final}))
     if bar is not None:
         bar.close()
     split = run_episodes_split_description(cfg)
     trained_on = {**split, "worlds": len(set(report.fingerprints)), "fingerprints": sorted(set(report.fingerprints))}
-    notes = {"config": asdict(cfg), "final": report.iterations[-1] if report.iterations else None}
+    notes = {"config": asdict(cfg), "last_iteration": report.iterations[-1] if report.iterations else None}
+    notes["final"] = report.final
     save_student(actor, out / "policy.pt", features=features, trained_on=trained_on, notes=notes)
     write_atomically(out / "training.json", json.dumps({"config": asdict(cfg), **asdict(report)}, indent=1))
     plot_learning_curve(report, out / "learning_curve.png")
@@ -227,6 +259,11 @@ def plot_learning_curve(report: DaggerReport, path: Path) -> Path:
     for d, style in (("easy", "o-"), ("medium", "s-"), ("hard", "^-")):
         ax.plot(its, [e["validation"][f"success_{d}"] for e in report.iterations], style, label=f"student, {d}")
     ax.plot(its, [e["beta"] for e in report.iterations], "k:", label="teacher's share of control")
+    if report.final is not None and its:
+        end = its[-1] + 1
+        for d, marker in (("easy", "o"), ("medium", "s"), ("hard", "^")):
+            ax.plot([end], [report.final["validation"][f"success_{d}"]], marker, color="black", fillstyle="none")
+        ax.annotate("after the final fit", (end, report.final["validation"]["success"]), fontsize=7)
     ax.set_xlabel("DAgger iteration")
     ax.set_ylabel("success rate (validation worlds)")
     ax.set_ylim(-0.02, 1.02)
