@@ -28,6 +28,10 @@ from dynabarn.sim.simulation import Simulation
 from dynabarn.sim.track_scoring import MIN_BEAMS, TrackScorer, beams_per_obstacle
 from dynabarn.worlds.schedule import SchedulePlayer
 
+FAR_FROM_GOAL = 1.0
+"""[m] beyond the goal region: a robot that ends a control period this far out was never
+inside it during the period (it covers at most 0.2 m at 2 m/s), so the period's checks
+reduce to the clock's."""
 MAX_PHYSICS_STEPS = 5_000_000
 """Longest episode in physics steps (its pose buffer is 120 MB); 100 s at 5 ms is 40,000."""
 
@@ -225,6 +229,15 @@ class Episode:
         the step it ended at or the last one, the clock's start)."""
         protocol, dt, limit = self.protocol, self.dt, self.protocol.time_limit
         goal = (float(self.sim.goal[0]), float(self.sim.goal[1]))
+        last = self.poses[first + m - 1]
+        if (
+            not contact
+            and t_start is not None
+            and (first + m - 1) * dt - t_start < limit
+            and math.hypot(last[0] - goal[0], last[1] - goal[1])
+            > math.sqrt(2) * protocol.goal_tolerance + FAR_FROM_GOAL
+        ):
+            return None, first + m - 1, t_start  # the common period: nothing can have happened
         xy = self.poses[first : first + m, :2]
         ts = np.arange(first, first + m) * dt
         begun = np.zeros(0, dtype=np.int64)
