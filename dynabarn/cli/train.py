@@ -233,9 +233,10 @@ def _train_dagger(args: argparse.Namespace, tqdm) -> int:
         cfg, args.out, progress=lambda total, initial=0: tqdm(total=total, initial=initial, desc="iterations")
     )
     last = report.iterations[-1]
+    validation = (report.final or last)["validation"]["success"]
     print(
         f"wrote {args.out / 'policy.pt'} after {len(report.iterations)} iterations ({last['dataset']} labelled "
         f"states, {len(set(report.fingerprints))} training worlds) in {report.seconds:.0f} s; validation success "
-        f"{last['validation']['success']:.2f}; curve: {args.out / 'learning_curve.png'}"
+        f"{validation:.2f}{' after the final fit' if report.final else ''}; curve: {args.out / 'learning_curve.png'}"
     )
     return 0
