@@ -130,10 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
     td.add_argument("--set", default=TD3_DEFAULTS.world_set, help="world set to train in")
     td.add_argument("--difficulty", default=TD3_DEFAULTS.difficulty, help="easy, medium, hard or all")
     add_protocol(td)
-    for name, kind, lo, hi, text in TD3_OPTIONS:
-        td.add_argument(
-            "--" + name.replace("_", "-"), type=ranged(kind, lo, hi), default=getattr(TD3_DEFAULTS, name), help=text
-        )
+    _add_options(td, TD3_OPTIONS, TD3_DEFAULTS)
     td.add_argument("--out", type=Path, required=True, help="folder for checkpoints, policy.pt and the learning curve")
     dg = sub.add_parser(
         "dagger",
@@ -142,10 +139,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     add_protocol(dg)
-    for name, kind, lo, hi, text in DAGGER_OPTIONS:
-        dg.add_argument(
-            "--" + name.replace("_", "-"), type=ranged(kind, lo, hi), default=getattr(DAGGER_DEFAULTS, name), help=text
-        )
+    _add_options(dg, DAGGER_OPTIONS, DAGGER_DEFAULTS)
     dg.add_argument(
         "--no-velocity", dest="velocity", action="store_false", help="leave the measured (v, w) out of the inputs"
     )
@@ -156,6 +150,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     dg.add_argument("--out", type=Path, required=True, help="folder for data, checkpoints, policy.pt and the curve")
     return parser
+
+
+def _add_options(parser: argparse.ArgumentParser, options: tuple, defaults) -> None:
+    """One `--name` per (name, type, low, high, help) row, checked against its range."""
+    for name, kind, lo, hi, text in options:
+        parser.add_argument(
+            "--" + name.replace("_", "-"), type=ranged(kind, lo, hi), default=getattr(defaults, name), help=text
+        )
 
 
 def train_main(argv: Sequence[str] | None = None) -> int:

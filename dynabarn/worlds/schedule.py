@@ -95,21 +95,27 @@ class SchedulePlayer:
         # Flat index of the last keyframe at or before tl, for every obstacle and time.
         seg = np.searchsorted(self._flat_key, tl + self._stride_offsets, side="right") - 1
         np.clip(seg, self._seg_lo, self._seg_hi, out=seg)
-        t0 = self._flat_t[seg]
-        dt = self._flat_t[seg + 1] - t0
-        u = np.clip((tl - t0) / dt, 0.0, 1.0)[..., None]
-        p0 = self._flat_p[seg]
-        p1 = self._flat_p[seg + 1]
-        dt = dt[..., None]
-        if self.interpolation is Interpolation.LINEAR:
-            return p0 + (p1 - p0) * u, (p1 - p0) / dt
-        m0 = self._flat_m[seg]
-        m1 = self._flat_m[seg + 1]
-        u2 = u * u
-        u3 = u2 * u
-        pos = (2 * u3 - 3 * u2 + 1) * p0 + (u3 - 2 * u2 + u) * m0 + (-2 * u3 + 3 * u2) * p1 + (u3 - u2) * m1
-        vel = ((6 * u2 - 6 * u) * p0 + (3 * u2 - 4 * u + 1) * m0 + (-6 * u2 + 6 * u) * p1 + (3 * u2 - 2 * u) * m1) / dt
-        return pos, vel
+        return interpolate(self.interpolation, self._flat_t, self._flat_p, self._flat_m, tl, seg)
+
+
+def interpolate(interpolation: Interpolation, flat_t, flat_p, flat_m, tl: np.ndarray, seg: np.ndarray):
+    """Positions and velocities (..., n, 2) at clocks tl (..., n) in keyframe segments seg
+    (flat indices into the keyframe times flat_t, positions flat_p and tangents flat_m)."""
+    t0 = flat_t[seg]
+    dt = flat_t[seg + 1] - t0
+    u = np.clip((tl - t0) / dt, 0.0, 1.0)[..., None]
+    p0 = flat_p[seg]
+    p1 = flat_p[seg + 1]
+    dt = dt[..., None]
+    if interpolation is Interpolation.LINEAR:
+        return p0 + (p1 - p0) * u, (p1 - p0) / dt
+    m0 = flat_m[seg]
+    m1 = flat_m[seg + 1]
+    u2 = u * u
+    u3 = u2 * u
+    pos = (2 * u3 - 3 * u2 + 1) * p0 + (u3 - 2 * u2 + u) * m0 + (-2 * u3 + 3 * u2) * p1 + (u3 - u2) * m1
+    vel = ((6 * u2 - 6 * u) * p0 + (3 * u2 - 4 * u + 1) * m0 + (-6 * u2 + 6 * u) * p1 + (3 * u2 - 2 * u) * m1) / dt
+    return pos, vel
 
 
 def _catmull_rom_tangents(p: np.ndarray) -> np.ndarray:

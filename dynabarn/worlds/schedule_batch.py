@@ -6,7 +6,7 @@ them by more, which rounds differently and could pick the neighbouring segment w
 clock lies within rounding of a keyframe. So here each obstacle's keys keep the shift
 its own world gives them, and the segment is counted (keys at or before the clock, the
 same comparisons `searchsorted` makes) over the obstacle's own keys only. The rest is
-`SchedulePlayer._evaluate`'s arithmetic on the joined arrays, elementwise: the same
+`schedule.interpolate`'s arithmetic on the joined arrays, elementwise: the same
 positions and velocities, bit for bit, as each world's player (a test checks).
 """
 
@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dynabarn.worlds.schedule import SchedulePlayer
-from dynabarn.worlds.spec import EndBehavior, Interpolation
+from dynabarn.worlds.schedule import SchedulePlayer, interpolate
+from dynabarn.worlds.spec import EndBehavior
 
 
 def batchable(players: list[SchedulePlayer]) -> bool:
@@ -66,22 +66,5 @@ class ScheduleBatch:
         q = tl + self.stride
         seg = self._start + (self._keys[None] <= q[..., None]).sum(axis=-1) - 1
         np.clip(seg, self._seg_lo, self._seg_hi, out=seg)
-        pos, vel = self._evaluate(tl, seg)
+        pos, vel = interpolate(self.interpolation, self._flat_t, self._flat_p, self._flat_m, tl, seg)
         return np.split(pos, self.splits, axis=1), np.split(vel, self.splits, axis=1)
-
-    def _evaluate(self, tl: np.ndarray, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        t0 = self._flat_t[seg]
-        dt = self._flat_t[seg + 1] - t0
-        u = np.clip((tl - t0) / dt, 0.0, 1.0)[..., None]
-        p0 = self._flat_p[seg]
-        p1 = self._flat_p[seg + 1]
-        dt = dt[..., None]
-        if self.interpolation is Interpolation.LINEAR:
-            return p0 + (p1 - p0) * u, (p1 - p0) / dt
-        m0 = self._flat_m[seg]
-        m1 = self._flat_m[seg + 1]
-        u2 = u * u
-        u3 = u2 * u
-        pos = (2 * u3 - 3 * u2 + 1) * p0 + (u3 - 2 * u2 + u) * m0 + (-2 * u3 + 3 * u2) * p1 + (u3 - u2) * m1
-        vel = ((6 * u2 - 6 * u) * p0 + (3 * u2 - 4 * u + 1) * m0 + (-6 * u2 + 6 * u) * p1 + (3 * u2 - 2 * u) * m1) / dt
-        return pos, vel

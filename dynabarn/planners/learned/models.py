@@ -87,8 +87,8 @@ def save_policy(actor: Actor, path: Path, *, kind: str, lookahead: float, notes:
     return path
 
 
-def load_policy(path: Path) -> tuple[Actor, dict]:
-    """Load an actor saved by `save_policy` (weights only, no pickled code)."""
+def read_blob(path: Path, fmt: str) -> dict:
+    """A policy file's dictionary (weights only, no pickled code), or one clear error."""
     from dynabarn.errors import DynabarnError
 
     path = Path(path)
@@ -101,8 +101,17 @@ def load_policy(path: Path) -> tuple[Actor, dict]:
     except Exception as exc:  # PyTorch's refusals run to a page; their first sentence says it
         first = str(exc).strip().split(". ")[0].splitlines()[0][:160] if str(exc).strip() else ""
         raise DynabarnError(f"{path}: not a loadable policy ({type(exc).__name__}: {first})") from None
-    if not isinstance(blob, dict) or blob.get("format") != POLICY_FORMAT:
-        raise DynabarnError(f"{path}: not a {POLICY_FORMAT} file")
+    if not isinstance(blob, dict) or blob.get("format") != fmt:
+        raise DynabarnError(f"{path}: not a {fmt} file")
+    return blob
+
+
+def load_policy(path: Path) -> tuple[Actor, dict]:
+    """Load an actor saved by `save_policy` (weights only, no pickled code)."""
+    from dynabarn.errors import DynabarnError
+
+    path = Path(path)
+    blob = read_blob(path, POLICY_FORMAT)
     lookahead = blob.get("lookahead", 2.0)
     if isinstance(lookahead, bool) or not isinstance(lookahead, int | float) or not 0.1 <= lookahead <= 30.0:
         raise DynabarnError(f"{path}: lookahead {lookahead!r} is not in [0.1, 30] m")

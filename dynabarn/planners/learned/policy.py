@@ -22,39 +22,52 @@ from dynabarn.planners.learned.trained_on import check_unseen, trained_fingerpri
 SHIPPED = Path(__file__).resolve().parents[2] / "policies"
 
 
-class LearnedPlanner(Planner):
+class PolicyFilePlanner(Planner):
+    """What every planner driven by a policy file shares: PyTorch, and the file's identity
+    in results (the shipped policy by its place in the package, so results and recordings
+    read the same wherever the package is installed; any other by its path and content)."""
+
+    def _torch_or_refuse(self, what: str):
+        try:
+            import torch
+        except ImportError:
+            raise DynabarnError(f"planner {what!r} needs {LEARN_EXTRA}") from None
+        self._torch = torch
+        return torch
+
+    def _identify(self, path: Path) -> None:
+        """After the file loaded: its path and sha256."""
+        self.policy_path = str(path)
+        self.policy_sha256 = hashlib.sha256(path.read_bytes()).hexdigest()
+
+    def policy_identity(self) -> dict:
+        shipped = Path(self.policy_path).resolve().parent == SHIPPED
+        return {
+            "policy": f"dynabarn/policies/{Path(self.policy_path).name}" if shipped else self.policy_path,
+            "policy_sha256": self.policy_sha256,
+        }
+
+    def versions(self) -> dict[str, str]:
+        return {"torch": self._torch.__version__}
+
+
+class LearnedPlanner(PolicyFilePlanner):
     kind = "bc"
 
     def __init__(self, policy: str | None = None) -> None:
-        try:
-            import torch
+        self._torch_or_refuse(self.kind)
+        from dynabarn.planners.learned.models import load_policy
 
-            from dynabarn.planners.learned.models import load_policy
-        except ImportError:
-            raise DynabarnError(f"planner {self.kind!r} needs {LEARN_EXTRA}") from None
-        self._torch = torch
         path = Path(policy) if policy else SHIPPED / f"{self.kind}.pt"
         self.actor, self.header = load_policy(path)
         # Inference in float64: PyTorch's CPU kernels (AVX2, AVX-512, threads) differ in the
         # last bits, which float32 would leave at 1e-7 (too close to the command grid).
         self.actor.double()
         self.lookahead = float(self.header.get("lookahead", 2.0))
-        self.policy_path = str(path)
-        self.policy_sha256 = hashlib.sha256(path.read_bytes()).hexdigest()
+        self._identify(path)
 
     def config(self) -> dict:
-        # The shipped policy by its place in the package, so results and recordings read the
-        # same wherever the package is installed; any policy by its content.
-        shipped = Path(self.policy_path).resolve().parent == SHIPPED
-        return {
-            "policy": f"dynabarn/policies/{Path(self.policy_path).name}" if shipped else self.policy_path,
-            "policy_sha256": self.policy_sha256,
-            "kind": self.header.get("kind"),
-            "lookahead": self.lookahead,
-        }
-
-    def versions(self) -> dict[str, str]:
-        return {"torch": self._torch.__version__}
+        return {**self.policy_identity(), "kind": self.header.get("kind"), "lookahead": self.lookahead}
 
     def reset(self, info: EpisodeInfo) -> None:
         self.global_planner = GlobalPlanner.for_robot(info.walls, info.goal, info.footprint, info.static_obstacles)
@@ -77,7 +90,7 @@ class TD3Planner(LearnedPlanner):
     kind = "td3"
 
 
-class DaggerPlanner(Planner):
+class DaggerPlanner(PolicyFilePlanner):
     """`dagger`: the student of `dynabarn-train dagger` (a network over `Features`).
 
     It sees what its features name (the scan and the local goal; scan history, measured
@@ -88,32 +101,18 @@ class DaggerPlanner(Planner):
     name = "dagger"
 
     def __init__(self, policy: str | None = None) -> None:
-        try:
-            import torch
+        self._torch_or_refuse(self.name)
+        from dynabarn.planners.learned.student import load_student
 
-            from dynabarn.planners.learned.student import load_student
-        except ImportError:
-            raise DynabarnError(f"planner {self.name!r} needs {LEARN_EXTRA}") from None
-        self._torch = torch
         path = Path(policy) if policy else SHIPPED / "dagger.pt"
         actor, self.features_config, self.header = load_student(path)
         self.actor = actor.double()  # float64, as LearnedPlanner: far from the command grid
         self.features = Features(self.features_config)
         self.seen = trained_fingerprints(self.header["trained_on"])
-        self.policy_path = str(path)
-        self.policy_sha256 = hashlib.sha256(path.read_bytes()).hexdigest()
+        self._identify(path)
 
     def config(self) -> dict:
-        shipped = Path(self.policy_path).resolve().parent == SHIPPED
-        return {
-            "policy": f"dynabarn/policies/{Path(self.policy_path).name}" if shipped else self.policy_path,
-            "policy_sha256": self.policy_sha256,
-            "kind": "dagger",
-            "features": self.features_config.names(),
-        }
-
-    def versions(self) -> dict[str, str]:
-        return {"torch": self._torch.__version__}
+        return {**self.policy_identity(), "kind": "dagger", "features": self.features_config.names()}
 
     def reset(self, info: EpisodeInfo) -> None:
         check_unseen(self.seen, info.world_fingerprint, self.policy_path)

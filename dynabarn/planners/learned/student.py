@@ -11,7 +11,6 @@ refusal check of `trained_on.check_unseen`) beside the weights; it loads with
 from __future__ import annotations
 
 import itertools
-import warnings
 from pathlib import Path
 
 import torch
@@ -20,6 +19,7 @@ from torch import nn
 from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically
 from dynabarn.planners.learned.features import FeatureConfig
+from dynabarn.planners.learned.models import read_blob
 
 STUDENT_FORMAT = "dynabarn-student-v1"
 HIDDEN = (512, 256, 128)
@@ -61,17 +61,7 @@ def save_student(actor: StudentActor, path: Path, *, features: FeatureConfig, tr
 def load_student(path: Path) -> tuple[StudentActor, FeatureConfig, dict]:
     """(actor, its features, the header) of a file written by `save_student`."""
     path = Path(path)
-    if not path.is_file():
-        raise DynabarnError(f"policy file not found: {path}")
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            blob = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # PyTorch's refusals run to a page; their first sentence says it
-        first = str(exc).strip().split(". ")[0].splitlines()[0][:160] if str(exc).strip() else ""
-        raise DynabarnError(f"{path}: not a loadable policy ({type(exc).__name__}: {first})") from None
-    if not isinstance(blob, dict) or blob.get("format") != STUDENT_FORMAT:
-        raise DynabarnError(f"{path}: not a {STUDENT_FORMAT} file")
+    blob = read_blob(path, STUDENT_FORMAT)
     try:
         features = FeatureConfig.from_dict(blob["features"])
         hidden = tuple(int(h) for h in blob["hidden"])
