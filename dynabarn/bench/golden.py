@@ -2,7 +2,7 @@
 `dynabarn-bench --verify-golden` to show that this machine and install give the same
 episodes as the machine that wrote them (docs/reproducibility.md).
 
-Every planner (straight, dwa, teb, predictive, oracle_present, oracle, bc, td3), the three difficulties, both
+Every planner (straight, dwa, teb, predictive, oracle_present, oracle, bc, td3, dagger), the three difficulties, both
 protocols, imported release worlds, static BARN worlds, mixed shapes with a static field
 and reactive (`avoid`, `yield`) worlds. Worlds that are not committed are built on the
 spot, deterministically, into `.golden_worlds/` beside `generated_worlds/` (the user's cache
@@ -105,6 +105,8 @@ CASES: tuple[GoldenCase, ...] = (
     GoldenCase("bc", "release", 10, "paper2022"),
     GoldenCase("td3", "generated", 2),
     GoldenCase("td3", "generated", 160),
+    GoldenCase("dagger", "generated", 205),
+    GoldenCase("dagger", "release", 30, seed=2),
 )
 
 
