@@ -23,7 +23,11 @@ LEARNED = (
     (FLOOR, "-", "blind floor (`straight`)"),
     ("bc", "oracle demonstrations on the 300 worlds", "BC, paper-faithful (`bc`)"),
     ("td3", "paper60", "TD3, paper-faithful (`td3`)"),
-    ("dagger", "procedural worlds only", "DAgger student (`dagger`)"),
+    (
+        "dagger",
+        "procedural worlds only",
+        "DAgger student (`dagger`; departures: scan history, velocity and tracker inputs, a ReLU network, not Fig. 4's)",
+    ),
     ("oracle_present", "- (privileged)", "its teacher (`oracle_present`)"),
 )
 """(planner, what it trained on, row title)."""
@@ -74,11 +78,18 @@ def dagger_training() -> str:
     its = t["iterations"]
     last = its[-1]
     curve = ", ".join(f"{e['validation']['success']:.2f}" for e in its)
+    final = t.get("final")
+    tail = (
+        f" The shipped weights: a final fit of {final['updates']:,} updates on all of it (learning rate falling to "
+        f"0), imitation error {final['loss']:.4f}, validation success {final['validation']['success']:.2f}."
+        if final
+        else ""
+    )
     return (
         f"{len(its)} iterations in {t['seconds'] / 60:.0f} min on this machine's 2 cores; "
         f"{last['dataset']:,} states labelled by the teacher, from {len(set(t['fingerprints'])):,} procedural "
         f"training worlds (none of them a shipped or imported one); the teacher's share of control "
-        f"{its[0]['beta']:.2f} -> {last['beta']:.3f}; imitation error (mean squared, normalised actions) "
-        f"{its[0]['loss']:.4f} -> {last['loss']:.4f}; the student alone on {last['validation']['episodes']} "
-        f"validation worlds, success per iteration: {curve}."
+        f"{its[0]['beta']:.2f} -> {last['beta']:.4f}; imitation error (mean squared, normalised actions, on the "
+        f"growing dataset of the student's own states) {its[0]['loss']:.4f} -> {last['loss']:.4f}; the student "
+        f"alone on {last['validation']['episodes']} validation worlds, success per iteration: {curve}.{tail}"
     )
