@@ -26,7 +26,7 @@ LEARNED = (
     (
         "dagger",
         "procedural worlds only",
-        "DAgger student (`dagger`; departures: scan history, velocity and tracker inputs, a ReLU network, not Fig. 4's)",
+        "DAgger student (`dagger`; departures: history, velocity and tracker inputs, a ReLU network, not Fig. 4's)",
     ),
     ("oracle_present", "- (privileged)", "its teacher (`oracle_present`)"),
 )
