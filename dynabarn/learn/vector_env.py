@@ -49,7 +49,7 @@ class WorldBatch:
     def reset(self, seeds: list[int | None], options: dict | None) -> tuple[np.ndarray, list[dict]]:
         out = [env.reset(seed=s, options=options) for env, s in zip(self.envs, seeds, strict=True)]
         self.needs_reset[:] = False
-        return np.stack([o for o, _ in out]), [i for _, i in out]
+        return np.stack([o for o, _ in out]), _infos([i for _, i in out])
 
     def step(self, actions: np.ndarray):
         n = len(self.envs)
@@ -77,7 +77,8 @@ class WorldBatch:
             env = self.envs[i]
             obs[i], rewards[i], terminated[i], truncated[i], infos[i] = env._conclude(None, env._observe(ranges[i]))
         self.needs_reset = terminated | truncated
-        return obs, rewards, terminated, truncated, infos
+        # The infos as Gymnasium's arrays here, in the worker: the parent only joins them.
+        return obs, rewards, terminated, truncated, _infos(infos)
 
     def _schedules(self, running: list[int]) -> None:
         """This period's obstacle positions of every scripted running world in one pass
@@ -188,6 +189,7 @@ class DynaBARNVectorEnv(VectorEnv):
         self.closed = False
 
     def _parts(self, cmd: str, payloads: list) -> list:
+        """Each worker's answer to `cmd` (in this process with workers=0)."""
         if self._local is not None:
             return [getattr(self._local, cmd)(*payloads[0]) if cmd == "reset" else self._local.step(payloads[0])]
         for conn, payload in zip(self._conns, payloads, strict=True):
@@ -199,14 +201,14 @@ class DynaBARNVectorEnv(VectorEnv):
         payloads = [(seeds[a:b], options) for a, b in zip(self._slices[:-1], self._slices[1:], strict=True)]
         parts = self._parts("reset", payloads)
         obs = np.concatenate([p[0] for p in parts])
-        return obs, _infos([i for p in parts for i in p[1]])
+        return obs, _join([p[1] for p in parts], [len(p[0]) for p in parts])
 
     def step(self, actions):
         actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)
         payloads = [actions[a:b] for a, b in zip(self._slices[:-1], self._slices[1:], strict=True)]
         parts = self._parts("step", payloads)
         obs, rew, term, trunc = (np.concatenate([p[k] for p in parts]) for k in range(4))
-        return obs, rew, term, trunc, _infos([i for p in parts for i in p[4]])
+        return obs, rew, term, trunc, _join([p[4] for p in parts], [len(p[0]) for p in parts])
 
     def close_extras(self, **kwargs) -> None:
         if self._local is not None:
@@ -226,6 +228,8 @@ class DynaBARNVectorEnv(VectorEnv):
 
 
 INFO_KEYS = ("is_success", "world_id", "difficulty", "trial_seed", "outcome")
+INFO_KINDS = {"is_success": bool, "world_id": np.int64, "trial_seed": np.int64}
+"""Their array types (object for the rest: names and outcomes)."""
 
 
 def _infos(items: list[dict]) -> dict:
@@ -236,7 +240,20 @@ def _infos(items: list[dict]) -> dict:
         if not have.any():
             continue
         values = [i.get(key) for i in items]
-        kind = bool if key == "is_success" else np.int64 if key in ("world_id", "trial_seed") else object
+        kind = INFO_KINDS.get(key, object)
         out[key] = np.array([v if v is not None or kind is object else 0 for v in values], dtype=kind)
         out["_" + key] = have
+    return out
+
+
+def _join(parts: list[dict], sizes: list[int]) -> dict:
+    """The workers' info arrays as one (a key a worker lacks: its worlds do not have it)."""
+    out: dict[str, np.ndarray] = {}
+    for key in INFO_KEYS:
+        if not any(key in p for p in parts):
+            continue
+        kind = INFO_KINDS.get(key, object)
+        pairs = list(zip(parts, sizes, strict=True))
+        out[key] = np.concatenate([p.get(key, np.zeros(n, dtype=kind)) for p, n in pairs])
+        out["_" + key] = np.concatenate([p.get("_" + key, np.zeros(n, bool)) for p, n in pairs])
     return out
