@@ -15,14 +15,12 @@ so the two robot-reference elements are added to its output as the only text edi
 
 from __future__ import annotations
 
-import copy
 import functools
 import hashlib
 import json
 import math
 import os
 import xml.etree.ElementTree as ET
-from collections import OrderedDict
 from pathlib import Path
 
 import mujoco
@@ -366,34 +364,15 @@ def _robot_xml(beam_sensors: bool) -> bytes:
     return JACKAL_XML.read_bytes() if beam_sensors else build_jackal_spec(beam_sensors=False).to_xml().encode()
 
 
-COMPILED_CACHE = 64
-"""Compiled worlds kept per process (a copy is handed out: episodes change their model's options)."""
-_compiled: OrderedDict[tuple[str, bool], mujoco.MjModel] = OrderedDict()
-
-
 def load_model(path: Path | str, *, beam_sensors: bool = True, data: bytes | None = None) -> mujoco.MjModel:
     """Compile a world file with MuJoCo, turning its errors into one clear line.
 
     The world is checked to be self-contained (`check_self_contained`) and compiled from its
     bytes (`data` when already read) with the package's Jackal handed to MuJoCo through its
     asset dictionary, so nothing else is read and the current directory does not matter.
-    `beam_sensors=False` gives the runner's variant of the robot. The same bytes compiled
-    again in this process (many environments meeting the same worlds) are a copy of the
-    model compiled the first time."""
+    `beam_sensors=False` gives the runner's variant of the robot."""
     path = Path(path)
     data = world_bytes(path) if data is None else data
-    key = (hashlib.sha256(data).hexdigest(), beam_sensors)
-    if key in _compiled:
-        _compiled.move_to_end(key)
-        return copy.copy(_compiled[key])
-    model = _compile(path, data, beam_sensors)
-    _compiled[key] = model
-    while len(_compiled) > COMPILED_CACHE:
-        _compiled.popitem(last=False)
-    return copy.copy(model)
-
-
-def _compile(path: Path, data: bytes, beam_sensors: bool) -> mujoco.MjModel:
     root = _parse(path, data)
     check_self_contained(path, root)
     # MuJoCo compiles the document that was checked, written out anew, never the file's own

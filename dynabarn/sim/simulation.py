@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import copy
 import hashlib
+from collections import OrderedDict
 from pathlib import Path
 
 import mujoco
@@ -24,6 +26,21 @@ from dynabarn.worlds.fingerprint import world_fingerprint
 
 CLEARANCE_CHUNK = 1000
 """Poses per batch of the clearance metric."""
+COMPILED_CACHE = 64
+"""Compiled worlds kept per process (many environments meeting the same worlds)."""
+_compiled: OrderedDict[str, mujoco.MjModel] = OrderedDict()
+
+
+def compiled_model(path: Path, data: bytes) -> mujoco.MjModel:
+    """The runner's model of a world file's bytes: compiled once per process, a copy each
+    time (an episode sets its model's options), the same model either way."""
+    key = hashlib.sha256(data).hexdigest()
+    if key not in _compiled:
+        _compiled[key] = load_model(path, beam_sensors=False, data=data)
+        while len(_compiled) > COMPILED_CACHE:
+            _compiled.popitem(last=False)
+    _compiled.move_to_end(key)
+    return copy.copy(_compiled[key])
 
 
 class Simulation:
@@ -40,7 +57,7 @@ class Simulation:
         self.config = config
         # The runner casts its own scans with mj_multiRay, so it compiles the world with the
         # Jackal's variant without the 720 beam sites and rangefinders (same geometry).
-        self.model = load_model(self.world_path, beam_sensors=False, data=data)
+        self.model = compiled_model(self.world_path, data)
         self.model.opt.timestep = config.dt
         self.data = mujoco.MjData(self.model)
         try:
