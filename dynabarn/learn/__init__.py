@@ -1,9 +1,12 @@
-"""Learning: the Gymnasium environment `DynaBARN-v0`, behaviour cloning and TD3.
+"""Learning: the Gymnasium environment `DynaBARN-v0` and its vector form, the procedural
+training split, behaviour cloning, TD3 and DAgger.
 
 Needs the optional extra (PyTorch and Gymnasium): `pip install 'dynabarn[learn]'`, or
 `pip install -e '.[learn]'` in a checkout.
 Importing this package registers the environment as `dynabarn/DynaBARN-v0` (and, as
-before, `DynaBARN-v0`), with the protocol's longest episode as `max_episode_steps`.
+before, `DynaBARN-v0`), with the protocol's longest episode as `max_episode_steps` and
+`DynaBARNVectorEnv` as its vector entry point (`gymnasium.make_vec(...,
+vectorization_mode="vector_entry_point")`).
 """
 
 from __future__ import annotations

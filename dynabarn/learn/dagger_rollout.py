@@ -8,6 +8,7 @@ trial seed and the coin that picks who drives are drawn from `SeedSequence([seed
 
 from __future__ import annotations
 
+import atexit
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,6 +48,9 @@ def _env(cfg, split: str):
             split=split, split_seed=cfg.seed, split_profile_sets=tuple(cfg.profile_sets), protocol=cfg.protocol
         )
         _WORKER["key"] = key
+        # The split's world files live in a temporary folder the environment removes on
+        # close; a pool's worker ends through sys.exit, which runs this.
+        atexit.register(_WORKER["env"].close)
     return _WORKER["env"]
 
 
