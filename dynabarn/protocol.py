@@ -111,29 +111,19 @@ class EvalProtocol:
         one time limit (the robot leaves its spawn just before the limit), then runs one."""
         return 2.0 * self.time_limit
 
-    def timer_started(self, x: float, y: float) -> bool:
-        """The robot at (x, y) has left its spawn far enough for the clock to run."""
+    def timer_started(self, x: float | np.ndarray, y: float | np.ndarray):
+        """Whether the robot at (x, y) has left its spawn far enough for the clock to run;
+        x and y numbers or arrays (elementwise)."""
         dx, dy = x - self.spawn[0], y - self.spawn[1]
         return dx**2 + dy**2 >= self.timer_start_distance**2
 
-    def timers_started(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """`timer_started` for arrays of positions (the same arithmetic, elementwise)."""
-        dx, dy = x - self.spawn[0], y - self.spawn[1]
-        return dx**2 + dy**2 >= self.timer_start_distance**2
-
-    def reached_all(self, x: np.ndarray, y: np.ndarray, goal: tuple[float, float]) -> np.ndarray:
-        """`reached` for arrays of positions (the same arithmetic, elementwise)."""
+    def reached(self, x: float | np.ndarray, y: float | np.ndarray, goal: tuple[float, float]):
+        """Whether the robot centre at (x, y) is inside the success region around `goal`;
+        x and y numbers or arrays (elementwise)."""
         dx, dy = x - goal[0], y - goal[1]
         if self.goal_region == GoalRegion.DISC:
             return dx * dx + dy * dy < self.goal_tolerance * self.goal_tolerance
         return (np.abs(dx) < self.goal_tolerance) & (np.abs(dy) < self.goal_tolerance)
-
-    def reached(self, x: float, y: float, goal: tuple[float, float]) -> bool:
-        """The robot centre at (x, y) is inside the success region around `goal`."""
-        dx, dy = x - goal[0], y - goal[1]
-        if self.goal_region == GoalRegion.DISC:
-            return dx * dx + dy * dy < self.goal_tolerance * self.goal_tolerance
-        return abs(dx) < self.goal_tolerance and abs(dy) < self.goal_tolerance
 
     def score(self, success: bool, actual_time: float, reference_length: float | None = None) -> float:
         """BARN score: success * OT / clip(AT, low * OT, high * OT), OT = reference length / max speed."""

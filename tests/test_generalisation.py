@@ -64,7 +64,7 @@ def test_procedural_worlds_are_reproducible_fresh_and_never_shipped(tmp_path):
 
 def _student_file(tmp_path, trained: list[str]):
     cfg = FeatureConfig(history=1, tracks=2, velocity=True)
-    actor = StudentActor(cfg.size(720))
+    actor = StudentActor(cfg.size())
     path = tmp_path / "student.pt"
     save_student(actor, path, features=cfg, trained_on={"split": "test", "fingerprints": trained}, notes={})
     return path
@@ -118,7 +118,7 @@ def test_features_history_and_tracks_see_motion():
         rows.append(f(obs))
         ep.apply(0.0, 0.0)  # standing still: only the obstacles move
     rows = np.array(rows)
-    assert rows.shape == (12, cfg.size(720))
+    assert rows.shape == (12, cfg.size())
     hist = rows[:, 722 : 722 + 180]
     # The first tick's history repeats its own frame; later ticks hold earlier frames.
     pooled_now = np.pad(rows[:, :720], ((0, 0), (0, 0))).reshape(12, 180, 4).min(axis=2)
@@ -130,7 +130,7 @@ def test_features_history_and_tracks_see_motion():
 
 def test_dagger_aggregates_student_states_with_teacher_labels(tmp_path):
     cfg = DaggerConfig(episodes=2, validation_episodes=1, updates=2, workers=1, max_steps=60)
-    actor = StudentActor(cfg.features().size(720))
+    actor = StudentActor(cfg.features().size())
     data = episode(cfg, "train", 0, 0.0, actor, label=True)  # beta 0: the student drives every step
     assert data.teacher_share == 0.0 and len(data.features) == data.steps
     # Replay the episode: the student drove (its actions), the labels are the teacher's.

@@ -33,6 +33,7 @@ import torch
 from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically, write_atomically
 from dynabarn.learn.dagger_rollout import EpisodeData, run_episodes
+from dynabarn.learn.split import DEFAULT_PROFILE_SETS, describe_split
 from dynabarn.planners.learned.features import FeatureConfig
 from dynabarn.planners.learned.student import StudentActor, save_student
 
@@ -66,7 +67,7 @@ class DaggerConfig:
     workers: int = 2
     threads: int = 2
     seed: int = 0
-    profile_sets: list[str] = field(default_factory=lambda: ["table1", "release2022"])
+    profile_sets: list[str] = field(default_factory=lambda: list(DEFAULT_PROFILE_SETS))
 
     def features(self) -> FeatureConfig:
         return FeatureConfig(
@@ -104,6 +105,19 @@ def _rates(eps: list[EpisodeData]) -> dict:
         sub = [e.outcome == "success" for e in eps if e.difficulty == d]
         out[f"success_{d}"] = float(np.mean(sub)) if sub else None
     return out
+
+
+def _validate(pool, cfg: DaggerConfig, actor: StudentActor) -> list[EpisodeData]:
+    """The student alone on the fixed validation worlds."""
+    weights = {k: v.clone() for k, v in actor.state_dict().items()}
+    return run_episodes(pool, cfg, "validation", range(cfg.validation_episodes), beta=0.0, weights=weights, label=False)
+
+
+def _checkpoint(out: Path, actor: StudentActor, opt, report: DaggerReport, line: dict) -> None:
+    """Everything a resumed run needs, then the log line that says it is there."""
+    state = {"actor": actor.state_dict(), "optimizer": opt.state_dict(), "report": asdict(report)}
+    save_atomically(out / STATE, lambda f: torch.save(state, f))
+    _log(out, json.dumps(line))
 
 
 class Dataset:
@@ -164,7 +178,7 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     features = cfg.features()
-    n_inputs = features.size(720)
+    n_inputs = features.size()
     actor = StudentActor(n_inputs)
     opt = torch.optim.Adam(actor.parameters(), lr=cfg.lr)
     report = DaggerReport()
@@ -196,10 +210,7 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
             report.fingerprints.extend(e.fingerprint for e in eps)
             x, y = data.arrays()
             loss = fit(actor, opt, x, y, cfg, seed=cfg.seed * 1000 + it)
-            weights = {k: v.clone() for k, v in actor.state_dict().items()}
-            val = run_episodes(
-                pool, cfg, "validation", range(cfg.validation_episodes), beta=0.0, weights=weights, label=False
-            )
+            val = _validate(pool, cfg, actor)
             entry = {
                 "iteration": it,
                 "beta": beta,
@@ -213,9 +224,7 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
             }
             report.iterations.append(entry)
             report.seconds = entry["seconds"]
-            state = {"actor": actor.state_dict(), "optimizer": opt.state_dict(), "report": asdict(report)}
-            save_atomically(out / STATE, lambda f, s=state: torch.save(s, f))
-            _log(out, json.dumps(entry))
+            _checkpoint(out, actor, opt, report, entry)
             if bar is not None:
                 bar.update(1)
         if cfg.final_updates and report.final is None and report.iterations:
@@ -223,18 +232,16 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
             loss = fit(actor, opt, x, y, cfg, seed=cfg.seed * 1000 + 999, updates=cfg.final_updates, decay=True)
             for group in opt.param_groups:
                 group["lr"] = cfg.lr
-            weights = {k: v.clone() for k, v in actor.state_dict().items()}
-            val = run_episodes(
-                pool, cfg, "validation", range(cfg.validation_episodes), beta=0.0, weights=weights, label=False
-            )
-            report.final = {"updates": cfg.final_updates, "loss": loss, "validation": _rates(val)}
+            report.final = {
+                "updates": cfg.final_updates,
+                "loss": loss,
+                "validation": _rates(_validate(pool, cfg, actor)),
+            }
             report.seconds = time.perf_counter() - t0
-            state = {"actor": actor.state_dict(), "optimizer": opt.state_dict(), "report": asdict(report)}
-            save_atomically(out / STATE, lambda f, s=state: torch.save(s, f))
-            _log(out, json.dumps({"final": report.final}))
+            _checkpoint(out, actor, opt, report, {"final": report.final})
     if bar is not None:
         bar.close()
-    split = run_episodes_split_description(cfg)
+    split = describe_split("train", cfg.seed, tuple(cfg.profile_sets))
     trained_on = {**split, "worlds": len(set(report.fingerprints)), "fingerprints": sorted(set(report.fingerprints))}
     notes = {"config": asdict(cfg), "last_iteration": report.iterations[-1] if report.iterations else None}
     notes["final"] = report.final
@@ -242,12 +249,6 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
     write_atomically(out / "training.json", json.dumps({"config": asdict(cfg), **asdict(report)}, indent=1))
     plot_learning_curve(report, out / "learning_curve.png")
     return report
-
-
-def run_episodes_split_description(cfg: DaggerConfig) -> dict:
-    from dynabarn.learn.split import ProceduralWorlds
-
-    return ProceduralWorlds(Path("."), split="train", seed=cfg.seed, profile_sets=tuple(cfg.profile_sets)).describe()
 
 
 def plot_learning_curve(report: DaggerReport, path: Path) -> Path:

@@ -95,7 +95,7 @@ def episode(cfg, split: str, k: int, beta: float, actor: StudentActor | None, la
         outcome=outcome,
         steps=env.episode.n_ticks,
         teacher_share=teacher_steps / max(1, env.episode.n_ticks),
-        features=np.stack(xs) if n else np.zeros((0, cfg.features().size(720)), np.float16),
+        features=np.stack(xs) if n else np.zeros((0, cfg.features().size()), np.float16),
         labels=np.stack(ys).astype(np.float32) if n else np.zeros((0, 2), np.float32),
     )
 
@@ -103,7 +103,7 @@ def episode(cfg, split: str, k: int, beta: float, actor: StudentActor | None, la
 def _job(cfg, split: str, ks: list[int], beta: float, weights: dict | None, label: bool) -> list[EpisodeData]:
     actor = None
     if weights is not None:
-        actor = StudentActor(cfg.features().size(720))
+        actor = StudentActor(cfg.features().size())
         actor.load_state_dict(weights)
         actor.eval()
     return [episode(cfg, split, k, beta, actor, label) for k in ks]

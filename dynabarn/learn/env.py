@@ -56,9 +56,6 @@ paced to real time (needs a display). `camera`: `top` (the arena) or `follow`.
 | split | str or None | None | "train" or "validation": worlds drawn on the fly |
 | split_seed | int | 0 | the split's seed (the same worlds for the same seed) |
 | split_profile_sets | tuple[str] | ("table1", "release2022") | profile sets of the split |
-
-`split` draws worlds from Alg. 1 and 2 (`dynabarn.learn.split`), never a shipped or
-imported one, and overrides `world_set`.
 | difficulty | str or None | None | easy, medium, hard, or all |
 | worlds | list[int] or None | None | explicit world ids (overrides difficulty) |
 | protocol | str | "barn" | barn, paper2022 or a .json file |
@@ -72,7 +69,8 @@ Registered as `dynabarn/DynaBARN-v0` (and `DynaBARN-v0`) when `dynabarn.learn` i
 imported, or by `import dynabarn` once gymnasium is imported; from a fresh interpreter
 `gymnasium.make("dynabarn.learn:dynabarn/DynaBARN-v0")` imports it.
 
-With `split`, `reset(options={"world_index": k})` picks the split's world k (any
+`split` draws worlds from Alg. 1 and 2 (`dynabarn.learn.split`), never a shipped one, in
+place of `world_set`. With it, `reset(options={"world_index": k})` picks the split's world k (any
 k >= 0) and `info["fingerprint"]` names the world (a trainer records what it met).
 
 ## Version history
@@ -241,7 +239,7 @@ class DynaBARNEnv(gymnasium.Env):
             k = int(options.get("world_index", self.np_random.integers(2**31)))
             drawn = self.procedural.world(k)
             wid, file, difficulty = k, str(drawn.path), drawn.difficulty
-            for old in [f for f in self._sims if not Path(f).is_file()]:  # dropped from the split's cache
+            for old in set(self._sims) - self.procedural.paths():  # dropped from the split's cache
                 del self._sims[old], self._planners[old]
         elif "world_index" in options:
             wid, file, difficulty = self.entries[int(options["world_index"]) % len(self.entries)]

@@ -3,12 +3,14 @@
 `ProceduralWorlds` draws training world k of a run from the paper's generator (Alg. 2's
 obstacle count, Alg. 1's trajectories) under one of the named profile sets (Table I's
 `table1`, the release's measured `release2022`), on a Fig. 2 branch drawn uniformly
-(as the 300 shipped worlds: a third easy, a third medium, a third hard). Its generator is
-`SeedSequence([TRAIN_SEED_BASE + seed, k, branch id])`: the shipped worlds use base seed
-2022 and the release's were drawn by the original generator, so no stream is shared.
-Every drawn world is also checked by content (`worlds.fingerprint`) against the shipped
-300 and any imported set on disk (`reserved_fingerprints`): one that coincided would be
-skipped for the next draw. A run's worlds are the fingerprints it records in the
+(as the 300 shipped worlds: a third easy, a third medium, a third hard). The branch and
+profile set come from `SeedSequence([TRAIN_SEED_BASE + seed, k])`; the world itself is
+`generate_world(branch, profile set, base_seed=((TRAIN_SEED_BASE + seed) << 40) + (k << 8)
++ redraw)`: the shipped worlds use base seed 2022 and the release's were drawn by the
+original generator, so no stream is shared. Every drawn world is also checked by content
+(`worlds.fingerprint`) against the reserved fingerprints it is given (the environment
+gives the shipped 300; `reserved_fingerprints` also reads imported folders): one that
+coincided is redrawn. A run's worlds are the fingerprints it records in the
 policy's `trained_on`, which the `dagger` planner refuses to be evaluated on.
 
 `split="validation"` draws from another seed namespace (`VALIDATION_SEED_BASE`): the
@@ -60,6 +62,16 @@ def reserved_fingerprints(folders: tuple[Path, ...] = ()) -> frozenset[str]:
     return frozenset(out)
 
 
+def describe_split(split: str, seed: int, profile_sets: tuple[str, ...]) -> dict:
+    """A split's description, as a policy trained on it records it."""
+    return {
+        "split": f"procedural-{split}",
+        "generator": "dynabarn Alg. 1 and 2",
+        "profile_sets": list(profile_sets),
+        "base_seed": f"(({SPLITS[split]} + {seed}) << 40) + (k << 8) + redraw",
+    }
+
+
 class ProceduralWorlds:
     """Worlds of a split, written on demand into `cache_dir` (at most `keep` files kept)."""
 
@@ -87,12 +99,11 @@ class ProceduralWorlds:
 
     def describe(self) -> dict:
         """What a policy records of its training split (beside the fingerprints)."""
-        return {
-            "split": f"procedural-{self.split}",
-            "generator": "dynabarn Alg. 1 and 2",
-            "profile_sets": list(self.profile_sets),
-            "base_seed": f"(({SPLITS[self.split]} + {self.seed}) << 40) + (k << 8) + redraw",
-        }
+        return describe_split(self.split, self.seed, self.profile_sets)
+
+    def paths(self) -> set[str]:
+        """The world files on disk now (older ones are removed as new ones are drawn)."""
+        return {str(d.path) for d in self._cache.values()}
 
     def _base_seed(self, k: int, attempt: int) -> int:
         # One integer per (split, seed, k, attempt), all far above the shipped worlds' 2022.

@@ -69,9 +69,9 @@ class WorldBatch:
                 obs[i], rewards[i], terminated[i], truncated[i], infos[i] = env._conclude(
                     outcomes[i], env._last_observation()
                 )
-        self._schedules(running)
+        schedules = self._schedules(running)
         for i in running:
-            self.envs[i].episode.place_obstacles()
+            self.envs[i].episode.place_obstacles(schedules.get(i))
         ranges = self._cast(running)
         for i in running:
             env = self.envs[i]
@@ -80,37 +80,36 @@ class WorldBatch:
         # The infos as Gymnasium's arrays here, in the worker: the parent only joins them.
         return obs, rewards, terminated, truncated, _infos(infos)
 
-    def _schedules(self, running: list[int]) -> None:
-        """This period's obstacle positions of every scripted running world in one pass
-        (`ScheduleBatch`: the bits of each world's own player), handed to its episode."""
-        eps = [self.envs[i].episode for i in running if self.envs[i].episode.reactive is None]
+    def _schedules(self, running: list[int]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """This period's obstacle positions and velocities of every scripted running world,
+        in one pass (`ScheduleBatch`: the bits of each world's own player)."""
+        scripted = [i for i in running if self.envs[i].episode.reactive is None]
+        eps = [self.envs[i].episode for i in scripted]
         players = [ep.player for ep in eps]
         if not players or not batchable(players):
-            return
+            return {}
         if self._players != players:
             self._schedule, self._players = ScheduleBatch(players), players
-        times = np.array([ep.time for ep in eps])[None, :] + eps[0]._step_offsets[:, None]
-        pos, vel = self._schedule.positions_at(times)
-        for ep, p, v in zip(eps, pos, vel, strict=True):
-            ep._schedule = (p, v)
+        pos, vel = self._schedule.positions_at(np.stack([ep.period_times() for ep in eps], axis=1))
+        return {i: (p, v) for i, p, v in zip(scripted, pos, vel, strict=True)}
 
     def _cast(self, running: list[int]) -> dict[int, np.ndarray]:
         """Noise-free ranges of the running worlds: in closed form, all at once, where the
         world allows it; by `mj_multiRay` otherwise."""
-        sims = [self.envs[i].episode.sim for i in running]
-        batched = [i for i, s in zip(running, sims, strict=True) if supports(s)]
+        sims = {i: self.envs[i].episode.sim for i in running}
+        batched = [i for i in running if supports(sims[i])]
         out = {}
         if batched:
-            bsims = [self.envs[i].episode.sim for i in batched]
+            bsims = [sims[i] for i in batched]
             if self._caster_sims != bsims:
                 self._caster, self._caster_sims = BatchCaster(bsims), bsims
             origins = np.array([s.data.site_xpos[s.laser.site] for s in bsims])
             yaws = np.array([s.data.qpos[2] for s in bsims])
-            centres = np.concatenate([self.envs[i].episode._batch_xy[0] for i in batched])
-            for i, r in zip(batched, self._caster.cast(origins, yaws, centres), strict=True):
-                out[i] = r
-        for i, s in zip(running, sims, strict=True):
+            centres = np.concatenate([self.envs[i].episode.obstacle_centres for i in batched])
+            out = dict(zip(batched, self._caster.cast(origins, yaws, centres), strict=True))
+        for i in running:
             if i not in out:
+                s = sims[i]
                 out[i] = s.laser.cast(s.model, s.data, float(s.data.qpos[2]))
         return out
 
@@ -120,7 +119,6 @@ class WorldBatch:
 
 
 def _worker(conn, n: int, env_kwargs: dict) -> None:
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
     batch = WorldBatch(n, env_kwargs)
     try:
         while True:

@@ -88,8 +88,6 @@ class Episode:
         self.raw_command = (0.0, 0.0)
         self.wall_t0 = time.perf_counter()
         self._batch_xy = self._batch_vel = None
-        self._schedule: tuple[np.ndarray, np.ndarray] | None = None
-        """This period's obstacle positions and velocities when a batch of worlds evaluated them."""
         self.track_scorer: TrackScorer | None = None
         """Tracking quality of a planner with a tracker (`score_tracks`), else None."""
         # Reactive obstacles run on their own clocks (a yielding one pauses its schedule);
@@ -115,18 +113,26 @@ class Episode:
         sim = self.sim
         return self.observe_ranges(sim.laser.cast(sim.model, sim.data, float(sim.data.qpos[2])))
 
-    def place_obstacles(self) -> None:
+    def period_times(self) -> np.ndarray:
+        """The times [s] of this control period's physics steps (what the schedules are read at)."""
+        return self.time + self._step_offsets
+
+    @property
+    def obstacle_centres(self) -> np.ndarray:
+        """(n, 2) the obstacles where `place_obstacles` put them."""
+        return self._batch_xy[0]
+
+    def place_obstacles(self, schedule: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         """The obstacles of this control period (all its physics steps at once), placed for
-        now, with the kinematics updated: what a scan is cast against."""
+        now, with the kinematics updated: what a scan is cast against. `schedule`: their
+        positions and velocities at `period_times()` when a batch of worlds evaluated them."""
         sim = self.sim
-        t = self.time
         if self.reactive is not None:
             self._batch_xy, self._batch_vel = self.reactive.batch(sim.data.qpos[:2])
-        elif self._schedule is not None:  # a batch of worlds evaluated them all at once
-            self._batch_xy, self._batch_vel = self._schedule
-            self._schedule = None
+        elif schedule is not None:
+            self._batch_xy, self._batch_vel = schedule
         else:
-            self._batch_xy, self._batch_vel = self.player.positions_at(t + self._step_offsets)
+            self._batch_xy, self._batch_vel = self.player.positions_at(self.period_times())
         sim.set_obstacles(self._batch_xy[0])
         mujoco.mj_kinematics(sim.model, sim.data)
 
@@ -242,7 +248,7 @@ class Episode:
         ts = np.arange(first, first + m) * dt
         begun = np.zeros(0, dtype=np.int64)
         if t_start is None:
-            started = protocol.timers_started(xy[:, 0], xy[:, 1])
+            started = protocol.timer_started(xy[:, 0], xy[:, 1])
             if contact:
                 started[-1] = False  # the loop ends at a contact before the clock is looked at
             begun = np.flatnonzero(started)
@@ -251,7 +257,7 @@ class Episode:
                 clock0[begun[0] :] = float(ts[begun[0]])
         else:
             clock0 = np.full(m, t_start)
-        ended = protocol.reached_all(xy[:, 0], xy[:, 1], goal)
+        ended = protocol.reached(xy[:, 0], xy[:, 1], goal)
         event = ended | (ts - clock0 >= limit)
         if contact:
             event[-1] = False

@@ -20,6 +20,9 @@ field); the others keep `mj_multiRay`.
 
 from __future__ import annotations
 
+import weakref
+from dataclasses import dataclass
+
 import mujoco
 import numpy as np
 
@@ -27,19 +30,34 @@ from dynabarn.robot import JACKAL
 from dynabarn.sim.simulation import Simulation
 
 
+@dataclass(frozen=True)
+class _WorldRays:
+    """What the closed form needs of one compiled world, read once."""
+
+    supported: bool
+    walls: np.ndarray  # (k, 6) cx, cy, half x, half y, centre z, bounding radius
+    obstacles: np.ndarray  # (n, 2) every obstacle geom's centre height and bounding radius
+
+
+_facts: weakref.WeakKeyDictionary[Simulation, _WorldRays] = weakref.WeakKeyDictionary()
+
+
+def _world_rays(sim: Simulation) -> _WorldRays:
+    facts = _facts.get(sim)
+    if facts is None:
+        mujoco.mj_kinematics(sim.model, sim.data)  # geom positions (derived only: the episode's state is untouched)
+        facts = _facts[sim] = _WorldRays(
+            supported=all(o.shape == "cylinder" and o.top > JACKAL.laser_z for o in sim.world.obstacles)
+            and len(sim.static_cylinders) == 0,
+            walls=_wall_geoms(sim),
+            obstacles=_obstacle_z_rbound(sim),
+        )
+    return facts
+
+
 def supports(sim: Simulation) -> bool:
     """True when the world's laser sees only walls and standing cylinders taller than the laser."""
-    return bool(_cached(sim, "_ray_supported", lambda s: np.array(_supports(s))))
-
-
-def _supports(sim: Simulation) -> bool:
-    heights = np.array([o.top for o in sim.world.obstacles])
-    return (
-        not sim.shaped
-        and len(sim.static_cylinders) == 0
-        and not any(o.shape != "cylinder" for o in sim.world.obstacles)
-        and bool(np.all(heights > JACKAL.laser_z))
-    )
+    return _world_rays(sim).supported
 
 
 class BatchCaster:
@@ -51,7 +69,7 @@ class BatchCaster:
         self.range_max = sims[0].laser.params.laser_range_max
         self._step = (self.angles[-1] - self.angles[0]) / (self.n - 1)
         self._cos, self._sin = np.cos(self.angles), np.sin(self.angles)
-        walls = [_cached(s, "_ray_walls", _wall_geoms) for s in sims]
+        walls = [_world_rays(s).walls for s in sims]
         k = max(len(w) for w in walls)
         # Worlds with fewer walls get boxes far outside every range.
         box = np.tile(np.array([1e6, 1e6, 1.0, 1.0, 0.0, 1.0]), (len(sims), k, 1))
@@ -63,7 +81,7 @@ class BatchCaster:
         self.wall_rbound = box[..., 5]
         self.radii = np.concatenate([s.radii for s in sims])
         self.world_of = np.repeat(np.arange(len(sims)), [len(s.radii) for s in sims])
-        z_rb = np.concatenate([_cached(s, "_ray_obstacles", _obstacle_z_rbound) for s in sims]).reshape(-1, 2)
+        z_rb = np.concatenate([_world_rays(s).obstacles for s in sims]).reshape(-1, 2)
         self.obstacle_z, self.obstacle_rbound = z_rb[:, 0], z_rb[:, 1]
 
     def cast(self, origins: np.ndarray, yaws: np.ndarray, centres: np.ndarray) -> np.ndarray:
@@ -127,18 +145,9 @@ class BatchCaster:
         np.minimum.at(out, (ww[hit], beam[hit]), t)
 
 
-def _cached(sim: Simulation, key: str, compute) -> np.ndarray:
-    """A fact of the compiled world, computed once per `Simulation`."""
-    value = sim.__dict__.get(key)
-    if value is None:
-        value = sim.__dict__[key] = compute(sim)
-    return value
-
-
 def _wall_geoms(sim: Simulation) -> np.ndarray:
     """(k, 6) the walls' boxes as the model has them: cx, cy, half x, half y, centre z, bounding radius."""
     m = sim.model
-    mujoco.mj_kinematics(m, sim.data)  # geom positions (kinematics only: the episode's state is untouched)
     rows = []
     for g in range(m.ngeom):
         if m.geom(g).name.startswith("wall") and m.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:

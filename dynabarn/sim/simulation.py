@@ -31,10 +31,9 @@ COMPILED_CACHE = 64
 _compiled: OrderedDict[str, mujoco.MjModel] = OrderedDict()
 
 
-def compiled_model(path: Path, data: bytes) -> mujoco.MjModel:
-    """The runner's model of a world file's bytes: compiled once per process, a copy each
-    time (an episode sets its model's options), the same model either way."""
-    key = hashlib.sha256(data).hexdigest()
+def compiled_model(path: Path, data: bytes, key: str) -> mujoco.MjModel:
+    """The runner's model of a world file's bytes (`key`: their sha256): compiled once per
+    process, a copy each time (an episode sets its model's options), the same model either way."""
     if key not in _compiled:
         _compiled[key] = load_model(path, beam_sensors=False, data=data)
         while len(_compiled) > COMPILED_CACHE:
@@ -57,7 +56,7 @@ class Simulation:
         self.config = config
         # The runner casts its own scans with mj_multiRay, so it compiles the world with the
         # Jackal's variant without the 720 beam sites and rangefinders (same geometry).
-        self.model = compiled_model(self.world_path, data)
+        self.model = compiled_model(self.world_path, data, self.world_sha256)
         self.model.opt.timestep = config.dt
         self.data = mujoco.MjData(self.model)
         try:

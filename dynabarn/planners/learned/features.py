@@ -31,6 +31,7 @@ from dynabarn.perception import ObstacleTracker, TrackerConfig
 from dynabarn.planners.base import EpisodeInfo, Observation, config_from_kwargs
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.tracking import with_tracker
+from dynabarn.robot import JACKAL
 
 TRACK_FIELDS = 6
 """Per track slot: x, y, vx, vy (robot frame), size, present."""
@@ -75,8 +76,8 @@ class FeatureConfig:
     def to_dict(self) -> dict:
         return asdict(self)
 
-    def size(self, n_beams: int) -> int:
-        """Length of the feature vector for a laser of `n_beams` beams."""
+    def size(self, n_beams: int = JACKAL.laser_beams) -> int:
+        """Length of the feature vector for a laser of `n_beams` beams (the Jackal's by default)."""
         pooled = math.ceil(n_beams / self.history_pool)
         return n_beams + 2 + self.history * pooled + (2 if self.velocity else 0) + self.tracks * TRACK_FIELDS
 

@@ -115,11 +115,18 @@ def load_policy(path: Path) -> tuple[Actor, dict]:
     lookahead = blob.get("lookahead", 2.0)
     if isinstance(lookahead, bool) or not isinstance(lookahead, int | float) or not 0.1 <= lookahead <= 30.0:
         raise DynabarnError(f"{path}: lookahead {lookahead!r} is not in [0.1, 30] m")
-    actor = Actor(lookahead)
+    actor = load_weights(Actor(lookahead), blob, path, "policy")
+    return actor, {k: v for k, v in blob.items() if k != "state_dict"}
+
+
+def load_weights(network: nn.Module, blob: dict, path: Path, what: str) -> nn.Module:
+    """`network` with a policy file's weights, in evaluation mode, or one clear error."""
+    from dynabarn.errors import DynabarnError
+
     try:
-        actor.load_state_dict(blob["state_dict"])
+        network.load_state_dict(blob["state_dict"])
     except (KeyError, TypeError, RuntimeError, AttributeError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise DynabarnError(f"{path}: its weights do not fit the policy network ({first})") from None
-    actor.eval()
-    return actor, {k: v for k, v in blob.items() if k != "state_dict"}
+        raise DynabarnError(f"{path}: its weights do not fit the {what} network ({first})") from None
+    network.eval()
+    return network

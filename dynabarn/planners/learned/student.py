@@ -19,7 +19,7 @@ from torch import nn
 from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically
 from dynabarn.planners.learned.features import FeatureConfig
-from dynabarn.planners.learned.models import read_blob
+from dynabarn.planners.learned.models import load_weights, read_blob
 
 STUDENT_FORMAT = "dynabarn-student-v1"
 HIDDEN = (512, 256, 128)
@@ -72,13 +72,7 @@ def load_student(path: Path) -> tuple[StudentActor, FeatureConfig, dict]:
         raise DynabarnError(f"{path}: malformed student header ({exc})") from None
     if not (1 <= len(hidden) <= 8 and all(1 <= h <= 4096 for h in hidden)):
         raise DynabarnError(f"{path}: hidden layers {hidden} out of range")
-    if n_inputs != features.size(720):
-        raise DynabarnError(f"{path}: {n_inputs} inputs, but its features make {features.size(720)}")
-    actor = StudentActor(n_inputs, hidden)
-    try:
-        actor.load_state_dict(blob["state_dict"])
-    except (KeyError, TypeError, RuntimeError, AttributeError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise DynabarnError(f"{path}: its weights do not fit the student network ({first})") from None
-    actor.eval()
+    if n_inputs != features.size():
+        raise DynabarnError(f"{path}: {n_inputs} inputs, but its features make {features.size()}")
+    actor = load_weights(StudentActor(n_inputs, hidden), blob, path, "student")
     return actor, features, {k: v for k, v in blob.items() if k != "state_dict"}
