@@ -189,3 +189,8 @@ def test_short_dagger_run_learns_saves_resumes_and_drives(tmp_path, capsys):
     assert features.tracks == 8 and features.history == 2
     result = run_episode(resolve_world(3), get_planner("dagger", policy=str(out / "policy.pt")), get_protocol("barn"))
     assert result.outcome is not None
+    # A damaged checkpoint is refused in one line, not unpickled.
+    (out / "state.pt").write_bytes(b"not a checkpoint")
+    capsys.readouterr()
+    assert train_main([*args, "--iterations", "3"]) == 2
+    assert "cannot resume from its checkpoint" in capsys.readouterr().err

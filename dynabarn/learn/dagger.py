@@ -107,6 +107,21 @@ def _rates(eps: list[EpisodeData]) -> dict:
     return out
 
 
+def _resume(out: Path, actor: StudentActor, opt, data: Dataset) -> tuple[int, DaggerReport]:
+    """Weights, optimiser, report and data of the finished iterations, from the checkpoint
+    (tensors and plain data only: `weights_only`, no pickled code); one line if it is damaged."""
+    try:
+        state = torch.load(out / STATE, weights_only=True)
+        actor.load_state_dict(state["actor"])
+        opt.load_state_dict(state["optimizer"])
+        report = DaggerReport(**state["report"])
+        data.load(len(report.iterations))
+    except Exception as exc:  # PyTorch's and numpy's refusals run to a page; their first line says it
+        first = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else ""
+        raise DynabarnError(f"{out}: cannot resume from its checkpoint ({type(exc).__name__}: {first})") from None
+    return len(report.iterations), report
+
+
 def _validate(pool, cfg: DaggerConfig, actor: StudentActor) -> list[EpisodeData]:
     """The student alone on the fixed validation worlds."""
     weights = {k: v.clone() for k, v in actor.state_dict().items()}
@@ -189,12 +204,7 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
         old = json.loads(config_path.read_text()) if config_path.is_file() else None
         if _identity(old) != _identity(json.loads(json.dumps(asdict(cfg)))):
             raise DynabarnError(f"{out} holds a run with another configuration; choose another --out")
-        state = torch.load(out / STATE, weights_only=False)
-        actor.load_state_dict(state["actor"])
-        opt.load_state_dict(state["optimizer"])
-        report = DaggerReport(**state["report"])
-        done = len(report.iterations)
-        data.load(done)
+        done, report = _resume(out, actor, opt, data)
     write_atomically(config_path, json.dumps(asdict(cfg), indent=1))
     bar = progress(total=cfg.iterations, initial=done) if progress else None
     ctx = get_context("spawn")  # workers import torch afresh: no fork of a threaded parent
