@@ -49,15 +49,16 @@ class DrawnWorld:
 
 
 def reserved_fingerprints(folders: tuple[Path, ...] = ()) -> frozenset[str]:
-    """Fingerprints of the shipped 300 and of every world in `folders` (index.json sets)."""
+    """Fingerprints of the shipped 300 and of every world in `folders` (index.json sets).
+    The shipped ones by their place in the package, whatever `$DYNABARN_WORLDS` points at."""
     from dynabarn.mjcf import read_world
-    from dynabarn.worldset import entry_path, read_index, worlds_dir
+    from dynabarn.provenance import SHIPPED_WORLDS
+    from dynabarn.worldset import entry_path, read_index
 
     out = set()
-    for folder in (None, *folders):
-        index = read_index(folder)
-        root = Path(folder) if folder is not None else worlds_dir()
-        for entry in index["worlds"]:
+    for folder in (SHIPPED_WORLDS, *folders):
+        root = Path(folder)
+        for entry in read_index(root)["worlds"]:
             out.add(world_fingerprint(read_world(entry_path(root, entry))))
     return frozenset(out)
 
