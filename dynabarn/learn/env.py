@@ -104,6 +104,7 @@ from dynabarn.provenance import has_display
 from dynabarn.render import CAMERAS, NO_GL_PLATFORM, offscreen_renderer, place_camera
 from dynabarn.robot import JACKAL
 from dynabarn.sim import Episode, SimConfig, Simulation
+from dynabarn.sim.observation import Observation
 from dynabarn.worlds.profiles import Difficulty
 from dynabarn.worldset import world_set as resolve_world_set
 
@@ -224,13 +225,15 @@ class DynaBARNEnv(gymnasium.Env):
         after `reset(options={"privileged": True})`), for an expert acting in the loop."""
         return self._observation
 
-    def _observe(self, ranges: np.ndarray | None = None) -> np.ndarray:
-        """The policy's observation now; `ranges`: noise-free ranges a batch of worlds cast
-        after `episode.place_obstacles()` (the vector environment), instead of casting here."""
-        ep = self.episode
-        obs = self._observation = ep.observe() if ranges is None else ep.observe_ranges(ranges)
-        self._pose = obs.pose
+    def _observe(self) -> np.ndarray:
+        """The policy's observation now (the scan cast here)."""
+        obs = self._seen(self.episode.observe())
         return policy_input(obs.scan, self._planner.local_goal_in_robot(obs.pose, self.lookahead), np.float32)
+
+    def _seen(self, obs: Observation) -> Observation:
+        """Keep the simulator's observation (a privileged demonstrator reads it) and its pose."""
+        self._observation, self._pose = obs, obs.pose
+        return obs
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)

@@ -2,7 +2,8 @@
 
 `num_envs` sub-environments, each exactly a `DynaBARNEnv` (same worlds, seeds, dynamics,
 rewards and observations: a test steps both side by side), split over `workers`
-processes (default: one per core, at most 2 here). Inside a process the worlds advance
+processes (default: one per core, at most 2 here): this one steps the first share itself
+while the others (spawned) step theirs. Inside a process the worlds advance
 together (`WorldBatch`):
 
 1. each world's physics period: MuJoCo's C step, 20 per control period;
@@ -31,6 +32,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from dynabarn.learn.env import DynaBARNEnv
+from dynabarn.planners.global_planner import local_goals_in_robot
+from dynabarn.planners.learned.spaces import action_to_command
 from dynabarn.sim.ray_batch import BatchCaster, supports
 from dynabarn.worlds.schedule_batch import ScheduleBatch, batchable
 
@@ -58,27 +61,42 @@ class WorldBatch:
         infos: list[dict] = [{} for _ in range(n)]
         outcomes: list = [None] * n
         running = []
+        v, w = action_to_command(np.asarray(actions).T)  # elementwise: each world's own bits
         for i, env in enumerate(self.envs):
             if self.needs_reset[i]:
                 obs[i], infos[i] = env.reset()
                 continue
-            outcomes[i] = env._apply(actions[i])
+            outcomes[i] = env.episode.apply(float(v[i]), float(w[i]))
             if outcomes[i] is None:
                 running.append(i)
             else:
                 obs[i], rewards[i], terminated[i], truncated[i], infos[i] = env._conclude(
                     outcomes[i], env._last_observation()
                 )
-        schedules = self._schedules(running)
+        if running:
+            self._observe(running, obs)
         for i in running:
-            self.envs[i].episode.place_obstacles(schedules.get(i))
-        ranges = self._cast(running)
-        for i in running:
-            env = self.envs[i]
-            obs[i], rewards[i], terminated[i], truncated[i], infos[i] = env._conclude(None, env._observe(ranges[i]))
+            _, rewards[i], terminated[i], truncated[i], infos[i] = self.envs[i]._conclude(None, None)
         self.needs_reset = terminated | truncated
         # The infos as Gymnasium's arrays here, in the worker: the parent only joins them.
         return obs, rewards, terminated, truncated, _infos(infos)
+
+    def _observe(self, running: list[int], obs: np.ndarray) -> None:
+        """The running worlds' observations into obs's rows: obstacles placed, rays cast,
+        noise drawn (each world from its own generator) and local goals found, all at once."""
+        envs = [self.envs[i] for i in running]
+        episodes = [env.episode for env in envs]
+        schedules = self._schedules(running)
+        for i, ep in zip(running, episodes, strict=True):
+            ep.place_obstacles(schedules.get(i))
+        laser = episodes[0].sim.laser
+        scans = laser.noisy(self._cast(running), [ep.rng for ep in episodes])
+        poses = np.empty((len(running), 3))
+        for k, (env, ep) in enumerate(zip(envs, episodes, strict=True)):
+            poses[k] = env._seen(ep.observe_scan(scans[k])).pose
+        goals = local_goals_in_robot([env._planner for env in envs], poses, envs[0].lookahead)
+        obs[running, : scans.shape[1]] = scans
+        obs[running, scans.shape[1] :] = goals
 
     def _schedules(self, running: list[int]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
         """This period's obstacle positions and velocities of every scripted running world,
@@ -93,24 +111,23 @@ class WorldBatch:
         pos, vel = self._schedule.positions_at(np.stack([ep.period_times() for ep in eps], axis=1))
         return {i: (p, v) for i, p, v in zip(scripted, pos, vel, strict=True)}
 
-    def _cast(self, running: list[int]) -> dict[int, np.ndarray]:
-        """Noise-free ranges of the running worlds: in closed form, all at once, where the
-        world allows it; by `mj_multiRay` otherwise."""
-        sims = {i: self.envs[i].episode.sim for i in running}
-        batched = [i for i in running if supports(sims[i])]
-        out = {}
+    def _cast(self, running: list[int]) -> np.ndarray:
+        """(len(running), beams) noise-free ranges of the running worlds: in closed form, all
+        at once, where the world allows it; by `mj_multiRay` otherwise."""
+        sims = [self.envs[i].episode.sim for i in running]
+        out = np.empty((len(sims), sims[0].laser.n))
+        batched = [k for k, s in enumerate(sims) if supports(s)]
         if batched:
-            bsims = [sims[i] for i in batched]
+            bsims = [sims[k] for k in batched]
             if self._caster_sims != bsims:
                 self._caster, self._caster_sims = BatchCaster(bsims), bsims
             origins = np.array([s.data.site_xpos[s.laser.site] for s in bsims])
             yaws = np.array([s.data.qpos[2] for s in bsims])
-            centres = np.concatenate([self.envs[i].episode.obstacle_centres for i in batched])
-            out = dict(zip(batched, self._caster.cast(origins, yaws, centres), strict=True))
-        for i in running:
-            if i not in out:
-                s = sims[i]
-                out[i] = s.laser.cast(s.model, s.data, float(s.data.qpos[2]))
+            centres = np.concatenate([self.envs[running[k]].episode.obstacle_centres for k in batched])
+            out[batched] = self._caster.cast(origins, yaws, centres)
+        for k in sorted(set(range(len(sims))) - set(batched)):
+            s = sims[k]
+            out[k] = s.laser.cast(s.model, s.data, float(s.data.qpos[2]))
         return out
 
     def close(self) -> None:
@@ -138,7 +155,8 @@ def _worker(conn, n: int, env_kwargs: dict) -> None:
 
 
 class DynaBARNVectorEnv(VectorEnv):
-    """`num_envs` DynaBARN-v0 worlds in `workers` processes (0: in this process).
+    """`num_envs` DynaBARN-v0 worlds stepped by `workers` processes: this one and
+    `workers - 1` spawned ones (0 or 1: all in this process).
 
     Args: `num_envs`, `workers` (default: the cores, at most 2), and every keyword of
     `DynaBARNEnv` but rendering (`world_set`, `split`, `split_seed`, `difficulty`,
@@ -170,29 +188,27 @@ class DynaBARNVectorEnv(VectorEnv):
         self.workers = workers
         sizes = [len(part) for part in np.array_split(np.arange(num_envs), max(1, workers))]
         self._slices = np.cumsum([0, *sizes])
-        self._local: WorldBatch | None = None
+        # This process steps the first share itself while the others step theirs: on 2 cores,
+        # 2 processes and no third one waking between them (measured: +7 % over 2 spawned).
+        self._local = WorldBatch(sizes[0], env_kwargs)
         self._conns: list = []
         self._procs: list = []
-        if workers == 0:
-            self._local = WorldBatch(num_envs, env_kwargs)
-        else:
-            ctx = mp.get_context("spawn")
-            for n in sizes:
-                parent, child = ctx.Pipe()
-                p = ctx.Process(target=_worker, args=(child, n, env_kwargs), daemon=True)
-                p.start()
-                child.close()
-                self._conns.append(parent)
-                self._procs.append(p)
+        ctx = mp.get_context("spawn")
+        for n in sizes[1:]:
+            parent, child = ctx.Pipe()
+            p = ctx.Process(target=_worker, args=(child, n, env_kwargs), daemon=True)
+            p.start()
+            child.close()
+            self._conns.append(parent)
+            self._procs.append(p)
         self.closed = False
 
     def _parts(self, cmd: str, payloads: list) -> list:
-        """Each worker's answer to `cmd` (in this process with workers=0)."""
-        if self._local is not None:
-            return [getattr(self._local, cmd)(*payloads[0]) if cmd == "reset" else self._local.step(payloads[0])]
-        for conn, payload in zip(self._conns, payloads, strict=True):
+        """Each share's answer to `cmd`: the others' sent first, then this process's own."""
+        for conn, payload in zip(self._conns, payloads[1:], strict=True):
             conn.send((cmd, payload))
-        return [conn.recv() for conn in self._conns]
+        mine = self._local.reset(*payloads[0]) if cmd == "reset" else self._local.step(payloads[0])
+        return [mine, *(conn.recv() for conn in self._conns)]
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         seeds = [None if seed is None else seed + i for i in range(self.num_envs)]
@@ -209,8 +225,7 @@ class DynaBARNVectorEnv(VectorEnv):
         return obs, rew, term, trunc, _join([p[4] for p in parts], [len(p[0]) for p in parts])
 
     def close_extras(self, **kwargs) -> None:
-        if self._local is not None:
-            self._local.close()
+        self._local.close()
         for conn in self._conns:
             try:
                 conn.send(("close", None))

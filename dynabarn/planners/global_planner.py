@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dynabarn.perception.map_distance import BOUNDS, grid_indices
-from dynabarn.robot import JACKAL, to_robot_frame
+from dynabarn.robot import JACKAL
 
 RESOLUTION = 0.1
 """Grid cell size [m]."""
@@ -133,6 +133,7 @@ class GlobalPlanner:
         self._cx = x0 + (np.arange(f.nx) + 0.5) * resolution
         self._cy = y0 + (np.arange(f.ny) + 0.5) * resolution
         self._replanner: LocalReplanner | None = None
+        self._suffixes: dict[tuple[int, int], np.ndarray] = {}
 
     @classmethod
     def for_robot(
@@ -163,11 +164,16 @@ class GlobalPlanner:
         while c >= 0 and len(cells) < limit:
             cells.append(c)
             c = pred[c]
-        ij = np.divmod(np.array(cells), f.nx)
-        pts = np.column_stack([self._cx[ij[1]], self._cy[ij[0]]])
-        if c >= 0 and max_cells is not None:  # cut short before the goal
-            return np.vstack([[x, y], pts[1:]])
-        return np.vstack([[x, y], pts[1:], self.goal])
+        cut = c >= 0 and max_cells is not None  # cut short before the goal
+        # The robot's position, the cells' centres after its own, then the goal (unless cut).
+        idx = np.array(cells[1:], dtype=np.int64)
+        out = np.empty((len(cells) + (0 if cut else 1), 2))
+        out[0] = x, y
+        out[1 : len(cells), 0] = self._cx[idx % f.nx]
+        out[1 : len(cells), 1] = self._cy[idx // f.nx]
+        if not cut:
+            out[-1] = self.goal
+        return out
 
     def plan_around(self, x: float, y: float, costmap, *, block_radius: float) -> np.ndarray:
         """The static plan, or, when it runs into an obstacle the costmap holds, a plan that
@@ -228,19 +234,59 @@ class GlobalPlanner:
         walked: consecutive cells are at least a resolution apart, so the point lies among
         them, and a cumulative sum's prefix is the prefix of the whole one (the same bits)."""
         if path is None:
-            path = self.plan(x, y, max_cells=math.floor(lookahead / self.resolution) + 3)
-        seg = np.hypot(*np.diff(path, axis=0).T)
-        along = np.concatenate([[0.0], np.cumsum(seg)])
-        if along[-1] <= lookahead:
-            return path[-1].copy(), path
-        k = int(np.searchsorted(along, lookahead))
-        u = (lookahead - along[k - 1]) / max(seg[k - 1], 1e-12)
-        return path[k - 1] + u * (path[k] - path[k - 1]), path
+            path = np.vstack([[x, y], self._plan_suffix(x, y, lookahead)])
+        return _points_along(path[None], lookahead)[0], path
+
+    def _plan_suffix(self, x: float, y: float, lookahead: float) -> np.ndarray:
+        """`plan(x, y, max_cells)[1:]` for a local goal `lookahead` away: it depends on the
+        robot's cell only, so it is kept per cell (a robot crosses a cell in several ticks)."""
+        max_cells = math.floor(lookahead / self.resolution) + 3
+        f = self.field
+        key = (_cell(x, y, f.nx, f.ny, self.resolution), max_cells)
+        suffix = self._suffixes.get(key)
+        if suffix is None:
+            suffix = self._suffixes[key] = self.plan(x, y, max_cells=max_cells)[1:]
+        return suffix
 
     def local_goal_in_robot(self, pose: np.ndarray, lookahead: float) -> np.ndarray:
         """The local goal `lookahead` metres along the plan from pose (x, y, yaw), in the robot frame."""
-        lg, _ = self.local_goal(float(pose[0]), float(pose[1]), lookahead)
-        return to_robot_frame(lg[None], pose)[0]
+        return local_goals_in_robot([self], pose[None], lookahead)[0]
+
+
+def local_goals_in_robot(planners: list[GlobalPlanner], poses: np.ndarray, lookahead: float) -> np.ndarray:
+    """(W, 2) each pose (x, y, yaw) of (W, 3)'s local goal on its own planner, in its robot
+    frame: `local_goal_in_robot` for many worlds in one pass (the same bits: every step is
+    elementwise, each row's cumulative sum runs in order, paths padded by their last point)."""
+    suffixes = [pl._plan_suffix(float(p[0]), float(p[1]), lookahead) for pl, p in zip(planners, poses, strict=True)]
+    longest = max(len(s) for s in suffixes)
+    paths = np.empty((len(planners), longest + 1, 2))
+    paths[:, 0] = poses[:, :2]
+    for row, suffix in zip(paths, suffixes, strict=True):
+        row[1 : len(suffix) + 1] = suffix
+        row[len(suffix) + 1 :] = suffix[-1]  # segments of length 0: the cumulative sum stays
+    goals = _points_along(paths, lookahead)
+    # As `to_robot_frame` turns one point: libm's cos and sin (numpy's may differ in the last bit).
+    yaws = poses[:, 2].tolist()
+    c = np.array([math.cos(a) for a in yaws])
+    s = np.array([math.sin(a) for a in yaws])
+    dx, dy = goals[:, 0] - poses[:, 0], goals[:, 1] - poses[:, 1]
+    return np.column_stack([c * dx + s * dy, -s * dx + c * dy])
+
+
+def _points_along(paths: np.ndarray, lookahead: float) -> np.ndarray:
+    """(W, 2) the point `lookahead` metres along each path of (W, P, 2) (its end if shorter)."""
+    step = np.diff(paths, axis=1)
+    seg = np.hypot(step[..., 0], step[..., 1])
+    along = np.zeros((len(paths), paths.shape[1]))
+    np.cumsum(seg, axis=1, out=along[:, 1:])
+    out = paths[:, -1].copy()
+    inside = np.flatnonzero(along[:, -1] > lookahead)
+    if len(inside):
+        k = (along[inside] < lookahead).sum(axis=1)  # searchsorted(along, lookahead) per row
+        u = (lookahead - along[inside, k - 1]) / np.maximum(seg[inside, k - 1], 1e-12)
+        a, b = paths[inside, k - 1], paths[inside, k]
+        out[inside] = a + u[:, None] * (b - a)
+    return out
 
 
 class LocalReplanner:

@@ -139,13 +139,17 @@ class Episode:
     def observe_ranges(self, ranges: np.ndarray) -> Observation:
         """The observation from noise-free ranges cast after `place_obstacles` (the laser's
         noise drawn from this episode's generator, then the 1 mm grid)."""
+        return self.observe_scan(self.sim.laser.noisy(ranges, self.rng))
+
+    def observe_scan(self, scan: np.ndarray) -> Observation:
+        """The observation around a finished scan (`Laser.noisy` of this episode's ranges,
+        drawn from this episode's generator: a batch of worlds draws them together)."""
         sim = self.sim
         t = self.time
         qpos, qvel = sim.data.qpos, sim.data.qvel
         pose = qpos[:3].copy()
         c, s = math.cos(pose[2]), math.sin(pose[2])
         velocity = np.array([c * qvel[0] + s * qvel[1], qvel[2]])
-        scan = sim.laser.noisy(ranges, self.rng)
         privileged = None
         if self.privileged:
             privileged = ObstacleState(

@@ -111,9 +111,13 @@ class Laser:
     def scan(self, model: mujoco.MjModel, data: mujoco.MjData, yaw: float, rng: np.random.Generator) -> np.ndarray:
         return self.noisy(self.cast(model, data, yaw), rng)
 
-    def noisy(self, ranges: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Noise-free ranges (changed in place) -> the scan: Gaussian noise, clipped, 1 mm grid."""
-        ranges += rng.normal(0.0, self.params.laser_noise_std, self.n)
+    def noisy(self, ranges: np.ndarray, rng: np.random.Generator | list[np.random.Generator]) -> np.ndarray:
+        """Noise-free ranges (changed in place) -> the scan: Gaussian noise, clipped, 1 mm grid.
+        Many worlds' at once: ranges (W, n) and one generator per row (each draws its own)."""
+        if ranges.ndim == 1:
+            ranges += rng.normal(0.0, self.params.laser_noise_std, self.n)
+        else:
+            ranges += np.stack([g.normal(0.0, self.params.laser_noise_std, self.n) for g in rng])
         np.clip(ranges, self.params.laser_range_min, self.params.laser_range_max, out=ranges)
         # Whole millimetres, as the UST-10 reports: also what keeps last-bit differences of
         # the ray directions (numpy's sin and cos differ between CPUs) out of the planner.
