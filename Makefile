@@ -11,7 +11,7 @@ LOCK := requirements.lock
 # The extras the tests exercise; the lock covers the package and all of them.
 EXTRAS := test,ray,learn,ros,docs
 
-.PHONY: install demo worlds test test-fast docs docs-serve lint format bench clean system-deps ros-deps lock verify-golden readme
+.PHONY: install demo worlds test test-fast docs docs-serve lint format bench clean system-deps ros-deps ros-nav-deps ros-nav lock verify-golden readme
 
 # The package and what running it needs.
 $(STAMP): pyproject.toml $(LOCK)
@@ -63,6 +63,20 @@ ros-deps:
 	  need=""; for p in $(ROS_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || need="$$need $$p"; done; \
 	  if [ -n "$$need" ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$need >/dev/null; fi; \
 	fi
+
+# ROS 1's navigation stack (move_base) built from source against Debian's ROS 1, into a
+# catkin workspace outside the package (DYNABARN_NAV_WS, default ~/.cache/dynabarn/ros_nav):
+# `make ros-nav` (the dependencies need root; NAV_SRC=DIR builds a local checkout instead
+# of fetching the pinned commit with git). About 6 minutes on 2 cores.
+ros-nav-deps:
+	@if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
+	  need=""; for p in git $$($(BIN)/python -c 'from dynabarn.ros.nav_build import BUILD_DEPENDENCIES as d; print(*d)'); do \
+	    dpkg -s $$p >/dev/null 2>&1 || need="$$need $$p"; done; \
+	  if [ -n "$$need" ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$need >/dev/null; fi; \
+	else echo "ros-nav-deps: run as root to install Debian's build dependencies"; fi
+
+ros-nav: $(STAMP) ros-deps ros-nav-deps
+	$(BIN)/python -m dynabarn.ros.nav_build $(if $(NAV_SRC),--source $(NAV_SRC))
 
 worlds: $(STAMP)
 	$(BIN)/dynabarn-worlds generate

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from collections.abc import Sequence
+from pathlib import Path
 
 from dynabarn.cli.common import (
     add_protocol,
@@ -18,6 +20,9 @@ from dynabarn.cli.common import (
 )
 from dynabarn.cli.episode import exit_status, print_result, run_recorded
 from dynabarn.errors import DynabarnError
+from dynabarn.ros import READY_WHEN
+from dynabarn.ros.nav_build import WORKSPACE_ENV
+from dynabarn.ros.stacks import STACKS
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -31,12 +36,37 @@ def build_parser() -> argparse.ArgumentParser:
     add_world(parser)
     add_protocol(parser)
     add_trial_seed(parser)
-    parser.add_argument(
+    stack = parser.add_mutually_exclusive_group()
+    stack.add_argument(
         "--launch",
         default=None,
         metavar="COMMAND",
         help="command that starts the stack (run with ROS_MASTER_URI set, stopped after the episode), e.g. "
-        "'roslaunch jackal_helper move_base_DWA.launch'; without it, start the stack yourself",
+        "'roslaunch jackal_helper move_base_DWA.launch'; without it (or --stack), start the stack yourself",
+    )
+    stack.add_argument(
+        "--stack",
+        default=None,
+        choices=sorted(STACKS),
+        help="a stack of ours: "
+        + "; ".join(f"{name}: {s.about}" for name, s in STACKS.items())
+        + " (needs `make ros-nav`)",
+    )
+    parser.add_argument(
+        "--nav-workspace",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help=f"the catkin workspace `make ros-nav` built move_base in (default: ${WORKSPACE_ENV} or "
+        "~/.cache/dynabarn/ros_nav)",
+    )
+    parser.add_argument(
+        "--stack-log",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="where the stack's output goes (default: beside the recording as NAME.stack.log, or "
+        "~/.ros/log/dynabarn-ros-TIME.log with --no-log); never this command's stdout",
     )
     parser.add_argument(
         "--master",
@@ -58,13 +88,38 @@ def build_parser() -> argparse.ArgumentParser:
         help="instead run paced at RATE x real time, as Gazebo runs, with the latest /cmd_vel",
     )
     parser.add_argument(
-        "--timeout", type=ranged(float, 0.1, 600.0), default=10.0, help="seconds a lockstep answer may take"
+        "--timeout",
+        type=ranged(float, 0.1, 600.0),
+        default=10.0,
+        help="wall seconds without any /cmd_vel (lockstep) before the episode ends as an error (default: 10)",
+    )
+    parser.add_argument(
+        "--grace",
+        type=ranged(float, 0.001, 600.0),
+        default=0.5,
+        help="wall seconds a lockstep control period waits for a /cmd_vel after its scan; then the last command "
+        "holds for that period, as a stack that is planning or runs a slower loop would leave it (default: 0.5)",
+    )
+    parser.add_argument(
+        "--ready",
+        choices=READY_WHEN,
+        default="command",
+        help="when the stack counts as started: 'command' (it sent a /cmd_vel after the goal) or 'subscribed' "
+        "(it subscribed to the scan); until then the robot stands at its spawn on a running clock (default: command)",
     )
     parser.add_argument(
         "--ready-timeout",
         type=ranged(float, 0.1, 600.0),
         default=30.0,
-        help="seconds to wait for the stack to subscribe to the scan",
+        help="wall seconds the stack may take to start before the episode ends as an error naming what never "
+        "happened (default: 30)",
+    )
+    parser.add_argument(
+        "--clock-step",
+        type=ranged(float, 0.0001, 0.1),
+        default=0.005,
+        help="simulated seconds between /clock messages, so a stack's timers fire at their rates (default: 0.005, "
+        "the physics step)",
     )
     parser.add_argument(
         "--remap",
@@ -87,6 +142,7 @@ def _ros_episode(args: argparse.Namespace) -> int:
     from dynabarn.protocol import get_protocol
     from dynabarn.recording import default_run_path
     from dynabarn.ros.bridge import BridgeConfig, RosMaster, RosPlanner, bridge_overhead, ros_python
+    from dynabarn.ros.stacks import stack_command
     from dynabarn.sim import Simulation
     from dynabarn.worldset import resolve_world
 
@@ -97,32 +153,52 @@ def _ros_episode(args: argparse.Namespace) -> int:
     sim = Simulation(resolve_world(args.world))
     protocol = get_protocol(args.protocol)
     ros_python()  # one clear line when ROS is missing, before a master is started
-    config = BridgeConfig(
-        lockstep=args.rate is None,
-        rate=args.rate or 1.0,
-        timeout=args.timeout,
-        ready_timeout=args.ready_timeout,
-        remaps=list(args.remap),
-        launch=args.launch,
-    )
+    launch = stack_command(args.stack, args.nav_workspace) if args.stack else args.launch
     log_path = (
         None
         if args.no_log
         else args.log or default_run_path(args.runs_dir, sim.world.name, "ros", protocol.name, args.seed)
     )
+    stack_log = None
+    if launch:
+        stack_log = args.stack_log or (
+            Path(log_path).with_suffix(".stack.log")
+            if log_path
+            else Path.home() / ".ros" / "log" / f"dynabarn-ros-{time.strftime('%Y%m%d-%H%M%S')}.log"
+        )
+        stack_log.parent.mkdir(parents=True, exist_ok=True)
+    config = BridgeConfig(
+        lockstep=args.rate is None,
+        rate=args.rate or 1.0,
+        timeout=args.timeout,
+        grace=args.grace,
+        ready=args.ready,
+        ready_timeout=args.ready_timeout,
+        clock_step=args.clock_step,
+        remaps=list(args.remap),
+        launch=launch,
+        stack_log=str(stack_log) if stack_log else None,
+    )
     master = RosMaster.start(args.master)
     planner = RosPlanner(master, config)
     try:
+        mode = "lockstep" if config.lockstep else f"paced at {config.rate:g}x"
         print(
-            f"ROS master {master.uri}; {'lockstep' if config.lockstep else f'paced at {config.rate:g}x'}",
-            file=sys.stderr,
+            f"ROS master {master.uri}; {mode}" + (f"; stack output: {stack_log}" if stack_log else ""), file=sys.stderr
         )
         result = run_recorded(sim, planner, protocol, seed=args.seed, log_path=log_path, planner_name="ros")
     finally:
         planner.finish("interrupted")  # run_episode has done so already unless something broke
         master.close()
     overhead = bridge_overhead(planner)
-    print_result(result, as_json=args.json, recording=log_path, extra={"bridge_ms_per_tick": round(overhead, 3)})
+    extra = {
+        "bridge_ms_per_tick": None if overhead is None else round(overhead, 3),
+        "held_periods": planner.held,
+        "stack_log": str(stack_log) if stack_log else None,
+    }
+    print_result(result, as_json=args.json, recording=log_path, extra=extra)
     if not args.json:
-        print(f"bridge overhead {overhead:.2f} ms per control period", file=sys.stderr)
+        held = f"; {planner.held} control periods without a /cmd_vel (the last command held)" if planner.held else ""
+        cost = "n/a (no control period ran)" if overhead is None else f"{overhead:.2f} ms per control period"
+        print(f"bridge overhead {cost}{held}", file=sys.stderr)
     return exit_status(result, as_json=args.json)

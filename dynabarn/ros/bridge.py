@@ -22,6 +22,7 @@ import signal
 import socket
 import struct
 import subprocess
+import sys
 import time
 import uuid
 import xmlrpc.client
@@ -34,13 +35,16 @@ from dynabarn.errors import DynabarnError
 from dynabarn.planners.base import EpisodeInfo, Observation, Planner
 from dynabarn.processes import die_with_parent
 from dynabarn.robot import JACKAL
+from dynabarn.ros import READY_WHEN
 
 NODE = Path(__file__).resolve().parent / "node.py"
 ROS_PYTHON_ENV = "DYNABARN_ROS_PYTHON"
 """Names the Python that has rospy (default: Debian's /usr/bin/python3)."""
 _HEADER = struct.Struct("<cI")
-_OBSERVATION = struct.Struct("<7d")
+_OBSERVATION = struct.Struct("<10d")
+_GOAL = struct.Struct("<3d")
 _COMMAND = struct.Struct("<ddB")
+_READY = struct.Struct("<dB")
 
 
 def ros_python() -> str:
@@ -154,17 +158,33 @@ class BridgeConfig:
     """How the bridge meets the stack."""
 
     lockstep: bool = True
-    """Wait for the stack's answer every control period (deterministic, as fast as the stack)."""
+    """The simulation waits for the stack every control period (see `grace`)."""
     rate: float = 1.0
     """Real-time factor when not in lockstep (1 = real time, as Gazebo runs)."""
     timeout: float = 10.0
-    """Wall seconds a lockstep answer may take before the episode ends as an error."""
+    """Wall seconds without any /cmd_vel, in lockstep, before the episode ends as an error."""
+    grace: float = 0.5
+    """Wall seconds a lockstep period waits for a /cmd_vel after its scan before the last
+    command holds for it (a stack that plans, or runs a slower loop, skips periods)."""
+    ready: str = "command"
+    """When the boot ends: `command` (a /cmd_vel after the goal) or `subscribed` (the scan)."""
     ready_timeout: float = 30.0
-    """Wall seconds to wait for the stack to subscribe to the scan."""
+    """Wall seconds the boot may take before the episode ends as an error naming what is missing."""
+    clock_step: float = 0.005
+    """[s] of simulated time between /clock messages (the physics step: timers fire on time)."""
     remaps: list[str] = field(default_factory=list)
     """`from:=to` remappings of the bridge's topic names."""
-    launch: str | None = None
-    """Shell command that starts the stack (run once the master is up; stopped at the end)."""
+    launch: str | list[str] | None = None
+    """Command that starts the stack (run once the master is up; stopped at the end): a shell
+    line, or its words."""
+    stack_log: str | None = None
+    """File for the stack's output (default: this process's stderr; never its stdout)."""
+
+    def __post_init__(self) -> None:
+        if self.ready not in READY_WHEN:
+            raise ValueError(f"ready {self.ready!r}: use one of {', '.join(READY_WHEN)}")
+        if not 0.0001 <= self.clock_step <= 0.1:
+            raise ValueError(f"clock_step {self.clock_step!r}: use a step in [0.0001, 0.1] s")
 
 
 class RosPlanner(Planner):
@@ -180,28 +200,36 @@ class RosPlanner(Planner):
         self.tick_ms: list[float] = []
         """The bridge's own time per control period [ms] (packing, pipe, publishing)."""
         self.round_trip_ms: list[float] = []
-        """Observation out to command back, per control period after the first [ms]."""
+        """Observation out to command back, per control period (the boot and pacing not counted) [ms]."""
+        self.held = 0
+        """Lockstep periods the stack let pass without a /cmd_vel (the last command held)."""
         self.steady_since: float | None = None
         self.steady_sim_time = 0.0
-        """perf_counter and simulated time when the first period (the stack's start-up) ended."""
+        """perf_counter and simulated time of the first control period after the boot."""
 
     def config(self) -> dict:
+        c = self.cfg
         return {
-            "lockstep": self.cfg.lockstep,
-            "rate": self.cfg.rate,
-            "launch": self.cfg.launch,
-            "remaps": list(self.cfg.remaps),
+            "lockstep": c.lockstep,
+            "rate": c.rate,
+            "grace": c.grace,
+            "ready": c.ready,
+            "clock_step": c.clock_step,
+            "launch": c.launch,
+            "remaps": list(c.remaps),
         }
 
     def reset(self, info: EpisodeInfo) -> None:
         angles = info.laser_angles
         env = self.master.env()
-        cmd = [ros_python(), str(NODE), *self.cfg.remaps]
-        cmd += ["--timeout", str(self.cfg.timeout), "--ready-timeout", str(self.cfg.ready_timeout)]
+        c = self.cfg
+        cmd = [ros_python(), str(NODE), *c.remaps, "--timeout", str(c.timeout), "--grace", str(min(c.grace, c.timeout))]
+        cmd += ["--ready", c.ready, "--ready-timeout", str(c.ready_timeout), "--clock-step", repr(c.clock_step)]
+        cmd += ["--period", repr(info.control_period), "--rate", repr(c.rate)]
         cmd += ["--angle-min", repr(float(angles[0])), "--angle-max", repr(float(angles[-1]))]
         cmd += ["--range-min", repr(float(info.laser_range[0])), "--range-max", repr(float(info.laser_range[1]))]
         cmd += ["--laser-x", repr(float(info.laser_offset[0])), "--laser-z", repr(JACKAL.laser_z)]
-        if not self.cfg.lockstep:
+        if not c.lockstep:
             cmd.append("--paced")
         self.node = subprocess.Popen(
             cmd,
@@ -212,18 +240,28 @@ class RosPlanner(Planner):
             start_new_session=True,
             preexec_fn=die_with_parent(),
         )
-        if self.cfg.launch:
-            self.stack = subprocess.Popen(
-                shlex.split(self.cfg.launch),
-                env=env,
-                stdin=subprocess.DEVNULL,
-                start_new_session=True,
-                preexec_fn=die_with_parent(),
-            )
+        if c.launch:
+            # The stack's output never reaches our stdout (a --json document is printed there).
+            log = open(c.stack_log, "ab") if c.stack_log else sys.stderr  # noqa: SIM115 (the stack writes while it runs)
+            try:
+                self.stack = subprocess.Popen(
+                    shlex.split(c.launch) if isinstance(c.launch, str) else list(c.launch),
+                    env=env,
+                    stdin=subprocess.DEVNULL,
+                    stdout=log,
+                    stderr=subprocess.STDOUT,
+                    start_new_session=True,
+                    preexec_fn=die_with_parent(),
+                )
+            finally:
+                if c.stack_log:
+                    log.close()
         self._origin = None
         self._wall0 = None
+        self._answered_at = None
+        self.held = 0
         self.steady_since = None
-        self._goal_world = None
+        self.t0 = 0.0
 
     def _to_odom(self, x: float, y: float, yaw: float) -> tuple[float, float, float]:
         x0, y0, yaw0 = self._origin
@@ -231,36 +269,53 @@ class RosPlanner(Planner):
         dx, dy = x - x0, y - y0
         return c * dx + s * dy, -s * dx + c * dy, math.atan2(math.sin(yaw - yaw0), math.cos(yaw - yaw0))
 
+    def _observation(self, obs: Observation) -> bytes:
+        x, y, yaw = self._to_odom(*(float(v) for v in obs.pose))
+        ranges = np.asarray(obs.scan, dtype="<f4")
+        wx, wy, wyaw = (float(v) for v in obs.pose)
+        v, w = float(obs.velocity[0]), float(obs.velocity[1])
+        return _OBSERVATION.pack(obs.time, x, y, yaw, v, w, wx, wy, wyaw, len(ranges)) + ranges.tobytes()
+
     def act(self, obs: Observation) -> tuple[float, float]:
-        t0 = time.perf_counter()
-        if self._origin is None:  # the first tick: odom starts here; give the goal, wait for the stack
-            self._origin = tuple(float(v) for v in obs.pose)
-            gx, gy, _ = self._to_odom(float(obs.goal_in_world[0]), float(obs.goal_in_world[1]), 0.0)
-            self._send(b"G", struct.pack("<3d", gx, gy, 0.0))
-            _, _, ready = self._receive(b"R", self.cfg.ready_timeout + 30)
-            if not ready:
-                raise RuntimeError(f"no ROS stack subscribed to the scan within {self.cfg.ready_timeout:g} s")
-            self._wall0 = time.monotonic()
+        if self._origin is None:  # the first tick: odom starts here; boot until the stack is ready
+            self._boot(obs)
         if not self.cfg.lockstep:  # paced: as Gazebo runs, rate x real time
             wait = self._wall0 + obs.time / self.cfg.rate - time.monotonic()
             if wait > 0:
                 time.sleep(wait)
-        x, y, yaw = self._to_odom(*(float(v) for v in obs.pose))
-        ranges = np.asarray(obs.scan, dtype="<f4")
-        body = _OBSERVATION.pack(obs.time, x, y, yaw, float(obs.velocity[0]), float(obs.velocity[1]), len(ranges))
-        self._send(b"O", body + ranges.tobytes())
+        t0 = time.perf_counter()
+        self._send(b"O", self._observation(obs))
         sent = time.perf_counter()
-        v, w, answered = self._receive(b"C", self.cfg.timeout + 30)
+        body = self._receive(b"C", self.cfg.grace + 30)
+        v, w, answered = _COMMAND.unpack(body)
         done = time.perf_counter()
         self.tick_ms.append((sent - t0) * 1e3)
-        if self.steady_since is None:  # the first period also waited for the stack to start
-            self.steady_since, self.steady_sim_time = done, obs.time
+        self.round_trip_ms.append((done - t0) * 1e3)
+        if self.steady_since is None:
+            self.steady_since, self.steady_sim_time = t0, obs.time
+        now = time.monotonic()
+        if answered:
+            self._answered_at = now
         else:
-            self.round_trip_ms.append((done - t0) * 1e3)
-        if not answered:
-            self._check_stack()
-            raise RuntimeError(f"the ROS stack did not answer on /cmd_vel within {self.cfg.timeout:g} s")
+            self.held += 1
+            if now - self._answered_at > self.cfg.timeout:
+                self._check_stack()
+                raise RuntimeError(f"the ROS stack did not answer on /cmd_vel within {self.cfg.timeout:g} s")
         return v, w
+
+    def _boot(self, obs: Observation) -> None:
+        self._origin = tuple(float(v) for v in obs.pose)
+        gx, gy, _ = self._to_odom(float(obs.goal_in_world[0]), float(obs.goal_in_world[1]), 0.0)
+        self._send(b"B", self._observation(obs) + _GOAL.pack(gx, gy, 0.0))
+        body = self._receive(b"R", self.cfg.ready_timeout + 30)
+        self.t0, ready = _READY.unpack_from(body)
+        if not ready:
+            self._check_stack()
+            missing = body[_READY.size :].decode(errors="replace")
+            raise RuntimeError(
+                f"the ROS stack was not ready ({self.cfg.ready}) within {self.cfg.ready_timeout:g} s: {missing}"
+            )
+        self._wall0 = self._answered_at = time.monotonic()
 
     def _check_stack(self) -> None:
         if self.stack is not None and self.stack.poll() is not None:
@@ -273,7 +328,7 @@ class RosPlanner(Planner):
         except (BrokenPipeError, OSError):
             raise RuntimeError(f"the bridge node stopped (status {self.node.poll()})") from None
 
-    def _receive(self, kind: bytes, timeout: float) -> tuple[float, float, bool]:
+    def _receive(self, kind: bytes, timeout: float) -> bytes:
         import select
 
         out = self.node.stdout
@@ -284,10 +339,9 @@ class RosPlanner(Planner):
             raise RuntimeError(f"the bridge node stopped answering (status {self.node.poll()})")
         got, size = _HEADER.unpack(head)
         body = out.read(size)
-        if got != kind or len(body) != _COMMAND.size:
+        if got != kind or len(body) != size:
             raise RuntimeError(f"the bridge node sent {got!r} instead of {kind!r}")
-        v, w, answered = _COMMAND.unpack(body)
-        return v, w, bool(answered)
+        return body
 
     def finish(self, outcome: str) -> None:
         """Tell the stack how the episode ended (/collision), then stop the stack and the node."""
@@ -326,9 +380,10 @@ def ros_planner(*, launch: str | None = None, master: str | None = None, **confi
     return RosPlanner(_worker_master, cfg)
 
 
-def bridge_overhead(planner: RosPlanner) -> float:
-    """Median bridge time per control period [ms] (excluding the stack's answer)."""
-    return float(np.median(planner.tick_ms)) if planner.tick_ms else math.nan
+def bridge_overhead(planner: RosPlanner) -> float | None:
+    """Median bridge time per control period [ms] (excluding the stack's answer, the boot
+    and the pacing); None when no period ran."""
+    return float(np.median(planner.tick_ms)) if planner.tick_ms else None
 
 
 __all__ = ["NODE", "BridgeConfig", "RosMaster", "RosPlanner", "bridge_overhead", "ros_planner", "ros_python"]

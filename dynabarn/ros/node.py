@@ -3,26 +3,32 @@ Challenge's Gazebo to a ROS 1 navigation stack.
 
 Runs on Debian's `/usr/bin/python3` (where Debian's rospy lives), as its own process, and
 imports nothing of dynabarn: the simulation (the project's Python, with MuJoCo) talks to it
-over stdin/stdout in length-prefixed frames (`Frame` below, struct-packed, little endian):
+over stdin/stdout in length-prefixed frames (struct-packed, little endian):
 
-    sim -> node  'O' observation: t, x, y, yaw, v, w, n, ranges[n] (float64 x 7 + float32 x n)
-                 'G' goal: x, y, yaw (published once, latched, before the first observation)
+    sim -> node  'B' boot: the spawn's observation (as 'O') and the goal x, y, yaw (odom)
+                 'O' observation: t, x, y, yaw (odom), v, w, X, Y, YAW (world), n, ranges[n]
                  'E' end: outcome text (published on /collision when it is a collision)
-    node -> sim  'C' command: v, w, answered (float64, float64, uint8)
-                 'R' ready: the stack is subscribed (or the wait timed out: answered 0)
+    node -> sim  'R' ready: t0 (the stamp of episode time 0), ready (0/1), what was missing
+                 'C' command: v, w, answered (1 answered, 0 held: the last command again)
 
-Published, as the challenge's simulation does: /clock (with /use_sim_time set), /front/scan
-(sensor_msgs/LaserScan, frame front_laser), /odometry/filtered (nav_msgs/Odometry, odom ->
-base_link), /tf (odom -> base_link) and /tf_static (base_link -> front_laser), the goal on
-/move_base_simple/goal (geometry_msgs/PoseStamped, frame odom), /collision (std_msgs/Bool)
-the same odometry on /jackal_velocity_controller/odom, and the true pose on
-/dynabarn/ground_truth. Subscribed: /cmd_vel and /jackal_velocity_controller/cmd_vel
-(geometry_msgs/Twist).
-Every name can be remapped with the usual `name:=other` arguments.
+Boot (like Gazebo, which publishes from the moment it starts): from the 'B' frame on, a
+thread publishes a running /clock at real time in steps of `--clock-step` (from one step
+on, never 0), and with it /tf, odometry and scans of the robot standing at its spawn, and
+the goal (latched, and through the `move_base` action once a server offers it), until the
+stack is ready: `--ready subscribed` (something subscribed to the scan) or `--ready
+command` (it sent a /cmd_vel after the goal: started, planned and controlling; default).
+The episode's stamps then continue the clock from `t0`, the next whole control period.
 
-Lockstep (default): after publishing a control period's messages the node waits for the
-first /cmd_vel that arrives after them (or the timeout) and answers with it; the simulation
-does not advance meanwhile. Paced (`--paced`): it answers at once with the latest /cmd_vel.
+Every control period: /clock at the period's start, /tf (odom -> base_link), odometry
+(/odometry/filtered and /jackal_velocity_controller/odom), the true pose in the world frame
+(/dynabarn/ground_truth), the scan last (/front/scan, frame front_laser), then /clock on
+through the period in `--clock-step`s, so a stack's timers on ROS time fire at their
+rates. Lockstep (default): at once, then the answer is the first /cmd_vel (or
+/jackal_velocity_controller/cmd_vel) published after the scan, waited for up to `--grace`
+wall seconds; without one the last command holds for the period (answered 0), and after
+`--timeout` wall seconds without any command the simulation ends the episode. Paced
+(`--paced`): the ticks are spread over the period at the simulation's rate and the answer
+is the latest command at once. Every name can be remapped with `name:=other` arguments.
 """
 
 from __future__ import annotations
@@ -35,8 +41,10 @@ import threading
 import time
 
 HEADER = struct.Struct("<cI")
-OBSERVATION = struct.Struct("<7d")
+OBSERVATION = struct.Struct("<10d")
+GOAL = struct.Struct("<3d")
 COMMAND = struct.Struct("<ddB")
+READY = struct.Struct("<dB")
 
 
 def read_frame(stream) -> tuple[bytes, bytes] | None:
@@ -53,149 +61,243 @@ def write_frame(stream, kind: bytes, body: bytes) -> None:
     stream.flush()
 
 
-# Over 80 lines on purpose: the node is one rospy process whose publishers, subscriber and
-# frame loop share their state; rospy imports only exist inside it (Debian's Python).
-def main(argv: list[str]) -> int:
-    import rospy
-    from geometry_msgs.msg import PoseStamped, TransformStamped, Twist
-    from nav_msgs.msg import Odometry
-    from rosgraph_msgs.msg import Clock
-    from sensor_msgs.msg import LaserScan
-    from std_msgs.msg import Bool
-    from tf2_msgs.msg import TFMessage
-
+def _arguments(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser()
     parser.add_argument("--paced", action="store_true")
+    parser.add_argument("--rate", type=float, default=1.0)
     parser.add_argument("--timeout", type=float, default=10.0)
+    parser.add_argument("--grace", type=float, default=0.5)
+    parser.add_argument("--ready", choices=["subscribed", "command"], default="command")
     parser.add_argument("--ready-timeout", type=float, default=30.0)
+    parser.add_argument("--clock-step", type=float, default=0.005)
+    parser.add_argument("--period", type=float, default=0.1)
     parser.add_argument("--angle-min", type=float, required=True)
     parser.add_argument("--angle-max", type=float, required=True)
     parser.add_argument("--range-min", type=float, required=True)
     parser.add_argument("--range-max", type=float, required=True)
     parser.add_argument("--laser-x", type=float, required=True)
     parser.add_argument("--laser-z", type=float, required=True)
-    args = parser.parse_args(rospy.myargv(argv)[1:])
+    return parser.parse_args(argv)
 
-    rospy.set_param("/use_sim_time", True)
-    rospy.init_node("dynabarn_bridge", disable_signals=True)
-    clock = rospy.Publisher("/clock", Clock, queue_size=10)
-    scan_pub = rospy.Publisher("/front/scan", LaserScan, queue_size=10)
-    odom_pub = rospy.Publisher("/odometry/filtered", Odometry, queue_size=10)
-    tf_pub = rospy.Publisher("/tf", TFMessage, queue_size=10)
-    tf_static = rospy.Publisher("/tf_static", TFMessage, queue_size=1, latch=True)
-    goal_pub = rospy.Publisher("/move_base_simple/goal", PoseStamped, queue_size=1, latch=True)
-    collision_pub = rospy.Publisher("/collision", Bool, queue_size=1, latch=True)
-    truth_pub = rospy.Publisher("/dynabarn/ground_truth", Odometry, queue_size=10)
-    wheel_odom_pub = rospy.Publisher("/jackal_velocity_controller/odom", Odometry, queue_size=10)
 
-    answer = threading.Condition()
-    state = {"cmd": (0.0, 0.0), "count": 0}
+class Node:
+    """The bridge node's publishers, subscriptions and clock (see the module docstring)."""
 
-    def on_cmd(msg: Twist) -> None:
-        with answer:
-            state["cmd"] = (float(msg.linear.x), float(msg.angular.z))
-            state["count"] += 1
-            answer.notify_all()
+    def __init__(self, args: argparse.Namespace) -> None:
+        import rospy
+        from geometry_msgs.msg import PoseStamped, Twist
+        from nav_msgs.msg import Odometry
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import LaserScan
+        from std_msgs.msg import Bool
+        from tf2_msgs.msg import TFMessage
 
-    # The Jackal's twist_mux takes /cmd_vel; the challenge's move_base launch files publish
-    # straight to the controller's input. Both drive the robot here.
-    rospy.Subscriber("/cmd_vel", Twist, on_cmd, queue_size=10, tcp_nodelay=True)
-    rospy.Subscriber("/jackal_velocity_controller/cmd_vel", Twist, on_cmd, queue_size=10, tcp_nodelay=True)
+        self.rospy, self.args = rospy, args
+        self.Clock, self.Odometry, self.LaserScan, self.TFMessage = Clock, Odometry, LaserScan, TFMessage
+        self.PoseStamped, self.Bool = PoseStamped, Bool
+        self.clock_pub = rospy.Publisher("/clock", Clock, queue_size=100)
+        self.scan_pub = rospy.Publisher("/front/scan", LaserScan, queue_size=10)
+        self.odom_pub = rospy.Publisher("/odometry/filtered", Odometry, queue_size=10)
+        self.tf_pub = rospy.Publisher("/tf", TFMessage, queue_size=10)
+        self.tf_static = rospy.Publisher("/tf_static", TFMessage, queue_size=1, latch=True)
+        self.goal_pub = rospy.Publisher("/move_base_simple/goal", PoseStamped, queue_size=1, latch=True)
+        self.collision_pub = rospy.Publisher("/collision", Bool, queue_size=1, latch=True)
+        self.truth_pub = rospy.Publisher("/dynabarn/ground_truth", Odometry, queue_size=10)
+        self.wheel_odom_pub = rospy.Publisher("/jackal_velocity_controller/odom", Odometry, queue_size=10)
+        self.answer = threading.Condition()
+        self.cmd, self.count = (0.0, 0.0), 0
+        self.clock_now = 0.0
+        self._clock_lock = threading.Lock()
+        self._ticker: threading.Thread | None = None
+        self._stop_ticks = threading.Event()
+        self.action_client = None
+        # The Jackal's twist_mux takes /cmd_vel; the challenge's move_base launch files publish
+        # straight to the controller's input. Both drive the robot here.
+        rospy.Subscriber("/cmd_vel", Twist, self._on_cmd, queue_size=10, tcp_nodelay=True)
+        rospy.Subscriber("/jackal_velocity_controller/cmd_vel", Twist, self._on_cmd, queue_size=10, tcp_nodelay=True)
+        static = self._transform("base_link", "front_laser", 0.0, args.laser_x, 0.0, args.laser_z, 0.0)
+        self.tf_static.publish(TFMessage([static]))
 
-    def send_action_goal(goal) -> None:
-        """Also give the goal through the `move_base` action, as the challenge's run.py does,
-        when the stack offers that action server."""
-        import actionlib
-        from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+    def _on_cmd(self, msg) -> None:
+        with self.answer:
+            self.cmd = (float(msg.linear.x), float(msg.angular.z))
+            self.count += 1
+            self.answer.notify_all()
 
-        deadline = time.monotonic() + 1.0
-        while "/move_base/status" not in dict(rospy.get_published_topics()):
-            if time.monotonic() > deadline:
-                return  # no move_base action server: the topic alone gives the goal
-            time.sleep(0.05)
-        client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
-        if _wait(client):
-            client.send_goal(MoveBaseGoal(target_pose=goal))
-            state["action_client"] = client  # keep it (and its connections) alive
+    # -- messages ---------------------------------------------------------------------------
+    def _stamp(self, t: float):
+        return self.rospy.Time(int(t), round((t - int(t)) * 1e9) % 1_000_000_000)
 
-    def _wait(client) -> bool:
-        deadline = time.monotonic() + 5.0
-        while time.monotonic() < deadline:  # wall time: /clock does not run before the first tick
-            if _server_connected(client):
-                return True
-            time.sleep(0.05)
-        return False
+    def _transform(self, parent: str, child: str, t: float, x: float, y: float, z: float, yaw: float):
+        from geometry_msgs.msg import TransformStamped
 
-    def _server_connected(client) -> bool:
-        ac = client.action_client
-        return ac.pub_goal.get_num_connections() > 0 and ac.status_sub.get_num_connections() > 0
-
-    def stamp_of(t: float):
-        return rospy.Time(int(t), round((t - int(t)) * 1e9) % 1_000_000_000)
-
-    def transform(parent: str, child: str, t: float, x: float, y: float, z: float, yaw: float):
         tr = TransformStamped()
-        tr.header.stamp = stamp_of(t)
-        tr.header.frame_id = parent
-        tr.child_frame_id = child
+        tr.header.stamp = self._stamp(t)
+        tr.header.frame_id, tr.child_frame_id = parent, child
         tr.transform.translation.x, tr.transform.translation.y, tr.transform.translation.z = x, y, z
         tr.transform.rotation.z, tr.transform.rotation.w = math.sin(yaw / 2), math.cos(yaw / 2)
         return tr
 
-    tf_static.publish(TFMessage([transform("base_link", "front_laser", 0.0, args.laser_x, 0.0, args.laser_z, 0.0)]))
+    def _odometry(self, t: float, frame: str, x: float, y: float, yaw: float, v: float, w: float):
+        odom = self.Odometry()
+        odom.header.stamp, odom.header.frame_id, odom.child_frame_id = self._stamp(t), frame, "base_link"
+        odom.pose.pose.position.x, odom.pose.pose.position.y = x, y
+        odom.pose.pose.orientation.z, odom.pose.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+        odom.twist.twist.linear.x, odom.twist.twist.angular.z = v, w
+        return odom
+
+    def tick(self, t: float) -> None:
+        """/clock at t (never backwards)."""
+        with self._clock_lock:
+            if t > self.clock_now:
+                self.clock_now = t
+                self.clock_pub.publish(self.Clock(self._stamp(t)))
+
+    def publish_state(self, t: float, obs: tuple, ranges) -> None:
+        """The clock at t, then the robot's transform, odometry, true pose and (last) scan."""
+        _, x, y, yaw, v, w, wx, wy, wyaw, _ = obs
+        self.tick(t)
+        self.tf_pub.publish(self.TFMessage([self._transform("odom", "base_link", t, x, y, 0.0, yaw)]))
+        odom = self._odometry(t, "odom", x, y, yaw, v, w)
+        self.odom_pub.publish(odom)
+        self.wheel_odom_pub.publish(odom)  # the controller's odometry, which some stacks read
+        self.truth_pub.publish(self._odometry(t, "world", wx, wy, wyaw, v, w))
+        a = self.args
+        scan = self.LaserScan()
+        scan.header.stamp, scan.header.frame_id = self._stamp(t), "front_laser"
+        scan.angle_min, scan.angle_max = a.angle_min, a.angle_max
+        scan.angle_increment = (a.angle_max - a.angle_min) / max(len(ranges) - 1, 1)
+        scan.range_min, scan.range_max = a.range_min, a.range_max
+        scan.ranges = ranges
+        self.scan_pub.publish(scan)
+
+    # -- boot -------------------------------------------------------------------------------
+    def boot(self, obs: tuple, ranges, goal: tuple[float, float, float]) -> tuple[float, bool, str]:
+        """Publish the spawn on a running clock until the stack is ready (or the timeout):
+        (t0, ready, what was missing)."""
+        a = self.args
+        msg = self.PoseStamped()
+        msg.header.frame_id = "odom"
+        msg.pose.position.x, msg.pose.position.y = goal[0], goal[1]
+        msg.pose.orientation.z, msg.pose.orientation.w = math.sin(goal[2] / 2), math.cos(goal[2] / 2)
+        stop = threading.Event()
+        every = max(1, round(a.period / a.clock_step))
+
+        def run() -> None:  # real time from one clock step on: the stack's timers and tf waits run
+            k, wall0 = 0, time.monotonic()
+            while not stop.is_set():
+                k += 1
+                t = k * a.clock_step
+                if k % every == 0:
+                    self.publish_state(t, obs, ranges)
+                else:
+                    self.tick(t)
+                time.sleep(max(0.0, wall0 + t - time.monotonic()))
+
+        thread = threading.Thread(target=run, daemon=True)
+        thread.start()
+        with self.answer:
+            seen = self.count
+        self.goal_pub.publish(msg)
+        deadline = time.monotonic() + a.ready_timeout
+        ready = False
+        while time.monotonic() < deadline and not ready:
+            time.sleep(0.02)
+            subscribed = self.scan_pub.get_num_connections() > 0
+            if subscribed and self.action_client is None:
+                self._offer_action_goal(msg)
+            with self.answer:
+                commanded = self.count > seen
+            ready = subscribed if a.ready == "subscribed" else commanded
+        stop.set()
+        thread.join()
+        missing = ""
+        if not ready:
+            if self.scan_pub.get_num_connections() == 0:
+                missing = "nothing subscribed to the scan"
+            else:
+                missing = "a node subscribed to the scan, but no /cmd_vel came"
+                if self.action_client is None:
+                    missing += " (and no move_base action server took the goal)"
+        # The episode starts at the next whole control period after the boot's clock.
+        t0 = (math.floor(self.clock_now / a.period + 1e-9) + 1) * a.period
+        return t0, ready, missing
+
+    def _offer_action_goal(self, goal) -> None:
+        """The goal through the `move_base` action too, as the challenge's run.py gives it,
+        once a stack offers that action server."""
+        if "/move_base/status" not in dict(self.rospy.get_published_topics()):
+            return
+        import actionlib
+        from move_base_msgs.msg import MoveBaseAction, MoveBaseGoal
+
+        client = actionlib.SimpleActionClient("move_base", MoveBaseAction)
+        ac = client.action_client
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:
+            if ac.pub_goal.get_num_connections() > 0 and ac.status_sub.get_num_connections() > 0:
+                client.send_goal(MoveBaseGoal(target_pose=goal))
+                self.action_client = client  # keep it (and its connections) alive
+                return
+            time.sleep(0.05)
+
+    # -- control periods --------------------------------------------------------------------
+    def period(self, t: float, obs: tuple, ranges) -> tuple[float, float, int]:
+        """One control period from stamp t: (v, w, answered)."""
+        a = self.args
+        self._stop_ticks.set()
+        if self._ticker is not None:
+            self._ticker.join()
+        with self.answer:
+            seen = self.count
+        self.publish_state(t, obs, ranges)
+        ticks = [t + k * a.clock_step for k in range(1, max(1, round(a.period / a.clock_step)))]
+        if a.paced:  # the ticks at the simulation's pace, while it runs the period
+            self._stop_ticks = threading.Event()
+            self._ticker = threading.Thread(target=self._paced_ticks, args=(ticks, self._stop_ticks), daemon=True)
+            self._ticker.start()
+            with self.answer:
+                return (*self.cmd, 1)
+        for tick in ticks:
+            self.tick(tick)
+        with self.answer:
+            answered = self.answer.wait_for(lambda: self.count > seen, timeout=a.grace)
+            return (*self.cmd, 1 if answered else 0)
+
+    def _paced_ticks(self, ticks: list[float], stop: threading.Event) -> None:
+        wall0 = time.monotonic()
+        for k, tick in enumerate(ticks, start=1):
+            if stop.wait(max(0.0, wall0 + k * self.args.clock_step / self.args.rate - time.monotonic())):
+                return
+            self.tick(tick)
+
+
+def main(argv: list[str]) -> int:
+    import rospy
+
+    args = _arguments(rospy.myargv(argv)[1:])
+    rospy.set_param("/use_sim_time", True)
+    rospy.init_node("dynabarn_bridge", disable_signals=True)
+    node = Node(args)
     inp, out = sys.stdin.buffer, sys.stdout.buffer
+    t0 = 0.0
     while True:
         frame = read_frame(inp)
         if frame is None:
             break
         kind, body = frame
-        if kind == b"G":
-            x, y, yaw = struct.unpack("<3d", body)
-            goal = PoseStamped()
-            goal.header.frame_id = "odom"
-            goal.pose.position.x, goal.pose.position.y = x, y
-            goal.pose.orientation.z, goal.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
-            goal_pub.publish(goal)
-            # Ready once a stack listens to the scan and publishes commands (or on timeout).
-            deadline = time.monotonic() + args.ready_timeout
-            while time.monotonic() < deadline and not (
-                scan_pub.get_num_connections() > 0 and odom_pub.get_num_connections() > 0
-            ):
-                time.sleep(0.02)
-            ready = scan_pub.get_num_connections() > 0
-            time.sleep(0.2)  # let the stack's own subscriptions and its /cmd_vel publisher connect
-            send_action_goal(goal)
-            write_frame(out, b"R", COMMAND.pack(0.0, 0.0, 1 if ready else 0))
-        elif kind == b"O":
-            t, x, y, yaw, v, w, n = OBSERVATION.unpack_from(body)
-            ranges = struct.unpack_from(f"<{int(n)}f", body, OBSERVATION.size)
-            stamp = stamp_of(t)
-            clock.publish(Clock(stamp))
-            tf_pub.publish(TFMessage([transform("odom", "base_link", t, x, y, 0.0, yaw)]))
-            odom = Odometry()
-            odom.header.stamp, odom.header.frame_id, odom.child_frame_id = stamp, "odom", "base_link"
-            odom.pose.pose.position.x, odom.pose.pose.position.y = x, y
-            odom.pose.pose.orientation.z, odom.pose.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
-            odom.twist.twist.linear.x, odom.twist.twist.angular.z = v, w
-            odom_pub.publish(odom)
-            wheel_odom_pub.publish(odom)  # the controller's odometry, which some stacks read
-            truth_pub.publish(odom)
-            scan = LaserScan()
-            scan.header.stamp, scan.header.frame_id = stamp, "front_laser"
-            scan.angle_min, scan.angle_max = args.angle_min, args.angle_max
-            scan.angle_increment = (args.angle_max - args.angle_min) / max(int(n) - 1, 1)
-            scan.range_min, scan.range_max = args.range_min, args.range_max
-            scan.ranges = ranges
-            with answer:
-                seen = state["count"]
-                scan_pub.publish(scan)  # last: a stack that acts on the scan has the odometry
-                answered = True
-                if not args.paced:
-                    answered = answer.wait_for(lambda seen=seen: state["count"] > seen, timeout=args.timeout)
-                cmd_v, cmd_w = state["cmd"]
-            write_frame(out, b"C", COMMAND.pack(cmd_v, cmd_w, 1 if answered else 0))
+        if kind in (b"B", b"O"):
+            obs = OBSERVATION.unpack_from(body)
+            ranges = struct.unpack_from(f"<{int(obs[-1])}f", body, OBSERVATION.size)
+            if kind == b"B":
+                goal = GOAL.unpack_from(body, OBSERVATION.size + 4 * len(ranges))
+                t0, ready, missing = node.boot(obs, ranges, goal)
+                write_frame(out, b"R", READY.pack(t0, 1 if ready else 0) + missing.encode())
+            else:
+                write_frame(out, b"C", COMMAND.pack(*node.period(t0 + obs[0], obs, ranges)))
         elif kind == b"E":
-            collision_pub.publish(Bool(body.decode() == "collision"))
+            node._stop_ticks.set()
+            node.collision_pub.publish(node.Bool(body.decode() == "collision"))
             time.sleep(0.1)
     rospy.signal_shutdown("simulation ended")
     return 0

@@ -1,0 +1,53 @@
+"""Navigation stacks `dynabarn-ros --stack NAME` starts: ROS 1's move_base, built from
+source by `make ros-nav` (`nav_build`), with the launch and parameter files of
+`dynabarn/ros/launch/` (each value with its source in the BARN Challenge's branches)."""
+
+from __future__ import annotations
+
+import shlex
+from dataclasses import dataclass
+from pathlib import Path
+
+from dynabarn.errors import DynabarnError
+from dynabarn.ros.nav_build import built, default_workspace
+
+LAUNCH = Path(__file__).resolve().parent / "launch"
+
+
+@dataclass(frozen=True)
+class Stack:
+    launch: str
+    """The launch file in `dynabarn/ros/launch/`."""
+    args: tuple[tuple[str, str], ...] = ()
+    """roslaunch arguments; `{launch}` in a value is the launch folder."""
+    about: str = ""
+
+
+STACKS = {
+    "move_base_dwa": Stack(
+        "move_base_dwa.launch",
+        about="move_base, navfn and base_local_planner's DWA as the DynaBARN authors configured them "
+        "(the BARN Challenge's dyna_barn branch)",
+    ),
+    "move_base_dwa_barn": Stack(
+        "move_base_dwa.launch",
+        (("overrides", "{launch}/barn_main/overrides.yaml"),),
+        about="the same with the BARN Challenge main branch's values (0.5 m/s, a 40 m global costmap)",
+    ),
+}
+
+
+def stack_command(name: str, workspace: Path | None = None) -> list[str]:
+    """The command that starts stack `name` from the built workspace (one clear error when
+    the stack is unknown or move_base is not built)."""
+    if name not in STACKS:
+        raise DynabarnError(f"unknown stack {name!r}: use one of {', '.join(STACKS)}")
+    workspace = (workspace or default_workspace()).expanduser()
+    if built(workspace) is None:
+        raise DynabarnError(f"move_base is not built in {workspace}: run `make ros-nav` (about 6 minutes on 2 cores)")
+    stack = STACKS[name]
+    args = " ".join(f"{k}:={shlex.quote(v.format(launch=LAUNCH))}" for k, v in stack.args)
+    # The workspace's environment (ROS_PACKAGE_PATH, libraries) for roslaunch and move_base.
+    setup = shlex.quote(str(workspace / "devel" / "setup.bash"))
+    line = f"source {setup} && exec roslaunch {shlex.quote(str(LAUNCH / stack.launch))} {args}".rstrip()
+    return ["bash", "-c", line]
