@@ -57,7 +57,7 @@ system-deps:
 # built for Debian's /usr/bin/python3, which the bridge's ROS side runs on (root only).
 ROS_PACKAGES := ros-core python3-rospy python3-sensor-msgs python3-nav-msgs python3-geometry-msgs \
 	python3-tf2-msgs python3-move-base-msgs python3-actionlib python3-rosbag python3-std-msgs \
-	python3-rosgraph-msgs python3-visualization-msgs
+	python3-rosgraph-msgs python3-visualization-msgs python3-tf2-ros
 ros-deps:
 	@if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
 	  need=""; for p in $(ROS_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || need="$$need $$p"; done; \

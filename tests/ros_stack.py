@@ -8,7 +8,11 @@ the goal and away from close returns in front; deterministic for the same messag
 scan is paired with the odometry of the same stamp, whatever order they arrive in).
 
 Flags: --die-after N (exit after N scans: a stack that crashes), --mute (never answer),
---delay S (think S seconds per scan: a slow stack).
+--mute-after N (answer N scans, then never again), --delay S (think S seconds per scan: a
+slow stack), --like-move-base (start and run as move_base does: wait through tf2 for
+odom -> base_link before subscribing to the scan, then publish only from a 20 Hz timer on
+ROS time, from the latest scan and odometry, skipping `--plan-cycles` cycles after the
+goal and three of every 40 after that, as while its global planner runs).
 """
 
 from __future__ import annotations
@@ -33,6 +37,9 @@ def main() -> int:
     parser.add_argument("--mute", action="store_true")
     parser.add_argument("--delay", type=float, default=0.0, help="seconds of thinking per scan (a slow stack)")
     parser.add_argument("--goal-from", choices=["topic", "action"], default="topic")
+    parser.add_argument("--mute-after", type=int, default=0)
+    parser.add_argument("--like-move-base", action="store_true")
+    parser.add_argument("--plan-cycles", type=int, default=4)
     args = parser.parse_args(rospy.myargv(sys.argv)[1:])
     rospy.init_node("test_stack")
     cmd_pub = rospy.Publisher("/cmd_vel", Twist, queue_size=10, tcp_nodelay=True)
@@ -46,7 +53,7 @@ def main() -> int:
         state["n"] += 1
         if args.die_after and state["n"] > args.die_after:
             os._exit(3)  # a crash: no clean shutdown
-        if args.mute:
+        if args.mute or (args.mute_after and state["n"] > args.mute_after):
             return
         if args.delay:
             time.sleep(args.delay)
@@ -91,11 +98,42 @@ def main() -> int:
     server = actionlib.SimpleActionServer("move_base", MoveBaseAction, execute_cb=on_action, auto_start=False)
     server.start()  # first, as move_base does: the bridge looks for it once the scan is heard
     rospy.Subscriber("/move_base_simple/goal", PoseStamped, on_goal, queue_size=1)
-    rospy.Subscriber("/odometry/filtered", Odometry, on_odom, queue_size=50, tcp_nodelay=True)
-    rospy.Subscriber("/front/scan", LaserScan, on_scan, queue_size=50, tcp_nodelay=True)
-
+    if args.like_move_base:
+        _run_like_move_base(args, state, decide)
+    else:
+        rospy.Subscriber("/odometry/filtered", Odometry, on_odom, queue_size=50, tcp_nodelay=True)
+        rospy.Subscriber("/front/scan", LaserScan, on_scan, queue_size=50, tcp_nodelay=True)
     rospy.spin()
     return 0
+
+
+def _run_like_move_base(args, state: dict, decide) -> None:
+    """move_base's start-up and loop: Costmap2DROS waits (on ROS time) for odom -> base_link
+    before it subscribes to the scan; the controller runs from a timer on ROS time."""
+    import rospy
+    import tf2_ros
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import LaserScan
+
+    buffer = tf2_ros.Buffer()
+    tf2_ros.TransformListener(buffer)
+    while not buffer.can_transform("odom", "base_link", rospy.Time(0), rospy.Duration(0.1)):
+        pass  # blocks for as long as /clock is absent or frozen, as tf2's waits do in move_base
+    latest: dict = {}
+    rospy.Subscriber("/odometry/filtered", Odometry, lambda m: latest.__setitem__("odom", m), queue_size=1)
+    rospy.Subscriber("/front/scan", LaserScan, lambda m: latest.__setitem__("scan", m), queue_size=1)
+    cycles = {"n": 0}
+
+    def control(_event) -> None:
+        if state["goal"] is None or "scan" not in latest or "odom" not in latest:
+            return
+        cycles["n"] += 1
+        n = cycles["n"]
+        if n <= args.plan_cycles or n % 40 in (1, 2, 3):  # planning: nothing on /cmd_vel
+            return
+        decide(latest["scan"], latest["odom"])
+
+    rospy.Timer(rospy.Duration(0.05), control)
 
 
 if __name__ == "__main__":
