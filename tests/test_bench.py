@@ -234,7 +234,7 @@ def test_presets_run_as_their_own_rows(tmp_path, capsys):
     rows = {r["planner"]: r for r in bench.read_results(out / "results.jsonl")}
     assert set(rows) == {"dwa", "dwa@dwa_dynabarn_authors"}
     authors = rows["dwa@dwa_dynabarn_authors"]["planner_config"]
-    assert authors["max_vel_x"] == 0.5 and authors["costmap"]["resolution"] == 0.05
+    assert authors["max_vel_x"] == 2.0 and authors["vx_samples"] == 12 and authors["costmap"]["resolution"] == 0.05
     assert rows["dwa"]["planner_config"]["max_vel_x"] == 2.0
     summary = {
         (s["planner"], s["difficulty"]): s for s in bench.summarise(list(rows.values()), bench.paper_worlds(out))

@@ -131,7 +131,9 @@ def test_authors_presets_carry_a_source_for_every_parameter():
     assert planner.cfg.costmap.resolution == 0.05 and planner.cfg.costmap.size == 10.0
     authors = read_planner_config("dwa_dynabarn_authors")
     barn = read_planner_config("dwa_barn_challenge")
-    assert authors == barn | {"costmap.size": 10.0, "costmap.resolution": 0.05}
+    dyna_barn = {"max_vel_x": 2.0, "max_vel_theta": 3.14, "vx_samples": 12, "vth_samples": 40}  # the branch's
+    assert authors == barn | dyna_barn | {"costmap.size": 10.0, "costmap.resolution": 0.05}
+    assert barn["max_vel_x"] == 0.5 and barn["vx_samples"] == 6  # the main branch's stay under their own name
     assert get_planner("dwa", **authors).cfg.costmap.resolution == 0.05
 
 

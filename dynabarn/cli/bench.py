@@ -18,6 +18,7 @@ from dynabarn.cli.common import (
     run_command,
 )
 from dynabarn.errors import DynabarnError
+from dynabarn.ros.stacks import STACKS
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -61,6 +62,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="COMMAND",
         help="with --planner ros: the command that starts the ROS stack for each episode (each worker runs "
         "its own roscore)",
+    )
+    parser.add_argument(
+        "--ros-stack",
+        default=None,
+        choices=sorted(STACKS),
+        help="with --planner ros: a stack of ours instead of --ros-launch (move_base from `make ros-nav`)",
     )
     parser.add_argument("--set", default="paper60", help="world set: paper60, dynabarn300, or a folder with index.json")
     parser.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
@@ -159,6 +166,8 @@ def _bench(args: argparse.Namespace) -> int:
         config["policy"] = str(args.policy.resolve())
     if args.ros_launch is not None:
         config["launch"] = args.ros_launch
+    if args.ros_stack is not None:
+        config["stack"] = args.ros_stack
     specs = [planner_spec(p) for p in dict.fromkeys(p.strip() for p in args.planner.split(",") if p.strip())]
     if not specs:
         raise DynabarnError(f"--planner {args.planner!r}: name at least one planner, e.g. dwa or dwa,teb")

@@ -4,6 +4,7 @@ the BARN Challenge's topics; judged and recorded like `dynabarn-run`."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections.abc import Sequence
@@ -153,7 +154,11 @@ def _ros_episode(args: argparse.Namespace) -> int:
     sim = Simulation(resolve_world(args.world))
     protocol = get_protocol(args.protocol)
     ros_python()  # one clear line when ROS is missing, before a master is started
-    launch = stack_command(args.stack, args.nav_workspace) if args.stack else args.launch
+    if args.nav_workspace is not None:  # where the stacks find move_base (this process and the bridge's)
+        os.environ[WORKSPACE_ENV] = str(args.nav_workspace.expanduser().resolve())
+    if args.stack:
+        stack_command(args.stack)  # one clear line when move_base is not built
+    launch = args.launch or args.stack
     log_path = (
         None
         if args.no_log
@@ -176,7 +181,8 @@ def _ros_episode(args: argparse.Namespace) -> int:
         ready_timeout=args.ready_timeout,
         clock_step=args.clock_step,
         remaps=list(args.remap),
-        launch=launch,
+        launch=args.launch,
+        stack=args.stack,
         stack_log=str(stack_log) if stack_log else None,
     )
     master = RosMaster.start(args.master)

@@ -177,6 +177,8 @@ class BridgeConfig:
     launch: str | list[str] | None = None
     """Command that starts the stack (run once the master is up; stopped at the end): a shell
     line, or its words."""
+    stack: str | None = None
+    """A stack of ours instead of `launch` (`dynabarn.ros.stacks`: move_base from `make ros-nav`)."""
     stack_log: str | None = None
     """File for the stack's output (default: this process's stderr; never its stdout)."""
 
@@ -216,6 +218,7 @@ class RosPlanner(Planner):
             "ready": c.ready,
             "clock_step": c.clock_step,
             "launch": c.launch,
+            "stack": c.stack,
             "remaps": list(c.remaps),
         }
 
@@ -240,12 +243,17 @@ class RosPlanner(Planner):
             start_new_session=True,
             preexec_fn=die_with_parent(),
         )
-        if c.launch:
+        launch = c.launch
+        if c.stack:
+            from dynabarn.ros.stacks import stack_command
+
+            launch = stack_command(c.stack)
+        if launch:
             # The stack's output never reaches our stdout (a --json document is printed there).
             log = open(c.stack_log, "ab") if c.stack_log else sys.stderr  # noqa: SIM115 (the stack writes while it runs)
             try:
                 self.stack = subprocess.Popen(
-                    shlex.split(c.launch) if isinstance(c.launch, str) else list(c.launch),
+                    shlex.split(launch) if isinstance(launch, str) else list(launch),
                     env=env,
                     stdin=subprocess.DEVNULL,
                     stdout=log,

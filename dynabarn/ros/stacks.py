@@ -32,7 +32,8 @@ STACKS = {
     "move_base_dwa_barn": Stack(
         "move_base_dwa.launch",
         (("overrides", "{launch}/barn_main/overrides.yaml"),),
-        about="the same with the BARN Challenge main branch's values (0.5 m/s, a 40 m global costmap)",
+        about="the same with the BARN Challenge main branch's planner values (0.5 m/s, 6 x 20 samples; the "
+        "dyna_barn global costmap, since main's puts the goal off it)",
     ),
 }
 
