@@ -292,22 +292,30 @@ def variant_worlds(tmp: Path) -> list[tuple[str, Path]]:
     return out
 
 
-def ros_lockstep(world_id: int = 137) -> tuple[float, float, float] | None:
-    """dynabarn-ros in lockstep with the tests' rospy stack: (x real time, bridge ms per
-    control period, stack round trip ms); None without Debian's ROS packages."""
+def ros_lockstep(world_id: int = 137, stack: str | None = None) -> tuple[float, float, float] | None:
+    """dynabarn-ros in lockstep with the tests' rospy stack (or `stack`, one of ours: real
+    move_base): (x real time after the boot, bridge ms per control period, round trip ms);
+    None without Debian's ROS packages (or without the built move_base)."""
     from dynabarn.planners import get_planner
     from dynabarn.protocol import get_protocol
     from dynabarn.ros.bridge import bridge_overhead
+    from dynabarn.ros.nav_build import built, default_workspace
     from dynabarn.sim import run_episode
     from dynabarn.worldset import resolve_world
 
-    stack = Path(__file__).resolve().parent.parent / "tests" / "ros_stack.py"
+    test_stack = Path(__file__).resolve().parent.parent / "tests" / "ros_stack.py"
+    if stack is not None and built(default_workspace()) is None:
+        return None
     try:
-        planner = get_planner("ros", launch=f"/usr/bin/python3 {stack}")
+        planner = (
+            get_planner("ros", stack=stack) if stack else get_planner("ros", launch=f"/usr/bin/python3 {test_stack}")
+        )
     except Exception:
         return None
     result = run_episode(resolve_world(world_id), planner, get_protocol("barn"), planner_name="ros")
-    # After the first period (the stack's start-up): simulated over wall time, in lockstep.
+    if planner.steady_since is None:
+        return None
+    # From the first control period after the boot: simulated over wall time, in lockstep.
     steady = (result.sim_time - planner.steady_sim_time) / (time.perf_counter() - planner.steady_since)
     return steady, bridge_overhead(planner), float(np.median(planner.round_trip_ms))
 
@@ -379,10 +387,12 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'  --quality high: MuJoCo defaults, the renderer before issue 19':<66}{high[0]:>6.1f} /{high[1]:>5.1f}")
     conv, length = min(replay_conversion() for _ in range(args.repeat))
     print(f"{f'convert a {length:.0f} s recording to .rrd [s]':<66}{conv:>12.2f}{conv / length:>9.3f}")
-    ros = ros_lockstep()
-    if ros is not None:
+    for stack, name in ((None, "rospy test stack"), ("move_base_dwa", "real move_base (make ros-nav)")):
+        ros = ros_lockstep(stack=stack)
+        if ros is None:
+            continue
         rtf, bridge_ms, round_trip_ms = ros
-        print(f"{'dynabarn-ros lockstep, world 137, rospy test stack (x real time)':<66}{rtf:>12.1f}")
+        print(f"{f'dynabarn-ros lockstep, world 137, {name} (x real time)':<66}{rtf:>12.1f}")
         label = "  bridge overhead / full round trip per control period [ms]"
         print(f"{label:<66}{bridge_ms:>6.2f} /{round_trip_ms:>5.2f}")
     return 0

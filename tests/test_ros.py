@@ -166,19 +166,18 @@ def test_rostopic_hz_sees_the_scan_at_10_hz_of_sim_time():
         master.close()
     # rostopic hz prints, per report, the mean of the last window-1 intervals between
     # receptions, each read off /clock. Scans are stamped at whole 0.1 s ticks and the
-    # clock moves on in 5 ms steps after each: a reception reads the scan's tick or the
-    # clock step either side, so an interval is a whole number of ticks give or take one
-    # step, and the rate of n intervals lies in 10 n / (n +- 2). Wall-clock intervals (30
-    # ms of stack plus the bridge) would be neither whole ticks nor near 10 Hz.
+    # clock moves on in 5 ms steps after each: a reception reads the scan's tick or a
+    # later step of its period (later under load, when rostopic handles clock messages
+    # before the scan), so the first and last readings of a window are each off by less
+    # than a tick and the rate of n intervals lies in 10 n / (n +- 2). Wall-clock intervals
+    # (30 ms of stack plus the bridge, about 40 ms) would give about 25 Hz.
     reports = re.findall(r"average rate: ([0-9.]+)\s+min: ([0-9.]+)s max: ([0-9.]+)s .*?window: (\d+)", out)
     assert reports, out
     for rate, shortest, longest, window in reports:
         n = int(window) - 1
         assert n >= 3, out
         assert 10.0 * n / (n + 2) - 1e-3 <= float(rate) <= 10.0 * n / (n - 2) + 1e-3, (rate, window)
-        for interval in (float(shortest), float(longest)):
-            assert abs(interval - 0.1 * round(interval / 0.1)) <= 0.005 + 1e-3, (shortest, longest)  # whole ticks
-        assert float(longest) <= 0.3 + 0.005 + 1e-3, longest
+        assert float(longest) <= 0.3 + 0.1, longest  # a scan every period, however late it is read
 
 
 def test_missing_ros_is_one_line(tmp_path):

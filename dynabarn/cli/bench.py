@@ -21,6 +21,7 @@ from dynabarn.errors import DynabarnError
 from dynabarn.ros.stacks import STACKS
 
 
+# Over 80 lines on purpose: one parser, every option with its help, in the order --help shows.
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-bench`'s parser (its `--help`, and the documentation's page of the command)."""
     parser = make_parser(

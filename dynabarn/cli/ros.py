@@ -129,7 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FROM:=TO",
         help="rename a bridge topic, e.g. /front/scan:=/scan (repeatable)",
     )
-    add_recording(parser, planner="ros", extra_keys=("bridge_ms_per_tick",))
+    add_recording(parser, planner="ros", extra_keys=("bridge_ms_per_tick", "held_periods", "stack_log"))
     return parser
 
 
