@@ -173,7 +173,7 @@ def test_rostopic_hz_sees_the_scan_at_10_hz_of_sim_time():
     # (30 ms of stack plus the bridge, about 40 ms) would give about 25 Hz.
     reports = re.findall(r"average rate: ([0-9.]+)\s+min: ([0-9.]+)s max: ([0-9.]+)s .*?window: (\d+)", out)
     assert reports, out
-    for rate, shortest, longest, window in reports:
+    for rate, _shortest, longest, window in reports:
         n = int(window) - 1
         assert n >= 3, out
         assert 10.0 * n / (n + 2) - 1e-3 <= float(rate) <= 10.0 * n / (n - 2) + 1e-3, (rate, window)

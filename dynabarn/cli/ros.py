@@ -37,6 +37,41 @@ def build_parser() -> argparse.ArgumentParser:
     add_world(parser)
     add_protocol(parser)
     add_trial_seed(parser)
+    _add_stack(parser)
+    parser.add_argument(
+        "--master",
+        default=None,
+        metavar="URI",
+        help="use this ROS master (default: start a master of our own on a free port, listening on 127.0.0.1 only)",
+    )
+    clock = parser.add_mutually_exclusive_group()
+    clock.add_argument(
+        "--lockstep",
+        action="store_true",
+        default=True,
+        help="run each control period at once, then wait for the stack's /cmd_vel (see --grace): as fast as the stack, "
+        "and the same episode every time for a stack that answers each scan (default)",
+    )
+    clock.add_argument(
+        "--rate",
+        type=ranged(float, 0.01, 100.0),
+        default=None,
+        help="instead run paced at RATE x real time, as Gazebo runs, with the latest /cmd_vel",
+    )
+    _add_timing(parser)
+    parser.add_argument(
+        "--remap",
+        action="append",
+        default=[],
+        metavar="FROM:=TO",
+        help="rename a bridge topic, e.g. /front/scan:=/scan (repeatable)",
+    )
+    add_recording(parser, planner="ros", extra_keys=("bridge_ms_per_tick", "held_periods", "stack_log"))
+    return parser
+
+
+def _add_stack(parser: argparse.ArgumentParser) -> None:
+    """Which stack runs and where its output goes."""
     stack = parser.add_mutually_exclusive_group()
     stack.add_argument(
         "--launch",
@@ -69,25 +104,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="where the stack's output goes (default: beside the recording as NAME.stack.log, or "
         "~/.ros/log/dynabarn-ros-TIME.log with --no-log); never this command's stdout",
     )
-    parser.add_argument(
-        "--master",
-        default=None,
-        metavar="URI",
-        help="use this ROS master (default: start a master of our own on a free port, listening on 127.0.0.1 only)",
-    )
-    clock = parser.add_mutually_exclusive_group()
-    clock.add_argument(
-        "--lockstep",
-        action="store_true",
-        default=True,
-        help="wait for the stack's /cmd_vel every control period: deterministic, as fast as the stack (default)",
-    )
-    clock.add_argument(
-        "--rate",
-        type=ranged(float, 0.01, 100.0),
-        default=None,
-        help="instead run paced at RATE x real time, as Gazebo runs, with the latest /cmd_vel",
-    )
+
+
+def _add_timing(parser: argparse.ArgumentParser) -> None:
+    """The boot, the clock and the lockstep's waits."""
     parser.add_argument(
         "--timeout",
         type=ranged(float, 0.1, 600.0),
@@ -122,15 +142,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="simulated seconds between /clock messages, so a stack's timers fire at their rates (default: 0.005, "
         "the physics step)",
     )
-    parser.add_argument(
-        "--remap",
-        action="append",
-        default=[],
-        metavar="FROM:=TO",
-        help="rename a bridge topic, e.g. /front/scan:=/scan (repeatable)",
-    )
-    add_recording(parser, planner="ros", extra_keys=("bridge_ms_per_tick", "held_periods", "stack_log"))
-    return parser
 
 
 def ros_main(argv: Sequence[str] | None = None) -> int:
