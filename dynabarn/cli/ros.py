@@ -136,6 +136,16 @@ def _add_timing(parser: argparse.ArgumentParser) -> None:
         "happened (default: 30)",
     )
     parser.add_argument(
+        "--stack-rate",
+        type=ranged(float, 0.0, 1000.0),
+        default=0.0,
+        metavar="HZ",
+        help="the rate of the stack's control loop when it runs from a timer on ROS time (move_base: its "
+        "controller_frequency): in lockstep the clock stands still at each tick where that timer fires until the "
+        "loop's /cmd_vel comes, so the loop runs at its rate; 0: the stack answers each scan (default: 0; "
+        "--stack knows its own)",
+    )
+    parser.add_argument(
         "--clock-step",
         type=ranged(float, 0.0001, 0.1),
         default=0.005,
@@ -191,6 +201,7 @@ def _ros_episode(args: argparse.Namespace) -> int:
         ready=args.ready,
         ready_timeout=args.ready_timeout,
         clock_step=args.clock_step,
+        stack_rate=args.stack_rate,
         remaps=list(args.remap),
         launch=args.launch,
         stack=args.stack,

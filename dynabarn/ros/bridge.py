@@ -170,6 +170,9 @@ class BridgeConfig:
     """When the boot ends: `command` (a /cmd_vel after the goal) or `subscribed` (the scan)."""
     ready_timeout: float = 30.0
     """Wall seconds the boot may take before the episode ends as an error naming what is missing."""
+    stack_rate: float = 0.0
+    """[Hz] of the stack's control loop when it runs from a timer (move_base:
+    controller_frequency); 0: the stack answers each scan. Our stacks know theirs."""
     clock_step: float = 0.005
     """[s] of simulated time between /clock messages (the physics step: timers fire on time)."""
     remaps: list[str] = field(default_factory=list)
@@ -217,6 +220,7 @@ class RosPlanner(Planner):
             "grace": c.grace,
             "ready": c.ready,
             "clock_step": c.clock_step,
+            "stack_rate": c.stack_rate,
             "launch": c.launch,
             "stack": c.stack,
             "remaps": list(c.remaps),
@@ -234,6 +238,13 @@ class RosPlanner(Planner):
         cmd += ["--laser-x", repr(float(info.laser_offset[0])), "--laser-z", repr(JACKAL.laser_z)]
         if not c.lockstep:
             cmd.append("--paced")
+        launch, rate = c.launch, c.stack_rate
+        if c.stack:
+            from dynabarn.ros.stacks import STACKS, stack_command
+
+            launch = stack_command(c.stack)
+            rate = rate or STACKS[c.stack].control_rate
+        cmd += ["--stack-rate", repr(float(rate))]
         self.node = subprocess.Popen(
             cmd,
             env=env,
@@ -243,11 +254,6 @@ class RosPlanner(Planner):
             start_new_session=True,
             preexec_fn=die_with_parent(),
         )
-        launch = c.launch
-        if c.stack:
-            from dynabarn.ros.stacks import stack_command
-
-            launch = stack_command(c.stack)
         if launch:
             # The stack's output never reaches our stdout (a --json document is printed there).
             log = open(c.stack_log, "ab") if c.stack_log else sys.stderr  # noqa: SIM115 (the stack writes while it runs)

@@ -26,7 +26,11 @@ through the period in `--clock-step`s, so a stack's timers on ROS time fire at t
 rates. Lockstep (default): at once, then the answer is the first /cmd_vel (or
 /jackal_velocity_controller/cmd_vel) published after the scan, waited for up to `--grace`
 wall seconds; without one the last command holds for the period (answered 0), and after
-`--timeout` wall seconds without any command the simulation ends the episode. Paced
+`--timeout` wall seconds without any command the simulation ends the episode. With
+`--stack-rate HZ` (a stack whose loop runs from a timer, as move_base's controller does),
+the clock stands still at each tick where that timer fires until the loop's command
+comes, so the loop runs at its rate in simulated time; the period's answer is the last
+of them. Paced
 (`--paced`): the ticks are spread over the period at the simulation's rate and the answer
 is the latest command at once. Every name can be remapped with `name:=other` arguments.
 """
@@ -45,6 +49,8 @@ OBSERVATION = struct.Struct("<10d")
 GOAL = struct.Struct("<3d")
 COMMAND = struct.Struct("<ddB")
 READY = struct.Struct("<dB")
+PROBE = 0.1
+"""Wall seconds each tick is held while a timer-driven stack's phase is still unknown."""
 
 
 def read_frame(stream) -> tuple[bytes, bytes] | None:
@@ -70,6 +76,7 @@ def _arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--ready", choices=["subscribed", "command"], default="command")
     parser.add_argument("--ready-timeout", type=float, default=30.0)
     parser.add_argument("--clock-step", type=float, default=0.005)
+    parser.add_argument("--stack-rate", type=float, default=0.0)
     parser.add_argument("--period", type=float, default=0.1)
     parser.add_argument("--angle-min", type=float, required=True)
     parser.add_argument("--angle-max", type=float, required=True)
@@ -107,6 +114,11 @@ class Node:
         self.answer = threading.Condition()
         self.cmd, self.count = (0.0, 0.0), 0
         self.clock_now = 0.0
+        self.heard_at: float | None = None
+        """The clock when the last command came (while the clock stood still: the tick that
+        fired the stack's timer)."""
+        self.firing: float | None = None
+        """A tick at which the stack's timer fired (its phase), when `--stack-rate` is known."""
         self._clock_lock = threading.Lock()
         self._ticker: threading.Thread | None = None
         self._stop_ticks = threading.Event()
@@ -122,6 +134,7 @@ class Node:
         with self.answer:
             self.cmd = (float(msg.linear.x), float(msg.angular.z))
             self.count += 1
+            self.heard_at = self.clock_now
             self.answer.notify_all()
 
     # -- messages ---------------------------------------------------------------------------
@@ -258,11 +271,38 @@ class Node:
             self._ticker.start()
             with self.answer:
                 return (*self.cmd, 1)
-        for tick in ticks:
+        if a.stack_rate <= 0:  # a stack that answers the scan: the period's ticks, then its answer
+            for tick in ticks:
+                self.tick(tick)
+            with self.answer:
+                answered = self.answer.wait_for(lambda: self.count > seen, timeout=a.grace)
+                return (*self.cmd, 1 if answered else 0)
+        return self._timed_period(t, ticks, seen)
+
+    def _timed_period(self, t: float, ticks: list[float], seen: int) -> tuple[float, float, int]:
+        """A stack whose loop runs from a timer at `--stack-rate`: the clock stands still at
+        each tick where the timer fires until the loop's /cmd_vel comes (or the grace ends),
+        so the loop computes in no simulated time and runs at its rate, as in Gazebo. The
+        timer's phase is found once: tick by tick, each held until a command comes or
+        `PROBE` wall seconds pass."""
+        a = self.args
+        every = 1.0 / a.stack_rate
+        answered = False
+        for tick in [t, *ticks]:
             self.tick(tick)
+            if self.firing is None:
+                wait = PROBE
+            elif abs((tick - self.firing) / every - round((tick - self.firing) / every)) * every < a.clock_step / 2:
+                wait = a.grace
+            else:
+                continue
+            with self.answer:
+                before = self.count
+                if self.answer.wait_for(lambda before=before: self.count > before, timeout=wait):
+                    answered = True
+                    self.firing = self.heard_at  # the clock stood at this tick
         with self.answer:
-            answered = self.answer.wait_for(lambda: self.count > seen, timeout=a.grace)
-            return (*self.cmd, 1 if answered else 0)
+            return (*self.cmd, 1 if answered or self.count > seen else 0)
 
     def _paced_ticks(self, ticks: list[float], stop: threading.Event) -> None:
         wall0 = time.monotonic()

@@ -21,6 +21,8 @@ class Stack:
     args: tuple[tuple[str, str], ...] = ()
     """roslaunch arguments; `{launch}` in a value is the launch folder."""
     about: str = ""
+    control_rate: float = 20.0
+    """[Hz] move_base's controller_frequency (dyna_barn/move_base.yaml): its loop's timer."""
 
 
 STACKS = {
