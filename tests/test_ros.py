@@ -106,6 +106,12 @@ def test_a_stack_that_starts_and_runs_like_move_base_in_lockstep_and_paced(tmp_p
     result = json.loads(proc.stdout)
     assert result["outcome"] == "success" and result["held_periods"] >= 1  # its planning cycles skip periods
     assert result["stack_log"] == str(log) and log.is_file()
+    # Told its loop's rate, lockstep holds the clock at each tick its timer fires on until
+    # the loop answers: the loop runs at 20 Hz of simulated time, two commands a period.
+    timed = _ros("--world", "0", "--launch", stack, "--no-log", "--json", "--stack-rate", "20")
+    assert timed.returncode == 0, timed.stderr
+    timed_result = json.loads(timed.stdout)
+    assert timed_result["outcome"] == "success" and timed_result["planner_config"]["stack_rate"] == 20.0
     paced = _ros("--world", "0", "--launch", stack, "--no-log", "--json", "--rate", "4")
     assert paced.returncode == 0, paced.stderr
     assert json.loads(paced.stdout)["outcome"] == "success"
