@@ -3,7 +3,7 @@ committed results folder.
 
 `python benchmarks/readme_results.py` (`make readme`) rewrites every block between
 `<!-- results:NAME -->` and `<!-- /results:NAME -->` of the pages in `PAGES` (README.md,
-docs/results.md, docs/tutorials/training.md) from `results/` and redraws the figures in
+docs/results.md, docs/tutorials/training.md and ros.md) from `results/` and redraws the figures in
 `docs/assets/`; `--check` only compares and exits 1 when a page is not what the results
 say (a test runs it). The results come from `dynabarn-bench` sweeps
 (docs/results.md gives the commands); nothing here runs an episode.
@@ -12,6 +12,7 @@ results/
   paper60_barn/    the paper's 60 generated worlds (ids 0-19, 100-109, 150-159, 200-219)
   original60_barn/ the release's 60 worlds, imported with `dynabarn-worlds import`
   unseen_barn/     the 240 generated worlds the learned policies never trained on
+  move_base_*/     real move_base beside our DWA with its configuration (ros_tables.py)
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from dynabarn.bench.summary import FLOOR, plot_fig5
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from learning_tables import dagger_training, generalisation_table
+from ros_tables import MOVE_BASE_SETS, move_base_table
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS_DIR = ROOT / "results"
@@ -98,7 +100,7 @@ def load(folder: str) -> tuple[list[dict], list[dict]]:
 def load_all() -> tuple[dict, dict]:
     """(folders, summaries): every results folder the pages use as (rows, summary), and the
     summaries of the paper's two world sets and the unseen worlds."""
-    folders = {folder: load(folder) for folder in (*SETS, *OTHER_SETS)}
+    folders = {folder: load(folder) for folder in (*SETS, *OTHER_SETS, *MOVE_BASE_SETS)}
     return folders, {folder: s for folder, (_, s) in folders.items() if folder in SETS}
 
 
@@ -299,6 +301,7 @@ BLOCKS = {
     "td3-training": lambda f, s: td3_training(),
     "generalisation": lambda f, s: generalisation_table(s),
     "dagger-training": lambda f, s: dagger_training(),
+    "move-base": lambda f, s: move_base_table(f),
 }
 
 
@@ -306,6 +309,7 @@ PAGES = {
     README: ("headline", "ladder", "generalisation"),
     DOCS / "results.md": ("fig5", "skill", "floor", "ladder", "tracking", "other-worlds", "generalisation"),
     DOCS / "tutorials" / "training.md": ("td3-training", "dagger-training"),
+    DOCS / "tutorials" / "ros.md": ("move-base",),
 }
 """Each page and the blocks it must hold (every block of BLOCKS is on some page)."""
 
