@@ -349,3 +349,39 @@ def test_real_move_base_starts_and_drives_in_lockstep():
     result = json.loads(proc.stdout)
     assert result["outcome"] in ("success", "collision", "timeout"), result["reason"]
     assert result["n_ticks"] >= 20 and result["path_length"] >= 3.0, result
+
+
+def test_a_stack_of_ours_without_move_base_built_is_one_line(tmp_path):
+    env = {**os.environ, "DYNABARN_NAV_WS": str(tmp_path / "no_workspace")}
+    proc = subprocess.run(
+        [sys.executable, "-m", "dynabarn", "ros", "--world", "0", "--stack", "move_base_dwa", "--no-log"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "move_base is not built" in proc.stderr and "make ros-nav" in proc.stderr
+
+
+def test_nav_build_takes_a_local_checkout_and_leaves_out_what_a_run_does_not_use(tmp_path):
+    """The sources step of `make ros-nav` with NAV_SRC: copied (the checkout untouched),
+    amcl, map_server, fake_localization and the metapackage ignored by catkin; a folder
+    that is not the navigation stack is refused in one line."""
+    from dynabarn.errors import DynabarnError
+    from dynabarn.ros.nav_build import LEFT_OUT, _sources
+
+    source = tmp_path / "navigation"
+    for package in ("move_base", "costmap_2d", *LEFT_OUT):
+        (source / package).mkdir(parents=True)
+        (source / package / "package.xml").write_text(f"<package><name>{package}</name></package>")
+    workspace = tmp_path / "ws"
+    with (tmp_path / "log").open("w") as log:
+        assert _sources(workspace, source, log) == "local"  # not a git checkout
+        with pytest.raises(DynabarnError, match="not a ros-planning/navigation checkout"):
+            _sources(workspace, tmp_path / "ws", log)
+    copied = workspace / "src" / "navigation"
+    assert (copied / "move_base" / "package.xml").is_file()
+    assert all((copied / name / "CATKIN_IGNORE").is_file() for name in LEFT_OUT)
+    assert not (copied / "costmap_2d" / "CATKIN_IGNORE").exists()
+    assert not any((source / name / "CATKIN_IGNORE").exists() for name in LEFT_OUT)

@@ -108,12 +108,12 @@ def _run(cmd: list[str], log, *, cwd: Path | None = None, env: dict | None = Non
 def _sources(workspace: Path, source: Path | None, log) -> str:
     """The navigation tree in workspace/src/navigation; its commit (or 'local')."""
     dest = workspace / "src" / "navigation"
+    if source is not None and not (source / "move_base" / "package.xml").is_file():
+        raise DynabarnError(f"{source}: not a ros-planning/navigation checkout (no move_base/package.xml)")
     if dest.exists():
         shutil.rmtree(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
     if source is not None:
-        if not (source / "move_base" / "package.xml").is_file():
-            raise DynabarnError(f"{source}: not a ros-planning/navigation checkout (no move_base/package.xml)")
         shutil.copytree(source, dest, ignore=shutil.ignore_patterns(".git"))
         head = subprocess.run(["git", "-C", str(source), "rev-parse", "HEAD"], capture_output=True, text=True)
         commit = head.stdout.strip() if head.returncode == 0 else "local"
