@@ -105,6 +105,9 @@ def test_wheel_carries_worlds_robot_and_policies(installed):
         "dynabarn/policies/bc.pt",
         "dynabarn/policies/td3.pt",
         "dynabarn/planners/presets/dwa_barn_challenge.json",
+        "dynabarn/ros/launch/move_base_dwa.launch",
+        "dynabarn/ros/launch/dyna_barn/trajectory_planner.yaml",
+        "dynabarn/ros/launch/barn_main/overrides.yaml",
         "dynabarn/__main__.py",
     ):
         assert needed in names, needed
