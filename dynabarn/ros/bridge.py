@@ -17,15 +17,10 @@ import functools
 import math
 import os
 import shlex
-import shutil
-import signal
-import socket
 import struct
 import subprocess
 import sys
 import time
-import uuid
-import xmlrpc.client
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,6 +31,7 @@ from dynabarn.planners.base import EpisodeInfo, Observation, Planner
 from dynabarn.processes import die_with_parent
 from dynabarn.robot import JACKAL
 from dynabarn.ros import READY_WHEN
+from dynabarn.ros.master import RosMaster, stop_process
 
 NODE = Path(__file__).resolve().parent / "node.py"
 ROS_PYTHON_ENV = "DYNABARN_ROS_PYTHON"
@@ -66,91 +62,6 @@ def _checked_ros_python(exe: str) -> str:
             f"or set {ROS_PYTHON_ENV} to a Python that has rospy"
         )
     return exe
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _master_up(uri: str) -> bool:
-    try:
-        code, _, _ = xmlrpc.client.ServerProxy(uri).getSystemState("/dynabarn")
-        return code == 1
-    except (OSError, xmlrpc.client.Error):
-        return False
-
-
-@dataclass
-class RosMaster:
-    """A ROS master: one given by URI, or a `rosmaster` of our own on a free port (stopped
-    with `close`), so parallel bridges never share one."""
-
-    uri: str
-    process: subprocess.Popen | None = None
-
-    @classmethod
-    def start(cls, uri: str | None = None, *, timeout: float = 30.0) -> RosMaster:
-        if uri:
-            if not _master_up(uri):
-                raise DynabarnError(f"no ROS master answers at {uri}")
-            return cls(uri)
-        # The master alone, not `roscore`: roscore adds rosout, a roscpp node whose servers
-        # listen on every interface whatever ROS_HOSTNAME says; rosmaster (rospy) listens on
-        # loopback under ROS_HOSTNAME=127.0.0.1, and nothing of ours needs rosout.
-        rosmaster = shutil.which("rosmaster")
-        if rosmaster is None:
-            raise DynabarnError("rosmaster is not installed: install Debian's ROS 1 packages (`sudo make ros-deps`)")
-        port = _free_port()
-        uri = f"http://127.0.0.1:{port}/"
-        env = {**os.environ, "ROS_MASTER_URI": uri, "ROS_HOSTNAME": "127.0.0.1"}
-        env.pop("ROS_IP", None)  # it would take precedence over ROS_HOSTNAME
-        process = subprocess.Popen(
-            [rosmaster, "--core", "-p", str(port)],
-            env=env,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            start_new_session=True,
-            preexec_fn=die_with_parent(),
-        )
-        master = cls(uri, process)
-        deadline = time.monotonic() + timeout
-        while not _master_up(uri):
-            if process.poll() is not None or time.monotonic() > deadline:
-                master.close()
-                raise DynabarnError(f"rosmaster did not start on port {port}")
-            time.sleep(0.1)
-        # Before any node starts: every node (the stack's, rostopic) then runs on /clock;
-        # /run_id as roscore sets it (roslaunch and the nodes' log folders read it).
-        master_api = xmlrpc.client.ServerProxy(uri)
-        master_api.setParam("/dynabarn", "/use_sim_time", True)
-        master_api.setParam("/dynabarn", "/run_id", str(uuid.uuid4()))
-        return master
-
-    def env(self) -> dict[str, str]:
-        return {**os.environ, "ROS_MASTER_URI": self.uri, "ROS_HOSTNAME": "127.0.0.1"}
-
-    def close(self) -> None:
-        if self.process is not None:
-            _stop(self.process)
-            self.process = None
-
-
-def _stop(process: subprocess.Popen, timeout: float = 10.0) -> None:
-    """SIGINT (as roslaunch expects), then SIGTERM, then SIGKILL, to the process group."""
-    if process.poll() is not None:
-        return
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
-        try:
-            os.killpg(process.pid, sig)
-        except (ProcessLookupError, PermissionError):
-            return
-        try:
-            process.wait(timeout=timeout if sig != signal.SIGKILL else None)
-            return
-        except subprocess.TimeoutExpired:
-            continue
 
 
 @dataclass
@@ -367,7 +278,7 @@ class RosPlanner(Planner):
                 pass
         for process in (self.stack, self.node):
             if process is not None:
-                _stop(process, timeout=5.0)
+                stop_process(process, timeout=5.0)
         self.stack = self.node = None
 
 
