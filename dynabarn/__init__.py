@@ -19,21 +19,24 @@ from typing import TYPE_CHECKING
 
 _WHERE = {
     "DynabarnError": "dynabarn.errors",
-    "EpisodeInfo": "dynabarn.planners",
+    "EpisodeInfo": "dynabarn.interfaces",
+    "EpisodeObserver": "dynabarn.interfaces",
+    "EpisodeStart": "dynabarn.interfaces",
     "EpisodeResult": "dynabarn.metrics",
     "EvalProtocol": "dynabarn.protocol",
     "Layout": "dynabarn.worlds.spec",
     "McapRecorder": "dynabarn.recording",
     "MotionProfile": "dynabarn.worlds.profiles",
     "ObstacleTracker": "dynabarn.perception",
-    "Observation": "dynabarn.planners",
+    "Observation": "dynabarn.interfaces",
     "Obstacle": "dynabarn.worlds.spec",
-    "ObstacleState": "dynabarn.planners",
+    "ObstacleBehavior": "dynabarn.sim.behaviors",
+    "ObstacleState": "dynabarn.interfaces",
     "Outcome": "dynabarn.metrics",
     "PAPER60": "dynabarn.worlds.generate",
     "PROFILE_SETS": "dynabarn.worlds.profiles",
     "PROTOCOLS": "dynabarn.protocol",
-    "Planner": "dynabarn.planners",
+    "Planner": "dynabarn.interfaces",
     "ProfileError": "dynabarn.errors",
     "ProfileSet": "dynabarn.worlds.profiles",
     "Recording": "dynabarn.recording",
@@ -42,6 +45,8 @@ _WHERE = {
     "SchedulePlayer": "dynabarn.worlds.schedule",
     "ShapeMix": "dynabarn.worlds.profiles",
     "SimConfig": "dynabarn.sim",
+    "Tick": "dynabarn.interfaces",
+    "Topic": "dynabarn.recording.topics",
     "Simulation": "dynabarn.sim",
     "StaticField": "dynabarn.worlds.profiles",
     "TrackerConfig": "dynabarn.perception",
@@ -73,13 +78,16 @@ __all__ = [
     "STATIC_FIELDS",
     "DynabarnError",
     "EpisodeInfo",
+    "EpisodeObserver",
     "EpisodeResult",
+    "EpisodeStart",
     "EvalProtocol",
     "Layout",
     "McapRecorder",
     "MotionProfile",
     "Observation",
     "Obstacle",
+    "ObstacleBehavior",
     "ObstacleState",
     "ObstacleTracker",
     "Outcome",
@@ -92,6 +100,8 @@ __all__ = [
     "SimConfig",
     "Simulation",
     "StaticField",
+    "Tick",
+    "Topic",
     "TrackerConfig",
     "Tracks",
     "Trajectory",
@@ -133,21 +143,24 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eagerly
     from dynabarn.errors import DynabarnError, ProfileError, WorldError
-    from dynabarn.metrics import EpisodeResult, Outcome
-    from dynabarn.mjcf import load_model, read_world, write_world
-    from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
-    from dynabarn.planners import (
+    from dynabarn.interfaces import (
         EpisodeInfo,
+        EpisodeObserver,
+        EpisodeStart,
         Observation,
         ObstacleState,
         Planner,
-        available_planners,
-        get_planner,
-        register_planner,
+        Tick,
     )
+    from dynabarn.metrics import EpisodeResult, Outcome
+    from dynabarn.mjcf import load_model, read_world, write_world
+    from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
+    from dynabarn.planners import available_planners, get_planner, register_planner
     from dynabarn.protocol import PROTOCOLS, EvalProtocol, get_protocol, register_protocol
     from dynabarn.recording import McapRecorder, Recording, read_recording
+    from dynabarn.recording.topics import Topic
     from dynabarn.sim import SimConfig, Simulation, run_episode
+    from dynabarn.sim.behaviors import ObstacleBehavior
     from dynabarn.worlds.generate import PAPER60, generate_world
     from dynabarn.worlds.profiles import (
         PROFILE_SETS,

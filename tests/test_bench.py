@@ -6,8 +6,8 @@ import pytest
 
 from dynabarn import bench, worldset
 from dynabarn.cli import bench_main
+from dynabarn.interfaces.planner import Planner
 from dynabarn.planners import get_planner, register_planner
-from dynabarn.planners.base import Planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_FIELDS
 from dynabarn.sim import run_episode

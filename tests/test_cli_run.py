@@ -7,8 +7,8 @@ import sys
 import pytest
 
 from dynabarn.cli import run_main
+from dynabarn.interfaces.planner import Planner
 from dynabarn.planners import register_planner
-from dynabarn.planners.base import Planner
 from dynabarn.recording import read_recording
 
 REQUIRED_KEYS = {

@@ -16,6 +16,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "dynabarn"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors", "determinism", "files", "processes", "provenance", "robot", "protocol", "metrics"),  # foundations
+    ("interfaces",),  # what planners and observers are written against: no MuJoCo, no simulator
     ("worlds",),
     ("mjcf",),
     ("worldset",),
@@ -61,6 +62,10 @@ def _imports_in(text: str, this: str) -> set[str]:
     """Every dynabarn module that the source imports (`from dynabarn.x import y` counts as
     x.y when x/y is a module, else x)."""
     tree = ast.parse(text)
+    # Imports under `if TYPE_CHECKING:` are annotations, never run: not an edge.
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
+            node.body = []
     out: set[str] = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from dynabarn.errors import EndEpisode
+from dynabarn.interfaces.planner import Planner
 from dynabarn.perception import DetectorConfig, ObstacleDetector, ObstacleTracker, TrackerConfig
 from dynabarn.planners import get_planner
-from dynabarn.planners.base import Planner
 from dynabarn.protocol import get_protocol
 from dynabarn.provenance import SHIPPED_WORLDS
 from dynabarn.robot import JACKAL

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from dynabarn.errors import DynabarnError
+from dynabarn.interfaces.planner import Planner
 from dynabarn.metrics import Outcome
 from dynabarn.planners import get_planner
-from dynabarn.planners.base import Planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_FIELDS
 from dynabarn.sim import SimConfig, run_episode

@@ -95,6 +95,7 @@ import numpy as np
 from gymnasium import spaces
 
 from dynabarn.errors import DynabarnError
+from dynabarn.interfaces.observation import Observation
 from dynabarn.learn.split import DEFAULT_PROFILE_SETS, ProceduralWorlds, reserved_fingerprints
 from dynabarn.metrics import Outcome
 from dynabarn.planners.global_planner import GlobalPlanner
@@ -104,7 +105,6 @@ from dynabarn.provenance import has_display
 from dynabarn.render import CAMERAS, NO_GL_PLATFORM, offscreen_renderer, place_camera
 from dynabarn.robot import JACKAL
 from dynabarn.sim import Episode, SimConfig, Simulation
-from dynabarn.sim.observation import Observation
 from dynabarn.worlds.profiles import Difficulty
 from dynabarn.worldset import world_set as resolve_world_set
 

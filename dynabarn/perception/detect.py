@@ -28,8 +28,8 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import sincos
+from dynabarn.interfaces.observation import EpisodeInfo
 from dynabarn.perception.map_distance import BOUNDS, MapDistance
-from dynabarn.sim.observation import EpisodeInfo
 
 
 @dataclass

@@ -33,9 +33,9 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from dynabarn.determinism import STATE_RESOLUTION, snap_array
+from dynabarn.interfaces.observation import EpisodeInfo
 from dynabarn.perception.detect import Detections, DetectorConfig, ObstacleDetector
 from dynabarn.perception.tracks import Tracks
-from dynabarn.sim.observation import EpisodeInfo
 
 _NO_MATCH = 1e6
 

@@ -24,8 +24,8 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
+from dynabarn.interfaces.planner import EpisodeInfo, Observation, ObstacleState, Planner, config_from_kwargs
 from dynabarn.perception.map_distance import MapDistance, grid_indices
-from dynabarn.planners.base import EpisodeInfo, Observation, ObstacleState, Planner, config_from_kwargs
 from dynabarn.planners.global_planner import GlobalPlanner
 
 

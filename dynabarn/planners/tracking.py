@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from dynabarn.interfaces.planner import Observation, config_from_kwargs, nested_config
 from dynabarn.perception import DetectorConfig, ObstacleTracker, TrackerConfig, Tracks
-from dynabarn.planners.base import Observation, config_from_kwargs, nested_config
 
 
 def with_tracker(kwargs: dict, what: str) -> dict:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dynabarn.determinism import snap_array
+from dynabarn.interfaces.events import Tick
 from dynabarn.recording.schemas import (
     DEBUG_SCHEMA,
     METADATA_SCHEMA,
@@ -26,7 +27,6 @@ from dynabarn.recording.schemas import (
     obj,
     result_schema,
 )
-from dynabarn.sim.events import Tick
 
 DEBUG_RESOLUTION = 1e-4
 """[m] Planner debug geometry is recorded on this grid: DWA's and the oracle's rollouts use

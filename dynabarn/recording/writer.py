@@ -24,6 +24,7 @@ from foxglove.mcap import MCAPWriteOptions
 from foxglove.messages import FrameTransforms, LaserScan, PoseInFrame, SceneUpdate
 
 from dynabarn.files import fsync_folder
+from dynabarn.interfaces.events import EpisodeStart, Tick
 from dynabarn.metrics import EpisodeResult
 from dynabarn.provenance import portable_path
 from dynabarn.recording import scene, wire
@@ -45,7 +46,6 @@ from dynabarn.recording.topics import (
     Topic,
 )
 from dynabarn.robot import JACKAL
-from dynabarn.sim.events import EpisodeStart, Tick
 
 CHUNK_SIZE = 64 * 1024
 SPACE_RESERVE = 4 * 1024 * 1024

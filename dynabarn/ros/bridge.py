@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.errors import DynabarnError
-from dynabarn.planners.base import EpisodeInfo, Observation, Planner
+from dynabarn.interfaces.planner import EpisodeInfo, Observation, Planner
 from dynabarn.processes import die_with_parent
 from dynabarn.robot import JACKAL
 from dynabarn.ros import READY_WHEN
@@ -292,7 +292,7 @@ def ros_planner(*, launch: str | None = None, master: str | None = None, **confi
     started per episode by `launch` and stopped when the episode ends."""
     import atexit
 
-    from dynabarn.planners.base import config_from_kwargs
+    from dynabarn.interfaces.planner import config_from_kwargs
 
     global _worker_master
     cfg = config_from_kwargs(BridgeConfig, {"launch": launch, **config}, "ros")

@@ -14,6 +14,8 @@ from dynabarn.determinism import (
     snap,
 )
 from dynabarn.errors import DynabarnError
+from dynabarn.interfaces.events import Tick
+from dynabarn.interfaces.observation import Observation, ObstacleState
 from dynabarn.metrics import (
     Outcome,
     footprint_clearance_at,
@@ -22,8 +24,6 @@ from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL, mounted_pose, to_robot_frame
 from dynabarn.sim.behaviors import ReactiveObstacles
 from dynabarn.sim.config import MAX_CLOCK_OFFSET
-from dynabarn.sim.events import Tick
-from dynabarn.sim.observation import Observation, ObstacleState
 from dynabarn.sim.simulation import Simulation
 from dynabarn.sim.track_scoring import MIN_BEAMS, TrackScorer, beams_per_obstacle
 from dynabarn.worlds.schedule import SchedulePlayer

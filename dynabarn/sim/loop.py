@@ -24,6 +24,8 @@ from pathlib import Path
 from typing import Protocol
 
 from dynabarn.errors import EndEpisode
+from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart
+from dynabarn.interfaces.observation import EpisodeInfo, Observation
 from dynabarn.metrics import (
     EpisodeResult,
     Outcome,
@@ -32,8 +34,6 @@ from dynabarn.protocol import EvalProtocol
 from dynabarn.provenance import versions
 from dynabarn.sim.config import SimConfig
 from dynabarn.sim.episode import Episode
-from dynabarn.sim.events import EpisodeObserver, EpisodeStart
-from dynabarn.sim.observation import EpisodeInfo, Observation
 from dynabarn.sim.result import episode_result
 from dynabarn.sim.simulation import Simulation
 

@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 
+from dynabarn.interfaces.events import EpisodeStart
 from dynabarn.metrics import (
     EpisodeResult,
     Outcome,
@@ -20,7 +21,6 @@ from dynabarn.metrics import (
 from dynabarn.protocol import EvalProtocol
 from dynabarn.provenance import machine, portable_path
 from dynabarn.sim.episode import Episode
-from dynabarn.sim.events import EpisodeStart
 from dynabarn.worlds.spec import WorldSpec
 
 

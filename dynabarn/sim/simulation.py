@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 
 from dynabarn.errors import DynabarnError
+from dynabarn.interfaces.observation import EpisodeInfo
 from dynabarn.metrics import (
     footprint_clearance,
     shape_clearance,
@@ -21,7 +22,6 @@ from dynabarn.robot import JACKAL, JackalParams
 from dynabarn.sim.behaviors import check_behaviors
 from dynabarn.sim.config import SimConfig
 from dynabarn.sim.laser import Laser
-from dynabarn.sim.observation import EpisodeInfo
 from dynabarn.worlds.fingerprint import world_fingerprint
 
 CLEARANCE_CHUNK = 1000

@@ -15,7 +15,7 @@ from dataclasses import fields
 from typing import ClassVar
 
 from dynabarn.errors import EndEpisode
-from dynabarn.sim.observation import EpisodeInfo, Observation, ObstacleState
+from dynabarn.interfaces.observation import EpisodeInfo, Observation, ObstacleState
 
 __all__ = [
     "EndEpisode",

@@ -1,0 +1,78 @@
+"""What observers of an episode receive: `EpisodeStart`, every `Tick`, robot poses, the result.
+
+The MCAP recorder is one observer; the loop knows nothing of recording. The world, its
+protocol and the simulation's configuration appear here as types only: an observer
+written against this module loads neither MuJoCo nor the simulator."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from dynabarn.interfaces.observation import EpisodeInfo
+
+if TYPE_CHECKING:  # annotations only (what the simulator passes in)
+    from dynabarn.metrics import EpisodeResult
+    from dynabarn.protocol import EvalProtocol
+    from dynabarn.sim.config import SimConfig
+    from dynabarn.worlds.spec import WorldSpec
+
+
+@dataclass(frozen=True, slots=True)
+class EpisodeStart:
+    """What observers learn when an episode starts."""
+
+    world: WorldSpec
+    world_path: Path
+    world_sha256: str
+    protocol: EvalProtocol
+    planner: str
+    planner_config: dict
+    seed: int
+    clock_offset: float
+    config: SimConfig
+    info: EpisodeInfo
+    versions: dict
+    world_xml: bytes = b""
+    """The world file's bytes (what `world_sha256` hashes), attached to recordings."""
+
+
+@dataclass(slots=True)
+class Tick:
+    """One control tick, as observers see it. Arrays are fresh (observers may keep them)."""
+
+    time: float
+    scan: np.ndarray  # (n_beams,)
+    laser_pose: np.ndarray  # (3,) x, y, yaw of the laser in the world
+    pose: np.ndarray  # (3,)
+    velocity: np.ndarray  # (2,) measured v, w
+    command: np.ndarray  # (2,) limited v, w sent to the robot
+    raw_command: np.ndarray  # (2,) what the planner returned
+    obstacles: np.ndarray  # (n_obstacles, 2)
+    clearance: float
+    distance_to_goal: float
+    planner_ms: float
+    debug: dict = field(default_factory=dict)
+    tracks: object | None = None  # the planner's `Tracks` (dynabarn.perception), if it tracks obstacles
+
+
+class EpisodeObserver:
+    """Receives an episode as it happens; override the hooks you need (each does nothing
+    here). The loop calls `on_start`, then per control tick `on_tick` and `on_poses` (the
+    robot's poses at the pose rate since the last tick), then `on_end` with the result.
+    Raising `dynabarn.errors.EndEpisode` from `on_tick` ends the episode."""
+
+    def on_start(self, start: EpisodeStart) -> None:
+        """The episode starts (world, protocol, planner, seed, versions)."""
+
+    def on_tick(self, tick: Tick) -> None:
+        """One control tick: the scan, the command, the obstacles."""
+
+    def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
+        """Robot poses (n, 3) at `times` (n,) since the last call."""
+
+    def on_end(self, result: EpisodeResult) -> None:
+        """The episode's result."""
