@@ -43,7 +43,6 @@ def test_an_observer_overrides_only_what_it_needs(tmp_path):
             self.ticks += 1
 
     counter = CountTicks()
-    result = dynabarn.run_episode(
-        dynabarn.resolve_world(137), dynabarn.get_planner("straight"), dynabarn.get_protocol("barn"), observers=[counter]
-    )
+    world, planner = dynabarn.resolve_world(137), dynabarn.get_planner("straight")
+    result = dynabarn.run_episode(world, planner, dynabarn.get_protocol("barn"), observers=[counter])
     assert counter.ticks == result.n_ticks > 0
