@@ -119,6 +119,9 @@ class RosPlanner(Planner):
         """Observation out to command back, per control period (the boot and pacing not counted) [ms]."""
         self.held = 0
         """Lockstep periods the stack let pass without a /cmd_vel (the last command held)."""
+        self.waited_ms = 0.0
+        """Wall time of the last `act` spent on the boot or the pacing (the loop leaves it out
+        of the planner's time)."""
         self.steady_since: float | None = None
         self.steady_sim_time = 0.0
         """perf_counter and simulated time of the first control period after the boot."""
@@ -202,6 +205,7 @@ class RosPlanner(Planner):
         return _OBSERVATION.pack(obs.time, x, y, yaw, v, w, wx, wy, wyaw, len(ranges)) + ranges.tobytes()
 
     def act(self, obs: Observation) -> tuple[float, float]:
+        start = time.perf_counter()
         if self._origin is None:  # the first tick: odom starts here; boot until the stack is ready
             self._boot(obs)
         if not self.cfg.lockstep:  # paced: as Gazebo runs, rate x real time
@@ -209,6 +213,7 @@ class RosPlanner(Planner):
             if wait > 0:
                 time.sleep(wait)
         t0 = time.perf_counter()
+        self.waited_ms = (t0 - start) * 1e3  # the boot and the pacing: not the stack's planning time
         self._send(b"O", self._observation(obs))
         sent = time.perf_counter()
         body = self._receive(b"C", self.cfg.grace + 30)

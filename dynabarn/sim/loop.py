@@ -106,7 +106,10 @@ def run_episode(
             except Exception as exc:  # the planner is foreign code: report, don't crash
                 episode.end(Outcome.ERROR, f"planner raised {type(exc).__name__}: {exc}")
                 break
-            episode.planner_ms[episode.n_ticks] = (time.perf_counter() - c0) * 1e3
+            # Less what the planner spent waiting on purpose (a ROS stack's start-up, pacing
+            # to the wall clock): planning time, not waiting time.
+            waited = getattr(planner, "waited_ms", 0.0)
+            episode.planner_ms[episode.n_ticks] = (time.perf_counter() - c0) * 1e3 - waited
             tracks = episode.score_tracks(tracks_of()) if tracks_of is not None else None
             first = episode.step
             if episode.apply(raw_v, raw_w) is Outcome.ERROR:
