@@ -106,10 +106,7 @@ def run_episode(
             except Exception as exc:  # the planner is foreign code: report, don't crash
                 episode.end(Outcome.ERROR, f"planner raised {type(exc).__name__}: {exc}")
                 break
-            # Less what the planner spent waiting on purpose (a ROS stack's start-up, pacing
-            # to the wall clock): planning time, not waiting time.
-            waited = getattr(planner, "waited_ms", 0.0)
-            episode.planner_ms[episode.n_ticks] = (time.perf_counter() - c0) * 1e3 - waited
+            episode.planner_ms[episode.n_ticks] = _planning_ms(planner, c0)
             tracks = episode.score_tracks(tracks_of()) if tracks_of is not None else None
             first = episode.step
             if episode.apply(raw_v, raw_w) is Outcome.ERROR:
@@ -138,6 +135,12 @@ def run_episode(
     for obs_ in observers:
         obs_.on_end(result)
     return result
+
+
+def _planning_ms(planner, since: float) -> float:
+    """Milliseconds since `since`, less what the planner waited on purpose (a ROS stack's
+    start-up, pacing to the wall clock: `waited_ms`): planning time, not waiting time."""
+    return (time.perf_counter() - since) * 1e3 - getattr(planner, "waited_ms", 0.0)
 
 
 def _finish(planner, outcome: str) -> None:
