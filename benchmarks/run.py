@@ -102,7 +102,7 @@ def planner_compute(planner: str, worlds: tuple[int, ...] = (0, 15, 105, 155, 20
 def tracker_cost(world_id: int = HARD_WORLD, n_scans: int = 300) -> tuple[float, float, int]:
     """(mean, p95 [ms], obstacles) of `ObstacleTracker.update` on the scans of a robot
     driving blind through a hard world (the scans gathered first, then tracked alone)."""
-    from dynabarn.interfaces.planner import Planner
+    from dynabarn.interfaces import Planner
     from dynabarn.perception import ObstacleTracker, TrackerConfig
 
     scans: list = []

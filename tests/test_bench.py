@@ -6,7 +6,7 @@ import pytest
 
 from dynabarn import bench, worldset
 from dynabarn.cli import bench_main
-from dynabarn.interfaces.planner import Planner
+from dynabarn.interfaces import Planner
 from dynabarn.planners import get_planner, register_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_FIELDS

@@ -7,7 +7,7 @@ import sys
 import pytest
 
 from dynabarn.cli import run_main
-from dynabarn.interfaces.planner import Planner
+from dynabarn.interfaces import Planner
 from dynabarn.planners import register_planner
 from dynabarn.recording import read_recording
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from dynabarn.errors import EndEpisode
-from dynabarn.interfaces.planner import Planner
+from dynabarn.interfaces import Planner
 from dynabarn.perception import DetectorConfig, ObstacleDetector, ObstacleTracker, TrackerConfig
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol

@@ -10,7 +10,7 @@ import pytest
 from mcap.reader import make_reader
 
 from dynabarn.errors import DynabarnError
-from dynabarn.interfaces.planner import Planner
+from dynabarn.interfaces import Planner
 from dynabarn.metrics import Outcome
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
@@ -162,7 +162,7 @@ def test_killed_process_keeps_what_it_wrote(tmp_path):
         f"""
         import time
         from dynabarn.worldset import resolve_world
-        from dynabarn.interfaces.planner import Planner
+        from dynabarn.interfaces import Planner
         from dynabarn.protocol import get_protocol
         from dynabarn.recording import McapRecorder
         from dynabarn.sim import run_episode

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dynabarn.errors import DynabarnError
-from dynabarn.interfaces.planner import Planner
+from dynabarn.interfaces import Planner
 from dynabarn.metrics import Outcome
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol

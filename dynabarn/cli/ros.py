@@ -4,7 +4,6 @@ the BARN Challenge's topics; judged and recorded like `dynabarn-run`."""
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from collections.abc import Sequence
@@ -175,10 +174,9 @@ def _ros_episode(args: argparse.Namespace) -> int:
     sim = Simulation(resolve_world(args.world))
     protocol = get_protocol(args.protocol)
     ros_python()  # one clear line when ROS is missing, before a master is started
-    if args.nav_workspace is not None:  # where the stacks find move_base (this process and the bridge's)
-        os.environ[WORKSPACE_ENV] = str(args.nav_workspace.expanduser().resolve())
+    workspace = args.nav_workspace.expanduser().resolve() if args.nav_workspace else None
     if args.stack:
-        stack_command(args.stack)  # one clear line when move_base is not built
+        stack_command(args.stack, workspace)  # one clear line when move_base is not built
     launch = args.launch or args.stack
     log_path = (
         None
@@ -205,6 +203,7 @@ def _ros_episode(args: argparse.Namespace) -> int:
         remaps=list(args.remap),
         launch=args.launch,
         stack=args.stack,
+        nav_workspace=str(workspace) if workspace else None,
         stack_log=str(stack_log) if stack_log else None,
     )
     master = RosMaster.start(args.master)

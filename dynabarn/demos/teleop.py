@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dynabarn.interfaces.planner import EndEpisode, EpisodeInfo, Observation, Planner
+from dynabarn.interfaces import EndEpisode, EpisodeInfo, Observation, Planner
 from dynabarn.recording import McapRecorder, Topic
 from dynabarn.recording.schemas import number, obj
 

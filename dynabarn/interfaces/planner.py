@@ -14,18 +14,9 @@ import typing
 from dataclasses import fields
 from typing import ClassVar
 
-from dynabarn.errors import EndEpisode
-from dynabarn.interfaces.observation import EpisodeInfo, Observation, ObstacleState
+from dynabarn.interfaces.observation import EpisodeInfo, Observation
 
-__all__ = [
-    "EndEpisode",
-    "EpisodeInfo",
-    "Observation",
-    "ObstacleState",
-    "Planner",
-    "config_from_kwargs",
-    "nested_config",
-]
+__all__ = ["Planner", "config_from_kwargs", "nested_config"]
 
 
 def config_from_kwargs(cls, kwargs: dict, what: str):

@@ -116,7 +116,8 @@ class WorldBatch:
         at once, where the world allows it; by `mj_multiRay` otherwise."""
         sims = [self.envs[i].episode.sim for i in running]
         out = np.empty((len(sims), sims[0].laser.n))
-        batched = [k for k, s in enumerate(sims) if supports(s)]
+        closed_form = [supports(s) for s in sims]
+        batched = [k for k, ok in enumerate(closed_form) if ok]
         if batched:
             bsims = [sims[k] for k in batched]
             if self._caster_sims != bsims:
@@ -125,9 +126,9 @@ class WorldBatch:
             yaws = np.array([s.data.qpos[2] for s in bsims])
             centres = np.concatenate([self.envs[running[k]].episode.obstacle_centres for k in batched])
             out[batched] = self._caster.cast(origins, yaws, centres)
-        for k in sorted(set(range(len(sims))) - set(batched)):
-            s = sims[k]
-            out[k] = s.laser.cast(s.model, s.data, float(s.data.qpos[2]))
+        for k, s in enumerate(sims):
+            if not closed_form[k]:
+                out[k] = s.laser.cast(s.model, s.data, float(s.data.qpos[2]))
         return out
 
     def close(self) -> None:

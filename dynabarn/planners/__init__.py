@@ -5,7 +5,7 @@ baselines (learned/). A new planner: a `Planner` subclass plus one registry line
 point (docs/tutorials/planner.md)."""
 
 from dynabarn.errors import EndEpisode
-from dynabarn.interfaces.planner import EpisodeInfo, Observation, ObstacleState, Planner
+from dynabarn.interfaces import EpisodeInfo, Observation, ObstacleState, Planner
 from dynabarn.planners.registry import (
     available_planners,
     get_planner,

@@ -55,7 +55,7 @@ class CostmapConfig:
 def with_costmap(kwargs: dict, what: str) -> dict:
     """A planner's keyword configuration with its `costmap.KEY` entries (or a `costmap`
     dict) gathered into one checked `CostmapConfig` under "costmap"."""
-    from dynabarn.interfaces.planner import config_from_kwargs, nested_config
+    from dynabarn.interfaces import config_from_kwargs, nested_config
 
     return nested_config(kwargs, "costmap", lambda sub: config_from_kwargs(CostmapConfig, sub, f"{what} costmap"), what)
 

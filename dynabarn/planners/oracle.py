@@ -24,7 +24,7 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
-from dynabarn.interfaces.planner import EpisodeInfo, Observation, ObstacleState, Planner, config_from_kwargs
+from dynabarn.interfaces import EpisodeInfo, Observation, ObstacleState, Planner, config_from_kwargs
 from dynabarn.perception.map_distance import MapDistance, grid_indices
 from dynabarn.planners.global_planner import GlobalPlanner
 

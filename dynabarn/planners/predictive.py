@@ -17,7 +17,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.interfaces.planner import EpisodeInfo, Observation, config_from_kwargs
+from dynabarn.interfaces import EpisodeInfo, Observation, config_from_kwargs
 from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
 from dynabarn.planners.oracle import OracleConfig, OraclePlanner
 from dynabarn.planners.tracking import with_tracker

@@ -13,7 +13,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from dynabarn.errors import DynabarnError, unknown_choice
-from dynabarn.interfaces.planner import Planner
+from dynabarn.interfaces import Planner
 from dynabarn.planners.dwa import DWAPlanner
 from dynabarn.planners.learned import BCPlanner, DaggerPlanner, TD3Planner
 from dynabarn.planners.oracle import OraclePlanner, PresentStateOraclePlanner

@@ -6,7 +6,7 @@ import math
 from dataclasses import asdict, dataclass
 from typing import ClassVar
 
-from dynabarn.interfaces.planner import EpisodeInfo, Observation, Planner, config_from_kwargs
+from dynabarn.interfaces import EpisodeInfo, Observation, Planner, config_from_kwargs
 
 
 @dataclass

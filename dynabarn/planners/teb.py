@@ -39,7 +39,7 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import STATE_RESOLUTION, exp, sincos, snap_array
-from dynabarn.interfaces.planner import EpisodeInfo, Observation, Planner, config_from_kwargs
+from dynabarn.interfaces import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dynabarn.interfaces.planner import Observation, config_from_kwargs, nested_config
+from dynabarn.interfaces import Observation, config_from_kwargs, nested_config
 from dynabarn.perception import DetectorConfig, ObstacleTracker, TrackerConfig, Tracks
 
 

@@ -17,7 +17,6 @@ import functools
 import math
 import os
 import shlex
-import struct
 import subprocess
 import sys
 import time
@@ -27,20 +26,17 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.errors import DynabarnError
-from dynabarn.interfaces.planner import EpisodeInfo, Observation, Planner
+from dynabarn.interfaces import EpisodeInfo, Observation, Planner
 from dynabarn.processes import die_with_parent
 from dynabarn.robot import JACKAL
 from dynabarn.ros import READY_WHEN
 from dynabarn.ros.master import RosMaster, stop_process
+from dynabarn.ros.node import COMMAND, GOAL, HEADER, OBSERVATION, READY, write_frame
 
 NODE = Path(__file__).resolve().parent / "node.py"
+"""The rospy side; its frames (HEADER, OBSERVATION, ...) are the wire format's one definition."""
 ROS_PYTHON_ENV = "DYNABARN_ROS_PYTHON"
 """Names the Python that has rospy (default: Debian's /usr/bin/python3)."""
-_HEADER = struct.Struct("<cI")
-_OBSERVATION = struct.Struct("<10d")
-_GOAL = struct.Struct("<3d")
-_COMMAND = struct.Struct("<ddB")
-_READY = struct.Struct("<dB")
 
 
 def ros_python() -> str:
@@ -93,6 +89,9 @@ class BridgeConfig:
     line, or its words."""
     stack: str | None = None
     """A stack of ours instead of `launch` (`dynabarn.ros.stacks`: move_base from `make ros-nav`)."""
+    nav_workspace: str | None = None
+    """Where `make ros-nav` built move_base for `stack` (default: `$DYNABARN_NAV_WS` or
+    ~/.cache/dynabarn/ros_nav)."""
     stack_log: str | None = None
     """File for the stack's output (default: this process's stderr; never its stdout)."""
 
@@ -156,7 +155,7 @@ class RosPlanner(Planner):
         if c.stack:
             from dynabarn.ros.stacks import STACKS, stack_command
 
-            launch = stack_command(c.stack)
+            launch = stack_command(c.stack, Path(c.nav_workspace) if c.nav_workspace else None)
             rate = rate or STACKS[c.stack].control_rate
         cmd += ["--stack-rate", repr(float(rate))]
         self.node = subprocess.Popen(
@@ -202,7 +201,7 @@ class RosPlanner(Planner):
         ranges = np.asarray(obs.scan, dtype="<f4")
         wx, wy, wyaw = (float(v) for v in obs.pose)
         v, w = float(obs.velocity[0]), float(obs.velocity[1])
-        return _OBSERVATION.pack(obs.time, x, y, yaw, v, w, wx, wy, wyaw, len(ranges)) + ranges.tobytes()
+        return OBSERVATION.pack(obs.time, x, y, yaw, v, w, wx, wy, wyaw, len(ranges)) + ranges.tobytes()
 
     def act(self, obs: Observation) -> tuple[float, float]:
         start = time.perf_counter()
@@ -217,7 +216,7 @@ class RosPlanner(Planner):
         self._send(b"O", self._observation(obs))
         sent = time.perf_counter()
         body = self._receive(b"C", self.cfg.grace + 30)
-        v, w, answered = _COMMAND.unpack(body)
+        v, w, answered = COMMAND.unpack(body)
         done = time.perf_counter()
         self.tick_ms.append((sent - t0) * 1e3)
         self.round_trip_ms.append((done - t0) * 1e3)
@@ -236,12 +235,12 @@ class RosPlanner(Planner):
     def _boot(self, obs: Observation) -> None:
         self._origin = tuple(float(v) for v in obs.pose)
         gx, gy, _ = self._to_odom(float(obs.goal_in_world[0]), float(obs.goal_in_world[1]), 0.0)
-        self._send(b"B", self._observation(obs) + _GOAL.pack(gx, gy, 0.0))
+        self._send(b"B", self._observation(obs) + GOAL.pack(gx, gy, 0.0))
         body = self._receive(b"R", self.cfg.ready_timeout + 30)
-        self.t0, ready = _READY.unpack_from(body)
+        self.t0, ready = READY.unpack_from(body)
         if not ready:
             self._check_stack()
-            missing = body[_READY.size :].decode(errors="replace")
+            missing = body[READY.size :].decode(errors="replace")
             raise RuntimeError(
                 f"the ROS stack was not ready ({self.cfg.ready}) within {self.cfg.ready_timeout:g} s: {missing}"
             )
@@ -253,8 +252,7 @@ class RosPlanner(Planner):
 
     def _send(self, kind: bytes, body: bytes) -> None:
         try:
-            self.node.stdin.write(_HEADER.pack(kind, len(body)) + body)
-            self.node.stdin.flush()
+            write_frame(self.node.stdin, kind, body)
         except (BrokenPipeError, OSError):
             raise RuntimeError(f"the bridge node stopped (status {self.node.poll()})") from None
 
@@ -263,11 +261,11 @@ class RosPlanner(Planner):
 
         out = self.node.stdout
         ready, _, _ = select.select([out], [], [], timeout)
-        head = out.read(_HEADER.size) if ready else b""
-        if len(head) < _HEADER.size:
+        head = out.read(HEADER.size) if ready else b""
+        if len(head) < HEADER.size:
             self._check_stack()
             raise RuntimeError(f"the bridge node stopped answering (status {self.node.poll()})")
-        got, size = _HEADER.unpack(head)
+        got, size = HEADER.unpack(head)
         body = out.read(size)
         if got != kind or len(body) != size:
             raise RuntimeError(f"the bridge node sent {got!r} instead of {kind!r}")
@@ -297,7 +295,7 @@ def ros_planner(*, launch: str | None = None, master: str | None = None, **confi
     started per episode by `launch` and stopped when the episode ends."""
     import atexit
 
-    from dynabarn.interfaces.planner import config_from_kwargs
+    from dynabarn.interfaces import config_from_kwargs
 
     global _worker_master
     cfg = config_from_kwargs(BridgeConfig, {"launch": launch, **config}, "ros")

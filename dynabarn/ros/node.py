@@ -100,6 +100,7 @@ class Node:
         from tf2_msgs.msg import TFMessage
 
         self.rospy, self.args = rospy, args
+        self.ticks_per_period = max(1, round(args.period / args.clock_step))
         self.Clock, self.Odometry, self.LaserScan, self.TFMessage = Clock, Odometry, LaserScan, TFMessage
         self.PoseStamped, self.Bool = PoseStamped, Bool
         self.clock_pub = rospy.Publisher("/clock", Clock, queue_size=100)
@@ -194,7 +195,7 @@ class Node:
         msg.pose.position.x, msg.pose.position.y = goal[0], goal[1]
         msg.pose.orientation.z, msg.pose.orientation.w = math.sin(goal[2] / 2), math.cos(goal[2] / 2)
         stop = threading.Event()
-        every = max(1, round(a.period / a.clock_step))
+        every = self.ticks_per_period
 
         def run() -> None:  # real time from one clock step on: the stack's timers and tf waits run
             k, wall0 = 0, time.monotonic()
@@ -264,7 +265,7 @@ class Node:
         with self.answer:
             seen = self.count
         self.publish_state(t, obs, ranges)
-        ticks = [t + k * a.clock_step for k in range(1, max(1, round(a.period / a.clock_step)))]
+        ticks = [t + k * a.clock_step for k in range(1, self.ticks_per_period)]
         if a.paced:  # the ticks at the simulation's pace, while it runs the period
             self._stop_ticks = threading.Event()
             self._ticker = threading.Thread(target=self._paced_ticks, args=(ticks, self._stop_ticks), daemon=True)

@@ -27,7 +27,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.interfaces.planner import EpisodeInfo, Observation, config_from_kwargs
+from dynabarn.interfaces import EpisodeInfo, Observation, config_from_kwargs
 from dynabarn.perception import ObstacleTracker, TrackerConfig
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.tracking import with_tracker

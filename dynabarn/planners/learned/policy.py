@@ -13,7 +13,7 @@ import hashlib
 from pathlib import Path
 
 from dynabarn.errors import LEARN_EXTRA, DynabarnError
-from dynabarn.interfaces.planner import EpisodeInfo, Observation, Planner
+from dynabarn.interfaces import EpisodeInfo, Observation, Planner
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.learned.features import Features
 from dynabarn.planners.learned.spaces import action_to_command, policy_input
