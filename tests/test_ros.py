@@ -371,7 +371,7 @@ def test_nav_build_takes_a_local_checkout_and_leaves_out_what_a_run_does_not_use
     amcl, map_server, fake_localization and the metapackage ignored by catkin; a folder
     that is not the navigation stack is refused in one line."""
     from dynabarn.errors import DynabarnError
-    from dynabarn.ros.nav_build import LEFT_OUT, _sources
+    from dynabarn.ros.nav_build import LEFT_OUT, _sources, build
 
     source = tmp_path / "navigation"
     for package in ("move_base", "costmap_2d", *LEFT_OUT):
@@ -380,8 +380,11 @@ def test_nav_build_takes_a_local_checkout_and_leaves_out_what_a_run_does_not_use
     workspace = tmp_path / "ws"
     with (tmp_path / "log").open("w") as log:
         assert _sources(workspace, source, log) == "local"  # not a git checkout
-        with pytest.raises(DynabarnError, match="not a ros-planning/navigation checkout"):
-            _sources(workspace, tmp_path / "ws", log)
+    with pytest.raises(DynabarnError, match="not a ros-planning/navigation checkout"):
+        build(workspace, tmp_path / "ws")
+    with pytest.raises(DynabarnError, match="not a ros-planning/navigation checkout"):
+        build(tmp_path / "other", tmp_path / "ws")
+    assert not (tmp_path / "other").exists()  # refused before anything was written
     copied = workspace / "src" / "navigation"
     assert (copied / "move_base" / "package.xml").is_file()
     assert all((copied / name / "CATKIN_IGNORE").is_file() for name in LEFT_OUT)

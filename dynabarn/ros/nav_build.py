@@ -108,8 +108,6 @@ def _run(cmd: list[str], log, *, cwd: Path | None = None, env: dict | None = Non
 def _sources(workspace: Path, source: Path | None, log) -> str:
     """The navigation tree in workspace/src/navigation; its commit (or 'local')."""
     dest = workspace / "src" / "navigation"
-    if source is not None and not (source / "move_base" / "package.xml").is_file():
-        raise DynabarnError(f"{source}: not a ros-planning/navigation checkout (no move_base/package.xml)")
     if dest.exists():
         shutil.rmtree(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
@@ -131,7 +129,10 @@ def _sources(workspace: Path, source: Path | None, log) -> str:
 
 
 def build(workspace: Path, source: Path | None = None, *, jobs: int = 2) -> dict:
-    """Sources, then `catkin_make` with Debian's Python first on PATH; the description."""
+    """Sources, then `catkin_make` with Debian's Python first on PATH; the description.
+    A `source` that is not the navigation stack is refused before anything is written."""
+    if source is not None and not (source / "move_base" / "package.xml").is_file():
+        raise DynabarnError(f"{source}: not a ros-planning/navigation checkout (no move_base/package.xml)")
     catkin_make = Path("/usr/bin/catkin_make")
     if not catkin_make.exists():
         raise DynabarnError(
