@@ -203,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
     workspace = (args.workspace or default_workspace()).expanduser().resolve()
     try:
         info = build(workspace, args.source.expanduser().resolve() if args.source else None, jobs=args.jobs)
-    except DynabarnError as exc:
+    except (DynabarnError, OSError) as exc:  # a read-only or full disk: one line too
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(f"built navigation {info['commit'][:12]} in {info['seconds']:.0f} s: {workspace}")
