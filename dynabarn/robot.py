@@ -230,6 +230,11 @@ def build_jackal_spec(
             intprm=[1 << int(mujoco.mjtRayDataField.mjRAYDATA_DIST), 0, 0],  # distance only
         )
 
+    if not beam_sensors:
+        # Every contact (any in these worlds is the robot's), per physics step: how a period
+        # stepped in one call into C learns that a step touched (`sim.physics_period`).
+        spec.add_sensor(name="contact", type=mujoco.mjtSensor.mjSENS_CONTACT, intprm=[1, 0, 1])
+
     for name, gear, lim, inertia in (
         ("v", [1, 0, 0, 0, 0, 0], (p.v_min, p.v_max), p.mass),
         ("slip", [0, 1, 0, 0, 0, 0], (-1.0, 1.0), p.mass),

@@ -149,3 +149,21 @@ def test_schedule_batch_has_each_worlds_bits():
             ref_pos, ref_vel = p.positions_at(t[i] + offsets)
             np.testing.assert_array_equal(pos[i], ref_pos)
             np.testing.assert_array_equal(vel[i], ref_vel)
+
+
+@pytest.mark.parametrize("span", [0.1, 40.0])
+def test_schedule_batch_counts_keys_exactly_when_a_period_passes_many(span):
+    # A 0.1 s period compares only the next few keys; one spanning 40 s passes many and
+    # must fall back to comparing all of them: the same bits either way.
+    rng = np.random.default_rng(2)
+    worlds = [read_world(resolve_world(i)) for i in (3, 150, 299)]
+    players = [SchedulePlayer(w, clock_offset=float(rng.uniform(0, 5))) for w in worlds]
+    batch = ScheduleBatch(players)
+    offsets = np.linspace(0.0, span, 20)
+    for _ in range(200):
+        t = rng.uniform(0, 300, len(players))
+        pos, vel = batch.positions_at(t[None, :] + offsets[:, None])
+        for i, p in enumerate(players):
+            ref_pos, ref_vel = p.positions_at(t[i] + offsets)
+            np.testing.assert_array_equal(pos[i], ref_pos)
+            np.testing.assert_array_equal(vel[i], ref_vel)

@@ -96,6 +96,7 @@ from gymnasium import spaces
 
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces.observation import Observation
+from dynabarn.learn.shared_worlds import shared_world
 from dynabarn.learn.split import DEFAULT_PROFILE_SETS, ProceduralWorlds, reserved_fingerprints
 from dynabarn.metrics import Outcome
 from dynabarn.planners.global_planner import GlobalPlanner
@@ -250,11 +251,8 @@ class DynaBARNEnv(gymnasium.Env):
             wid, file, difficulty = self.entries[int(self.np_random.integers(len(self.entries)))]
         trial = int(options.get("trial_seed", self.np_random.integers(2**31)))
         if file not in self._sims:
-            self._sims[file] = Simulation(file)
-            sim = self._sims[file]
-            self._planners[file] = GlobalPlanner.for_robot(
-                sim.walls, sim.goal, (JACKAL.length, JACKAL.width), np.array(sim.world.layout.cylinders).reshape(-1, 3)
-            )
+            template, self._planners[file] = shared_world(file)
+            self._sims[file] = template.fork()
         sim = self._sims[file]
         self._file = file
         self._planner = self._planners[file]

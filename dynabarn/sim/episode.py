@@ -193,7 +193,7 @@ class Episode:
             self.end(Outcome.ERROR, f"planner returned a non-finite command ({raw_v}, {raw_w})")
             return self.outcome
         sim, cfg, p = self.sim, self.sim.config, JACKAL
-        data, model = sim.data, sim.model
+        data = sim.data
         # On a fixed grid: a planner's last-bit differences between machines stop here.
         raw_v, raw_w = snap(raw_v, COMMAND_RESOLUTION), snap(raw_w, COMMAND_RESOLUTION)
         self.raw_command = (raw_v, raw_w)
@@ -209,10 +209,7 @@ class Episode:
         self.tick_v[n], self.tick_w[n], self.tick_w_cmd[n] = self._obs.velocity[0], self._obs.velocity[1], w
         self.n_ticks += 1
 
-        poses, batch_xy = self.poses, self._batch_xy
-        robot_qpos = data.qpos[:3]  # views reused every physics step
-        mocap_xy = data.mocap_pos[: sim.radii.size, :2]
-        step, t_start = self.step, self.t_start
+        batch_xy, step, t_start = self._batch_xy, self.step, self.t_start
         if self.reactive is not None:  # what the obstacles really did, for the clearance metric
             log = self.reactive.log
             n_log = min(self.k, len(log) - step)
@@ -221,15 +218,8 @@ class Episode:
         # checks of every step at once, in the order a step-by-step loop makes them
         # (contact, clock start, goal, time limit): the same outcome at the same step.
         first = step + 1
-        contact = False
-        for j in range(self.k):
-            mocap_xy[...] = batch_xy[j]
-            mujoco.mj_step(model, data)
-            poses[first + j] = robot_qpos
-            if data.ncon:
-                contact = True
-                break
-        outcome, step, t_start = self._judge(first, j + 1, contact, t_start)
+        m, contact = sim.physics.run(batch_xy, self.poses[first : first + self.k])
+        outcome, step, t_start = self._judge(first, m, contact, t_start)
         self.step, self.t_start, self.outcome = step, t_start, outcome
         return outcome
 

@@ -35,6 +35,7 @@ class Laser:
         self._vec = np.zeros(3 * n)
         self._geomid = np.zeros(n, dtype=np.int32)
         self._dist = np.zeros(n)
+        self._noise = np.zeros(n)
         self.static = np.zeros((0, 3)) if static_cylinders is None else np.asarray(static_cylinders).reshape(-1, 3)
         # The robot's geoms are in groups the laser mask leaves out, so the one excluded
         # body can be the static field's. (World files written before the field had its own
@@ -114,10 +115,13 @@ class Laser:
     def noisy(self, ranges: np.ndarray, rng: np.random.Generator | list[np.random.Generator]) -> np.ndarray:
         """Noise-free ranges (changed in place) -> the scan: Gaussian noise, clipped, 1 mm grid.
         Many worlds' at once: ranges (W, n) and one generator per row (each draws its own)."""
-        if ranges.ndim == 1:
-            ranges += rng.normal(0.0, self.params.laser_noise_std, self.n)
-        else:
-            ranges += np.stack([g.normal(0.0, self.params.laser_noise_std, self.n) for g in rng])
+        # Each generator's standard normals, then scaled: the bits of g.normal(0, std, n)
+        # (which draws the same normals and computes 0 + std * z), without its temporaries.
+        noise = self._noise if ranges.ndim == 1 else np.empty(ranges.shape)
+        for row, g in zip(noise.reshape(-1, self.n), [rng] if ranges.ndim == 1 else rng, strict=True):
+            g.standard_normal(out=row)
+        noise *= self.params.laser_noise_std
+        ranges += noise
         np.clip(ranges, self.params.laser_range_min, self.params.laser_range_max, out=ranges)
         # Whole millimetres, as the UST-10 reports: also what keeps last-bit differences of
         # the ray directions (numpy's sin and cos differ between CPUs) out of the planner.

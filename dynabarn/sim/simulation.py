@@ -22,6 +22,7 @@ from dynabarn.robot import JACKAL, JackalParams
 from dynabarn.sim.behaviors import check_behaviors
 from dynabarn.sim.config import SimConfig
 from dynabarn.sim.laser import Laser
+from dynabarn.sim.physics_period import PhysicsPeriod
 from dynabarn.worlds.fingerprint import world_fingerprint
 
 CLEARANCE_CHUNK = 1000
@@ -59,6 +60,7 @@ class Simulation:
         self.model = compiled_model(self.world_path, data, self.world_sha256)
         self.model.opt.timestep = config.dt
         self.data = mujoco.MjData(self.model)
+        self.physics = PhysicsPeriod(self.model, self.data, config.steps_per_tick)
         try:
             mocap_ids = [self.model.body(o.name).mocapid[0] for o in self.world.obstacles]
             self.model.body(f"{ROBOT_PREFIX}base_link")
@@ -84,6 +86,17 @@ class Simulation:
         mocap = self.model.body_mocapid[self.model.geom_bodyid]
         self.obstacle_of_geom = np.where(mocap < len(obstacles), mocap, -1)
         """(ngeom,) the obstacle each geom belongs to, -1 for the rest (the laser's hits -> obstacles)."""
+
+    def fork(self) -> Simulation:
+        """Another simulation of the same compiled world, for another episode at the same
+        time: the world, its model and every fact read from them shared (nothing changes them
+        after compiling), its own data and the laser's and the physics' buffers. A fraction
+        of a new `Simulation`'s cost: many environments meeting the same worlds fork one."""
+        other = copy.copy(self)
+        other.data = mujoco.MjData(self.model)
+        other.laser = Laser(self.model, static_cylinders=self.static_cylinders)
+        other.physics = PhysicsPeriod(self.model, other.data, self.config.steps_per_tick)
+        return other
 
     def reset(self, spawn: tuple[float, float, float]) -> None:
         mujoco.mj_resetData(self.model, self.data)

@@ -17,6 +17,10 @@ import numpy as np
 from dynabarn.worlds.schedule import SchedulePlayer, interpolate
 from dynabarn.worlds.spec import EndBehavior
 
+WINDOW = 3
+"""Keys past a period's first time compared for its later times (a 0.1 s period passes
+at most one or two keyframes; more sends it to the full comparison)."""
+
 
 def batchable(players: list[SchedulePlayer]) -> bool:
     """One interpolation and one end behaviour across the worlds (what one pass computes)."""
@@ -62,9 +66,27 @@ class ScheduleBatch:
             empty = np.zeros((times.shape[0], 0, 2))
             return [empty] * (len(self.splits) + 1), [empty] * (len(self.splits) + 1)
         tl = times[:, self.world_of] + self.offset  # as SchedulePlayer.local_time: t + clock_offset
-        tl = np.mod(tl, self.durations) if self.loop else np.minimum(tl, self.durations)
+        # fmod is np.mod's first step and, for the non-negative clocks here, its result.
+        tl = np.fmod(tl, self.durations) if self.loop else np.minimum(tl, self.durations)
         q = tl + self.stride
-        seg = self._start + (self._keys[None] <= q[..., None]).sum(axis=-1) - 1
+        seg = self._start + self._keys_at_or_before(q) - 1
         np.clip(seg, self._seg_lo, self._seg_hi, out=seg)
         pos, vel = interpolate(self.interpolation, self._flat_t, self._flat_p, self._flat_m, tl, seg)
         return np.split(pos, self.splits, axis=1), np.split(vel, self.splits, axis=1)
+
+    def _keys_at_or_before(self, q: np.ndarray) -> np.ndarray:
+        """(T, n) how many of each obstacle's keys are <= q (T, n): the comparisons of all of
+        them for the first time only; a period's later times, no earlier than the first (no
+        loop wrapped inside it), can only pass the next few keys, so only those are compared.
+        The same counts, exactly; all keys compared again when a period passes more."""
+        first = (self._keys <= q[0][:, None]).sum(axis=-1)  # (n,)
+        if len(q) > 1 and (q[1:] >= q[0]).all():
+            cols = np.minimum(first[:, None] + np.arange(WINDOW), self._keys.shape[1] - 1)
+            ahead = np.take_along_axis(self._keys, cols, axis=1)  # (n, WINDOW), +inf beyond the last key
+            ahead[first[:, None] + np.arange(WINDOW) >= self._keys.shape[1]] = np.inf
+            if (ahead[:, -1] > q[-1]).all():
+                count = np.broadcast_to(first, q.shape).copy()
+                for w in range(WINDOW):  # a sum over a short last axis is numpy's slow case
+                    count += ahead[:, w] <= q
+                return count
+        return (self._keys[None] <= q[..., None]).sum(axis=-1)
