@@ -1,6 +1,7 @@
 """Scenario tests for the classical planners in real MuJoCo worlds."""
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -144,3 +145,17 @@ def test_preset_extension_is_checked(tmp_path):
     bad.write_text('{"_extends": "no_such_preset", "max_vel_x": 1.0}')
     with pytest.raises(DynabarnError, match="_extends must name a shipped preset"):
         read_planner_config(str(bad))
+
+
+def test_local_goal_paths_kept_along_the_plan_are_the_plans_own():
+    # A cell's first local-goal path also keeps those of the cells after it on the plan;
+    # each must be exactly what planning from that cell gives, on and off the plan.
+    g = GlobalPlanner(WALLS, np.array([-9.0, 0.0]))
+    rng = np.random.default_rng(5)
+    on_plan = g.plan(11.0, 0.0)[:-1]
+    anywhere = np.column_stack([rng.uniform(-12, 14, 400), rng.uniform(-12, 12, 400)])
+    for x, y in np.concatenate([on_plan, anywhere, on_plan[::-1]]):
+        for lookahead in (0.5, 2.0, 3.0):
+            max_cells = math.floor(lookahead / g.resolution) + 3  # as the planner counts
+            np.testing.assert_array_equal(g._plan_suffix(x, y, lookahead), g.plan(x, y, max_cells=max_cells)[1:])
+    assert len(g._suffixes) > len(on_plan)  # the walk kept more than the cells asked for

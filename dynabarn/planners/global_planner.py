@@ -97,6 +97,10 @@ def _cell(x: float, y: float, nx: int, ny: int, resolution: float) -> int:
     return i * nx + j
 
 
+CHAIN_SUFFIXES = 24
+"""Further cells walked along the plan when a local goal's path is first asked for in a cell."""
+
+
 class GlobalPlanner:
     """Dijkstra's global planner on the static map (walls).
 
@@ -242,11 +246,42 @@ class GlobalPlanner:
         robot's cell only, so it is kept per cell (a robot crosses a cell in several ticks)."""
         max_cells = math.floor(lookahead / self.resolution) + 3
         f = self.field
-        key = (_cell(x, y, f.nx, f.ny, self.resolution), max_cells)
-        suffix = self._suffixes.get(key)
+        cell = _cell(x, y, f.nx, f.ny, self.resolution)
+        suffix = self._suffixes.get((cell, max_cells))
         if suffix is None:
-            suffix = self._suffixes[key] = self.plan(x, y, max_cells=max_cells)[1:]
+            if not math.isfinite(f.cost.flat[cell]):
+                suffix = self._suffixes[(cell, max_cells)] = self.plan(x, y, max_cells=max_cells)[1:]
+            else:
+                suffix = self._fill_suffixes(cell, max_cells)
         return suffix
+
+    def _fill_suffixes(self, cell: int, max_cells: int) -> np.ndarray:
+        """Walk the plan from `cell` CHAIN_SUFFIXES cells further than one suffix needs and
+        keep the suffix of every cell on the way (slices of one array of cell centres): a
+        robot that follows the plan meets them next. Each is `plan(...)[1:]` of its cell:
+        the centres of its next max_cells - 1 cells, then the goal if it is among them."""
+        f, pred = self.field, self.field.pred
+        cells = []
+        c = cell
+        while c >= 0 and len(cells) < max_cells + CHAIN_SUFFIXES:
+            cells.append(c)
+            c = pred[c]
+        ends = c < 0  # the walk reached the goal
+        idx = np.array(cells, dtype=np.int64)
+        points = np.empty((len(cells) + ends, 2))
+        points[: len(cells), 0] = self._cx[idx % f.nx]
+        points[: len(cells), 1] = self._cy[idx // f.nx]
+        if ends:
+            points[-1] = self.goal
+        for j, cj in enumerate(cells):
+            if j + max_cells < len(cells):  # cut short before the goal
+                part = points[j + 1 : j + max_cells]
+            elif ends:
+                part = points[j + 1 :]
+            else:
+                break  # its suffix would run past the walk
+            self._suffixes.setdefault((cj, max_cells), part)
+        return self._suffixes[(cell, max_cells)]
 
     def local_goal_in_robot(self, pose: np.ndarray, lookahead: float) -> np.ndarray:
         """The local goal `lookahead` metres along the plan from pose (x, y, yaw), in the robot frame."""
