@@ -87,7 +87,8 @@ def test_golden_set_with_numpy_transcendentals_one_ulp_off():
 
 def test_golden_set_covers_every_planner_difficulty_protocol_and_world_kind():
     cases = golden.CASES
-    assert 25 <= len(cases) <= 40
+    assert 25 <= len(cases) <= 45
+    assert any(c.sim != golden.SimConfig() for c in cases), "an episode with its own --dt and --control-rate"
     from dynabarn.planners.registry import _BUILTIN
 
     assert {c.planner for c in cases} == set(_BUILTIN) - {"stop"}, "every built-in planner that moves"

@@ -24,6 +24,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("perception",),  # what a robot makes of its laser: below the planners that use it
     ("planners",),
     ("recording",),
+    ("runner",),  # one episode described and run one way: every command goes through it
     ("rerun_scene", "replay", "web_viewer"),  # consumers of the layers above, each may use the ones before it
     ("render",),
     ("live",),

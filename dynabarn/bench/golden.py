@@ -30,6 +30,7 @@ from dynabarn.errors import DynabarnError
 from dynabarn.mjcf import write_world
 from dynabarn.provenance import REPO_ROOT, SHIPPED_WORLDS, work_root
 from dynabarn.recording import MACHINE_FIELDS
+from dynabarn.sim.config import SimConfig
 
 GOLDEN_FILE = Path(__file__).resolve().parent / "golden_set.json"
 GOLDEN_WORLDS = work_root() / ".golden_worlds"
@@ -53,11 +54,20 @@ class GoldenCase:
     seed: int = 0
     config: str = ""
     """A shipped preset name, or empty for the planner's defaults."""
+    dt: float = SimConfig().dt
+    control_rate: float = SimConfig().control_rate
+
+    @property
+    def sim(self) -> SimConfig:
+        return SimConfig(dt=self.dt, control_rate=self.control_rate)
 
     @property
     def key(self) -> str:
         cfg = f"[{self.config}]" if self.config else ""
-        return f"{self.planner}{cfg} {self.source}/{self.world_id} {self.protocol} s{self.seed}"
+        key = f"{self.planner}{cfg} {self.source}/{self.world_id} {self.protocol} s{self.seed}"
+        if self.sim != SimConfig():
+            key += f" dt{self.dt:g} {self.control_rate:g}Hz"
+        return key
 
 
 CASES: tuple[GoldenCase, ...] = (
@@ -107,6 +117,8 @@ CASES: tuple[GoldenCase, ...] = (
     GoldenCase("td3", "generated", 160),
     GoldenCase("dagger", "generated", 205),
     GoldenCase("dagger", "release", 30, seed=2),
+    # The simulation's own settings travel with the episode (`--dt`, `--control-rate`).
+    GoldenCase("dwa", "generated", 137, seed=2, dt=0.0025, control_rate=20.0),
 )
 
 
@@ -181,16 +193,17 @@ _imported_cached = functools.cache(lambda source, reference: _imported(source, P
 
 def run_case(case: GoldenCase, world: Path) -> dict:
     """Run one golden episode with a recording; the result row plus `recording_digest`."""
-    from dynabarn.planners import get_planner, read_planner_config
+    from dynabarn.planners import read_planner_config
     from dynabarn.protocol import get_protocol
-    from dynabarn.recording import McapRecorder, message_digest
-    from dynabarn.sim import run_episode
+    from dynabarn.recording import message_digest
+    from dynabarn.runner import EpisodeSpec, run_spec
 
     config = read_planner_config(case.config) if case.config else {}
-    planner = get_planner(case.planner, **config)
+    protocol = get_protocol(case.protocol)
+    spec = EpisodeSpec.make(world, case.planner, protocol, config=config, seed=case.seed, sim=case.sim)
     with tempfile.TemporaryDirectory(prefix="dynabarn-golden-") as tmp:
         rec = Path(tmp) / "episode.mcap"
-        result = run_episode(world, planner, get_protocol(case.protocol), seed=case.seed, observers=[McapRecorder(rec)])
+        result = run_spec(spec, record_to=rec)
         digest = message_digest(rec)
     return {"case": case.key, **result.to_dict(), "recording_digest": digest}
 

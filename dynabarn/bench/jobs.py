@@ -3,16 +3,17 @@
 
 from __future__ import annotations
 
-import json
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from dynabarn.metrics import Outcome
-from dynabarn.planners.registry import get_planner, planner_factory, registered_at_run_time
+from dynabarn.planners.registry import planner_factory, registered_at_run_time
 from dynabarn.protocol import EvalProtocol
 from dynabarn.recording.writer import default_run_path, staging_path
+from dynabarn.runner import EpisodeSpec, RecordingFailed, run_spec
+from dynabarn.sim.config import SimConfig
 
 
 @dataclass(frozen=True)
@@ -33,16 +34,30 @@ class Job:
     worker processes that do not fork (spawn, Ray) know only installed planners."""
     label: str = ""
     """The name rows carry, when not the registry name (`dwa@dwa_dynabarn_authors`)."""
+    sim: tuple = ()
+    """The simulation's settings that differ from the defaults (`EpisodeSpec.sim`)."""
+
+    @property
+    def spec(self) -> EpisodeSpec:
+        """The episode itself, as every command describes one."""
+        return EpisodeSpec(
+            world=self.world_file,
+            planner=self.planner,
+            protocol=self.protocol,
+            planner_config=self.planner_config,
+            seed=self.seed,
+            sim=self.sim,
+            label=self.label,
+        )
 
     @property
     def shown(self) -> str:
-        return self.label or self.planner
+        return self.spec.shown
 
     @property
     def key(self) -> str:
-        """Identity of the episode in results.jsonl (what resuming compares)."""
-        cfg = json.dumps(dict(self.planner_config), sort_keys=True)
-        return f"{self.planner}|{cfg}|{Path(self.world_file).name}|{self.protocol['name']}|{self.seed}"
+        """Identity of the episode in results.jsonl (what resuming compares): the spec's."""
+        return self.spec.key
 
 
 def make_jobs(
@@ -53,7 +68,9 @@ def make_jobs(
     *,
     record: str = "none",
     recordings_dir: Path | None = None,
+    sim: SimConfig = SimConfig(),
 ) -> list[Job]:
+    settings = EpisodeSpec.make("", "", protocol, sim=sim).sim
     return [
         Job(
             planner=name,
@@ -67,6 +84,7 @@ def make_jobs(
             recordings_dir=str(recordings_dir or ""),
             factory=planner_factory(name) if registered_at_run_time(name) else None,
             label=label[0] if label and label[0] != name else "",
+            sim=settings,
         )
         for name, cfg, *label in planners
         for wid, file, difficulty in worlds
@@ -88,37 +106,28 @@ def row_head(job: Job) -> dict:
 
 def run_job(job: Job) -> dict:
     """Run one episode; never raises (an exception becomes an `error` row with its traceback)."""
-    from dynabarn.recording import McapRecorder
-    from dynabarn.sim import Simulation, run_episode
+    from dynabarn.sim import Simulation
 
     row = row_head(job)
     rec_path = None
+    recorders: list = []
     try:
-        sim = Simulation(job.world_file)
-        planner = get_planner(job.planner, factory=job.factory, **dict(job.planner_config))
-        observers = []
+        spec = job.spec
+        sim = Simulation(spec.world, config=spec.sim_config)
         if job.record != "none":
             rec_path = default_run_path(
                 Path(job.recordings_dir), sim.world.name, job.planner, job.protocol["name"], job.seed
-            )
-            observers.append(McapRecorder(rec_path))  # written as rec_path.part, renamed when whole
-        result = run_episode(
-            sim,
-            planner,
-            EvalProtocol.from_dict(job.protocol),
-            seed=job.seed,
-            observers=observers,
-            planner_name=job.shown,
-        )
+            )  # written as rec_path.part, renamed when whole
+        result = run_spec(spec, factory=job.factory, sim=sim, record_to=rec_path, on_recorder=recorders.append)
         row.update(result.to_dict())
-        if observers and observers[0].stopped:  # disk nearly full: the result stands, run it again
-            row.update({"retry": True, "recording_error": observers[0].stopped})
+        if recorders and recorders[0].stopped:  # disk nearly full: the result stands, run it again
+            row.update({"retry": True, "recording_error": recorders[0].stopped})
         if rec_path is not None:
             if job.record == "all" or result.outcome is not Outcome.SUCCESS:
                 row["recording"] = str(rec_path)
             else:
                 rec_path.unlink(missing_ok=True)
-    except (OSError, MemoryError) as exc:  # the machine failed, not the planner: run it again later
+    except (OSError, MemoryError, RecordingFailed) as exc:  # the machine failed, not the planner: run it again later
         row.update(
             {
                 "outcome": Outcome.ERROR.value,

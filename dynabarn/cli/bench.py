@@ -12,6 +12,7 @@ from pathlib import Path
 from dynabarn.cli.common import (
     add_jobs,
     add_protocol,
+    add_sim_settings,
     make_parser,
     planner_config,
     ranged,
@@ -74,6 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
     parser.add_argument("--trials", type=ranged(int, 1, 10_000), default=10, help="trials (seeds 0..N-1) per world")
     add_protocol(parser)
+    add_sim_settings(parser)
     add_jobs(parser)
     parser.add_argument("--backend", choices=["local", "ray"], default="local", help="where episodes run")
     parser.add_argument("--address", default=None, help="Ray cluster address (ray backend); default: a local Ray")
@@ -159,6 +161,7 @@ def _bench(args: argparse.Namespace) -> int:
     from dynabarn.bench.summary import FLOOR
     from dynabarn.planners import get_planner, planner_spec
     from dynabarn.protocol import get_protocol
+    from dynabarn.sim import SimConfig
 
     if args.trials < 1 or args.jobs < 1:
         raise DynabarnError("--trials and --jobs must be at least 1")
@@ -186,6 +189,7 @@ def _bench(args: argparse.Namespace) -> int:
         args.trials,
         record=args.record,
         recordings_dir=args.out / "recordings",
+        sim=SimConfig(dt=args.dt, control_rate=args.control_rate),
     )
     if args.out.exists() and not args.out.is_dir():
         raise DynabarnError(f"--out {args.out}: exists and is not a folder")

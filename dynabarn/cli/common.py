@@ -129,6 +129,17 @@ def add_protocol(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_sim_settings(p: argparse.ArgumentParser) -> None:
+    """The simulation's settings an episode carries (`EpisodeSpec.sim`)."""
+    p.add_argument("--dt", type=ranged(float, 1e-4, 0.01), default=0.005, help="physics step [s] (default: 0.005)")
+    p.add_argument(
+        "--control-rate",
+        type=ranged(float, 0.1, 1000.0),
+        default=10.0,
+        help="planner and laser rate [Hz] (default: 10); 1/rate must be a whole number of --dt steps",
+    )
+
+
 def add_trial_seed(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--seed", type=ranged(int, 0, MAX_SEED), default=0, help="trial seed: obstacle clock offset and laser noise"

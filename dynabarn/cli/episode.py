@@ -1,4 +1,5 @@
-"""One recorded episode, run and reported the same way by `dynabarn-run` and `dynabarn-ros`."""
+"""One episode's report, the same for `dynabarn-run` and `dynabarn-ros` (both run it with
+`dynabarn.runner.run_spec`)."""
 
 from __future__ import annotations
 
@@ -7,48 +8,6 @@ import sys
 from pathlib import Path
 
 from dynabarn.cli.common import EXIT_EPISODE_ERROR
-from dynabarn.errors import DynabarnError
-
-
-def run_recorded(
-    sim,
-    planner,
-    protocol,
-    *,
-    seed: int,
-    log_path: Path | None,
-    planner_name: str,
-    live_contexts: tuple = (),
-    observers: tuple = (),
-    on_recorder=None,
-):
-    """`run_episode` with an MCAP recorder when `log_path` is given (or live foxglove
-    contexts to stream to), then further `observers` (viewers, pacing): Ctrl-C says where
-    the recording is kept, a recording that cannot start is one line, a cut one a warning."""
-    from dynabarn.recording import McapRecorder
-    from dynabarn.sim import run_episode
-
-    recorder = McapRecorder(log_path, live=live_contexts) if log_path is not None or live_contexts else None
-    if recorder is not None and on_recorder is not None:
-        on_recorder(recorder)
-    try:
-        result = run_episode(
-            sim,
-            planner,
-            protocol,
-            seed=seed,
-            observers=[*([recorder] if recorder else []), *observers],
-            planner_name=planner_name,
-        )
-    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: the recorder closed it whole
-        if log_path:
-            raise type(exc)(f"recording kept: {log_path}") from None
-        raise
-    except OSError as exc:  # the recording could not be started: a full disk, a folder...
-        raise DynabarnError(f"cannot record to {log_path}: {exc.strerror or exc}") from None
-    if recorder is not None and recorder.stopped:
-        print(f"warning: {log_path}: {recorder.stopped}", file=sys.stderr)
-    return result
 
 
 def print_result(result, *, as_json: bool, recording: Path | None, extra: dict | None = None) -> None:

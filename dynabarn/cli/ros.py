@@ -18,7 +18,7 @@ from dynabarn.cli.common import (
     ranged,
     run_command,
 )
-from dynabarn.cli.episode import exit_status, print_result, run_recorded
+from dynabarn.cli.episode import exit_status, print_result
 from dynabarn.errors import DynabarnError
 from dynabarn.ros import READY_WHEN
 from dynabarn.ros.nav_build import WORKSPACE_ENV
@@ -164,6 +164,7 @@ def _ros_episode(args: argparse.Namespace) -> int:
     from dynabarn.recording import default_run_path
     from dynabarn.ros.bridge import BridgeConfig, RosMaster, RosPlanner, bridge_overhead, ros_python
     from dynabarn.ros.stacks import stack_command
+    from dynabarn.runner import EpisodeSpec, run_spec
     from dynabarn.sim import Simulation
     from dynabarn.worldset import resolve_world
 
@@ -213,7 +214,8 @@ def _ros_episode(args: argparse.Namespace) -> int:
         print(
             f"ROS master {master.uri}; {mode}" + (f"; stack output: {stack_log}" if stack_log else ""), file=sys.stderr
         )
-        result = run_recorded(sim, planner, protocol, seed=args.seed, log_path=log_path, planner_name="ros")
+        spec = EpisodeSpec.make(sim.world_path, "ros", protocol, seed=args.seed)
+        result = run_spec(spec, planner=planner, sim=sim, record_to=log_path)
     finally:
         planner.finish("interrupted")  # run_episode has done so already unless something broke
         master.close()

@@ -9,14 +9,14 @@ from pathlib import Path
 from dynabarn.cli.common import (
     add_protocol,
     add_recording,
+    add_sim_settings,
     add_trial_seed,
     add_world,
     make_parser,
     planner_config,
-    ranged,
     run_command,
 )
-from dynabarn.cli.episode import exit_status, print_result, run_recorded
+from dynabarn.cli.episode import exit_status, print_result
 from dynabarn.cli.live import LiveOutputs, add_live_options, exit_code
 from dynabarn.cli.render import add_video_options, render_video, video_settings
 
@@ -52,10 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_protocol(parser)
     add_trial_seed(parser)
     add_recording(parser)
-    parser.add_argument("--dt", type=ranged(float, 1e-4, 0.01), default=0.005, help="physics step [s]")
-    parser.add_argument(
-        "--control-rate", type=ranged(float, 0.1, 1000.0), default=10.0, help="planner and laser rate [Hz]"
-    )
+    add_sim_settings(parser)
     parser.add_argument("--video", type=Path, default=None, help="also render the episode to this .mp4 or .gif")
     add_video_options(parser, prefix="--video: ")
     add_live_options(parser)
@@ -73,6 +70,7 @@ def _run_episode(args: argparse.Namespace) -> int:
     from dynabarn.planners import get_planner, planner_spec
     from dynabarn.protocol import get_protocol
     from dynabarn.recording import default_run_path
+    from dynabarn.runner import EpisodeSpec, run_spec
     from dynabarn.sim import SimConfig, Simulation
     from dynabarn.worldset import resolve_world
 
@@ -82,8 +80,10 @@ def _run_episode(args: argparse.Namespace) -> int:
     config = preset | planner_config(args.planner_config)
     if args.policy is not None:
         config["policy"] = str(args.policy)
-    planner = get_planner(name, **config)
-    sim = Simulation(world_path, config=SimConfig(dt=args.dt, control_rate=args.control_rate))
+    planner = get_planner(name, **config)  # here: a bad configuration is one line before anything starts
+    settings = SimConfig(dt=args.dt, control_rate=args.control_rate)
+    sim = Simulation(world_path, config=settings)
+    spec = EpisodeSpec.make(world_path, name, protocol, config=config, seed=args.seed, sim=settings, label=args.planner)
     log_path = None
     video = video_settings(args, args.video) if args.video is not None else None
     if not args.no_log:
@@ -93,13 +93,11 @@ def _run_episode(args: argparse.Namespace) -> int:
 
         log_path = Path(tempfile.mkdtemp()) / "episode.mcap"
     with LiveOutputs(args, sim, protocol) as live:
-        result = run_recorded(
-            sim,
-            planner,
-            protocol,
-            seed=args.seed,
-            log_path=log_path,
-            planner_name=args.planner,
+        result = run_spec(
+            spec,
+            planner=planner,
+            sim=sim,
+            record_to=log_path,
             live_contexts=live.contexts,
             observers=live.observers,
             on_recorder=live.attach,

@@ -195,7 +195,8 @@ def run_teleop(
 ):
     """Open the viewer, run one episode driven by the operator, record it; returns the result."""
     from dynabarn.live.viewer import MujocoViewer
-    from dynabarn.sim import Simulation, run_episode
+    from dynabarn.runner import EpisodeSpec, run_spec
+    from dynabarn.sim import Simulation
 
     sim = Simulation(world_path)
     state = TeleopState()
@@ -214,7 +215,8 @@ def run_teleop(
     )
     viewer.open()
     try:
-        result = run_episode(sim, planner, protocol, seed=seed, observers=[recorder, viewer], planner_name="teleop")
+        spec = EpisodeSpec.make(world_path, "teleop", protocol, seed=seed)
+        result = run_spec(spec, planner=planner, sim=sim, recorder=recorder, observers=[viewer])
     finally:
         viewer.close()
     return result, gamepad.name
