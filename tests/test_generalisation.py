@@ -159,16 +159,6 @@ def test_dagger_aggregates_student_states_with_teacher_labels(tmp_path):
     assert np.array_equal(again.arrays()[0], x)
 
 
-def test_train_help_defaults_match_the_dagger_configuration():
-    from dataclasses import asdict
-
-    from dynabarn.cli.train import DAGGER_DEFAULTS, DAGGER_OPTIONS
-
-    cfg = asdict(DaggerConfig())
-    for name, *_ in DAGGER_OPTIONS:
-        assert getattr(DAGGER_DEFAULTS, name) == cfg[name], name
-
-
 @pytest.mark.slow
 def test_short_dagger_run_learns_saves_resumes_and_drives(tmp_path, capsys):
     out = tmp_path / "run"

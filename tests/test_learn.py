@@ -1,6 +1,8 @@
 """Gymnasium environment, behaviour cloning, TD3 and the learned planners (learn extra)."""
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -196,16 +198,22 @@ def test_short_td3_run_trains_saves_and_resumes(tmp_path, capsys):
     assert "another configuration" in capsys.readouterr().err
 
 
-def test_train_help_defaults_match_the_td3_configuration():
+def test_train_options_are_the_configurations_fields_written_once():
     from dataclasses import asdict
 
-    from dynabarn.cli.train import TD3_DEFAULTS, TD3_OPTIONS
-    from dynabarn.learn.td3 import TD3Config
+    from dynabarn.cli.train import build_parser
+    from dynabarn.learn.configs import DaggerConfig, TD3Config, cli_options
 
-    cfg = asdict(TD3Config())
-    for name, *_ in TD3_OPTIONS:
-        assert getattr(TD3_DEFAULTS, name) == cfg[name], name
-    assert TD3_DEFAULTS.world_set == cfg["world_set"] and TD3_DEFAULTS.difficulty == cfg["difficulty"]
+    for command, config in (("td3", TD3Config), ("dagger", DaggerConfig)):
+        args = build_parser().parse_args([command, "--out", "x"])
+        offered = cli_options(config)
+        assert len(offered) >= 10
+        for name, *_ in offered:
+            assert getattr(args, name) == asdict(config())[name], (command, name)
+    # The configurations load without PyTorch (a fresh interpreter: nothing else loaded it).
+    probe = "import sys, dynabarn.learn.configs; print('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "False", out.stderr
 
 
 @pytest.mark.parametrize("planner", ["bc", "td3"])

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 from dynabarn.cli.common import (
-    MAX_JOBS,
     MAX_SEED,
     add_protocol,
     make_parser,
@@ -19,95 +17,10 @@ from dynabarn.cli.common import (
 from dynabarn.errors import LEARN_EXTRA, DynabarnError
 
 
-@dataclass
-class _TD3Defaults:
-    """`dynabarn.learn.td3.TD3Config`'s defaults, repeated here so `--help` works without
-    PyTorch; a test checks the two agree."""
-
-    world_set: str = "paper60"
-    difficulty: str = "all"
-    steps: int = 80_000
-    envs: int = 1
-    eval_every: int = 10_000
-    eval_episodes: int = 30
-    start_steps: int = 0
-    update_every: int = 2
-    demos: int = 200
-    demo_share: float = 0.25
-    bc_epochs: int = 30
-    bc_lr: float = 1e-3
-    critic_warmup: int = 2_000
-    actor_start: int = 5_000
-    bc_weight: float = 5.0
-    bc_decay_steps: int = 100_000
-    threads: int = 2
-    seed: int = 0
-
-
-TD3_DEFAULTS = _TD3Defaults()
-TD3_OPTIONS = (
-    ("steps", int, 1, 100_000_000, "environment steps in total"),
-    ("envs", int, 1, MAX_JOBS, "parallel environments (one process each when > 1)"),
-    ("eval_every", int, 1, 100_000_000, "steps between evaluations and checkpoints"),
-    ("eval_episodes", int, 1, 10_000, "episodes per evaluation (training worlds, seeds of their own)"),
-    ("start_steps", int, 0, 100_000_000, "uniformly random actions first"),
-    ("update_every", int, 1, 1_000, "environment steps per gradient update"),
-    ("demos", int, 0, 100_000, "oracle demonstration episodes in the replay buffer (0: none, the paper's TD3)"),
-    ("demo_share", float, 0.0, 1.0, "share of every batch drawn from the demonstrations"),
-    ("bc_epochs", int, 0, 10_000, "behaviour-cloning epochs on the demonstrations before TD3"),
-    ("bc_lr", float, 1e-8, 1.0, "Adam learning rate of the behaviour cloning"),
-    ("critic_warmup", int, 0, 1_000_000, "critic-only updates on the demonstrations before TD3"),
-    ("actor_start", int, 0, 100_000_000, "steps of critic-only updates on the policy's own experience first"),
-    ("bc_weight", float, 0.0, 100.0, "weight of the actor's distance to demonstrated actions (TD3+BC)"),
-    ("bc_decay_steps", int, 1, 100_000_000, "steps over which bc_weight decays linearly to 0"),
-    ("threads", int, 1, MAX_JOBS, "PyTorch threads (and demonstration processes)"),
-    ("seed", int, 0, MAX_SEED, "seed of torch, the buffers and the environments"),
-)
-
-
-@dataclass
-class _DaggerDefaults:
-    """`dynabarn.learn.dagger.DaggerConfig`'s defaults (a test checks the two agree)."""
-
-    iterations: int = 12
-    episodes: int = 240
-    max_steps: int = 400
-    beta_decay: float = 0.5
-    updates: int = 4000
-    final_updates: int = 0
-    batch_size: int = 512
-    lr: float = 1e-3
-    validation_episodes: int = 60
-    history: int = 2
-    history_every: int = 2
-    tracks: int = 8
-    workers: int = 2
-    threads: int = 2
-    seed: int = 0
-
-
-DAGGER_DEFAULTS = _DaggerDefaults()
-DAGGER_OPTIONS = (
-    ("iterations", int, 1, 10_000, "DAgger iterations (collect, relabel, aggregate, fit, validate)"),
-    ("episodes", int, 1, 1_000_000, "training episodes per iteration, each in a fresh procedural world"),
-    ("max_steps", int, 10, 100_000, "steps after which a training episode is cut"),
-    ("beta_decay", float, 0.0, 1.0, "the teacher drives with probability beta_decay ** iteration"),
-    ("updates", int, 1, 100_000_000, "gradient steps per iteration over the whole aggregated dataset"),
-    ("final_updates", int, 0, 100_000_000, "updates after the last iteration, the learning rate falling to 0"),
-    ("batch_size", int, 1, 1_000_000, "rows per gradient step"),
-    ("lr", float, 1e-8, 1.0, "Adam learning rate"),
-    ("validation_episodes", int, 0, 100_000, "student-only episodes on validation worlds per iteration"),
-    ("history", int, 0, 16, "earlier scans the student sees (0: the paper's single scan)"),
-    ("history_every", int, 1, 50, "control ticks between history frames"),
-    ("tracks", int, 0, 64, "nearest laser-tracker tracks the student sees (0: no tracker)"),
-    ("workers", int, 1, MAX_JOBS, "collection processes"),
-    ("threads", int, 1, MAX_JOBS, "PyTorch threads for fitting"),
-    ("seed", int, 0, MAX_SEED, "seed of the split, the trials, the coin and torch"),
-)
-
-
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-train`'s parser (its `--help`, and the documentation's page of the command)."""
+    from dynabarn.learn.configs import DaggerConfig, TD3Config  # no PyTorch: --help works without the extra
+
     parser = make_parser(
         "dynabarn-train",
         f"Train the learned baselines (needs {LEARN_EXTRA}).",
@@ -127,10 +40,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="TD3 reinforcement learning (resumes from --out's last checkpoint when run again)",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    td.add_argument("--set", default=TD3_DEFAULTS.world_set, help="world set to train in")
-    td.add_argument("--difficulty", default=TD3_DEFAULTS.difficulty, help="easy, medium, hard or all")
+    td.add_argument("--set", default=TD3Config.world_set, help="world set to train in")
+    td.add_argument("--difficulty", default=TD3Config.difficulty, help="easy, medium, hard or all")
     add_protocol(td)
-    _add_options(td, TD3_OPTIONS, TD3_DEFAULTS)
+    _add_options(td, TD3Config)
     td.add_argument("--out", type=Path, required=True, help="folder for checkpoints, policy.pt and the learning curve")
     dg = sub.add_parser(
         "dagger",
@@ -139,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     add_protocol(dg)
-    _add_options(dg, DAGGER_OPTIONS, DAGGER_DEFAULTS)
+    _add_options(dg, DaggerConfig)
     dg.add_argument(
         "--no-velocity", dest="velocity", action="store_false", help="leave the measured (v, w) out of the inputs"
     )
@@ -152,12 +65,12 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _add_options(parser: argparse.ArgumentParser, options: tuple, defaults) -> None:
-    """One `--name` per (name, type, low, high, help) row, checked against its range."""
-    for name, kind, lo, hi, text in options:
-        parser.add_argument(
-            "--" + name.replace("_", "-"), type=ranged(kind, lo, hi), default=getattr(defaults, name), help=text
-        )
+def _add_options(parser: argparse.ArgumentParser, config: type) -> None:
+    """One `--name` per field the configuration offers, checked against its range."""
+    from dynabarn.learn.configs import cli_options
+
+    for name, kind, lo, hi, text, default in cli_options(config):
+        parser.add_argument("--" + name.replace("_", "-"), type=ranged(kind, lo, hi), default=default, help=text)
 
 
 def train_main(argv: Sequence[str] | None = None) -> int:
@@ -192,7 +105,8 @@ def _train(args: argparse.Namespace) -> int:
         return 0
     if args.command == "dagger":
         return _train_dagger(args, tqdm)
-    from dynabarn.learn.td3 import TD3Config, train_td3
+    from dynabarn.learn.configs import TD3Config, cli_options
+    from dynabarn.learn.td3 import train_td3
     from dynabarn.worlds.profiles import Difficulty
     from dynabarn.worldset import world_set
 
@@ -204,7 +118,7 @@ def _train(args: argparse.Namespace) -> int:
         world_set=args.set,
         difficulty=args.difficulty,
         protocol=args.protocol,
-        **{name: getattr(args, name) for name, *_ in TD3_OPTIONS},
+        **{name: getattr(args, name) for name, *_ in cli_options(TD3Config)},
     )
     report = train_td3(
         cfg, args.out, progress=lambda total, initial=0: tqdm(total=total, initial=initial, desc="steps", disable=None)
@@ -219,7 +133,8 @@ def _train(args: argparse.Namespace) -> int:
 
 
 def _train_dagger(args: argparse.Namespace, tqdm) -> int:
-    from dynabarn.learn.dagger import DaggerConfig, train_dagger
+    from dynabarn.learn.configs import DaggerConfig, cli_options
+    from dynabarn.learn.dagger import train_dagger
     from dynabarn.worlds.profiles import get_profile_set
 
     profile_sets = [p for p in args.profile_sets.split(",") if p]
@@ -229,7 +144,7 @@ def _train_dagger(args: argparse.Namespace, tqdm) -> int:
         protocol=args.protocol,
         velocity=args.velocity,
         profile_sets=profile_sets,
-        **{name: getattr(args, name) for name, *_ in DAGGER_OPTIONS},
+        **{name: getattr(args, name) for name, *_ in cli_options(DaggerConfig)},
     )
     report = train_dagger(
         cfg, args.out, progress=lambda total, initial=0: tqdm(total=total, initial=initial, desc="iterations")

@@ -2,7 +2,8 @@
 training split, behaviour cloning, TD3 and DAgger.
 
 Needs the optional extra (PyTorch and Gymnasium): `pip install 'dynabarn[learn]'`, or
-`pip install -e '.[learn]'` in a checkout.
+`pip install -e '.[learn]'` in a checkout; only `configs` (the training commands'
+settings) loads without it.
 Importing this package registers the environment as `dynabarn/DynaBARN-v0` (and, as
 before, `DynaBARN-v0`), with the protocol's longest episode as `max_episode_steps` and
 `DynaBARNVectorEnv` as its vector entry point (`gymnasium.make_vec(...,
@@ -15,8 +16,8 @@ from dynabarn.errors import LEARN_EXTRA
 
 try:
     import gymnasium
-except ImportError as exc:  # pragma: no cover - the extra is not installed
-    raise ImportError(f"dynabarn.learn needs {LEARN_EXTRA}") from exc
+except ImportError:  # the extra is not installed: `configs` still loads (`dynabarn-train --help`)
+    gymnasium = None
 
 ENV_ID = "dynabarn/DynaBARN-v0"
 ENV_IDS = (ENV_ID, "DynaBARN-v0")
@@ -25,6 +26,8 @@ ENV_IDS = (ENV_ID, "DynaBARN-v0")
 
 def register_envs() -> None:
     """Register the environment ids with Gymnasium (idempotent)."""
+    if gymnasium is None:
+        raise ImportError(f"the DynaBARN-v0 environment needs {LEARN_EXTRA}")
     from dynabarn.learn.env import episode_step_limit
 
     for env_id in ENV_IDS:
@@ -37,4 +40,5 @@ def register_envs() -> None:
             )
 
 
-register_envs()
+if gymnasium is not None:
+    register_envs()

@@ -32,47 +32,12 @@ import torch
 
 from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically, write_atomically
+from dynabarn.learn.configs import DaggerConfig
 from dynabarn.learn.dagger_rollout import EpisodeData, run_episodes
-from dynabarn.learn.split import DEFAULT_PROFILE_SETS, describe_split
-from dynabarn.planners.learned.features import FeatureConfig
+from dynabarn.learn.split import describe_split
 from dynabarn.planners.learned.student import StudentActor, save_student
 
 STATE, LOG, DATA = "state.pt", "train.log", "data"
-
-
-@dataclass
-class DaggerConfig:
-    iterations: int = 12
-    episodes: int = 240
-    """Training episodes per iteration (fresh procedural worlds each)."""
-    max_steps: int = 400
-    """A training episode ends after this many steps (40 s; the protocol allows 100 s): a
-    student that stalls early in training would otherwise fill the dataset with waiting."""
-    beta_decay: float = 0.5
-    """The teacher's share of control in iteration i is beta_decay ** i."""
-    teacher: str = "oracle_present"
-    updates: int = 4000
-    """Gradient steps per iteration, on batches drawn from the whole aggregated dataset."""
-    final_updates: int = 0
-    """After the last iteration, this many more updates on the whole dataset with the
-    learning rate falling linearly to 0 (then one more validation)."""
-    batch_size: int = 512
-    lr: float = 1e-3
-    validation_episodes: int = 60
-    history: int = 2
-    history_every: int = 2
-    velocity: bool = True
-    tracks: int = 8
-    protocol: str = "barn"
-    workers: int = 2
-    threads: int = 2
-    seed: int = 0
-    profile_sets: list[str] = field(default_factory=lambda: list(DEFAULT_PROFILE_SETS))
-
-    def features(self) -> FeatureConfig:
-        return FeatureConfig(
-            history=self.history, history_every=self.history_every, velocity=self.velocity, tracks=self.tracks
-        )
 
 
 @dataclass

@@ -43,53 +43,13 @@ from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically, write_atomically
 from dynabarn.learn import ENV_ID
 from dynabarn.learn.bc import fit_actor
+from dynabarn.learn.configs import TD3Config
 from dynabarn.learn.replay import ReplayBuffer, collect_demonstrations
 from dynabarn.planners.learned.models import Actor, Critic, save_policy
 
 EVAL_SEED_BASE = 2_000_000
 """Trial seeds of the evaluations during training (the benchmark uses 0..trials-1)."""
 STATE, REPLAY, DEMOS, LOG = "state.pt", "replay.npz", "demos.npz", "train.log"
-
-
-@dataclass
-class TD3Config:
-    steps: int = 80_000
-    envs: int = 1
-    world_set: str = "paper60"
-    difficulty: str | None = "all"
-    protocol: str = "barn"
-    lookahead: float = 2.0
-    gamma: float = 0.99
-    tau: float = 0.005
-    lr: float = 3e-4
-    batch_size: int = 256
-    buffer_size: int = 200_000
-    start_steps: int = 0
-    exploration_noise: float = 0.1
-    policy_noise: float = 0.2
-    noise_clip: float = 0.5
-    policy_delay: int = 2
-    update_every: int = 2
-    demos: int = 200
-    demo_share: float = 0.25
-    bc_epochs: int = 30
-    bc_lr: float = 1e-3
-    critic_warmup: int = 2_000
-    actor_start: int = 5_000
-    bc_weight: float = 5.0
-    bc_decay_steps: int = 100_000
-    eval_every: int = 10_000
-    eval_episodes: int = 30
-    threads: int = 2
-    seed: int = 0
-
-    def env_kwargs(self) -> dict:
-        return {
-            "world_set": self.world_set,
-            "difficulty": self.difficulty,
-            "protocol": self.protocol,
-            "lookahead": self.lookahead,
-        }
 
 
 @dataclass

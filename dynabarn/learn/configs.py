@@ -1,0 +1,106 @@
+"""The training commands' configurations, without PyTorch or Gymnasium: `dynabarn-train
+--help` reads its options, their ranges and defaults from these fields (metadata "cli":
+(low, high, help)), so each value is written once."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+from dynabarn.learn.split import DEFAULT_PROFILE_SETS
+from dynabarn.planners.learned.features import FeatureConfig
+
+MAX_WORKERS = 256
+MAX_SEED = 2**32 - 1
+
+
+def option(default: Any, low: float, high: float, text: str) -> Any:
+    """A field that `dynabarn-train` offers as `--name`, checked against [low, high]."""
+    return field(default=default, metadata={"cli": (low, high, text)})
+
+
+def cli_options(config: type) -> list[tuple[str, type, float, float, str, Any]]:
+    """(name, type, low, high, help, default) of each field a command offers."""
+    out = []
+    for f in fields(config):
+        if "cli" in f.metadata:
+            low, high, text = f.metadata["cli"]
+            out.append((f.name, type(f.default), low, high, text, f.default))
+    return out
+
+
+@dataclass
+class TD3Config:
+    steps: int = option(80_000, 1, 100_000_000, "environment steps in total")
+    envs: int = option(1, 1, MAX_WORKERS, "parallel environments (one process each when > 1)")
+    world_set: str = "paper60"
+    difficulty: str | None = "all"
+    protocol: str = "barn"
+    lookahead: float = 2.0
+    gamma: float = 0.99
+    tau: float = 0.005
+    lr: float = 3e-4
+    batch_size: int = 256
+    buffer_size: int = 200_000
+    start_steps: int = option(0, 0, 100_000_000, "uniformly random actions first")
+    exploration_noise: float = 0.1
+    policy_noise: float = 0.2
+    noise_clip: float = 0.5
+    policy_delay: int = 2
+    update_every: int = option(2, 1, 1_000, "environment steps per gradient update")
+    demos: int = option(
+        200, 0, 100_000, "oracle demonstration episodes in the replay buffer (0: none, the paper's TD3)"
+    )
+    demo_share: float = option(0.25, 0.0, 1.0, "share of every batch drawn from the demonstrations")
+    bc_epochs: int = option(30, 0, 10_000, "behaviour-cloning epochs on the demonstrations before TD3")
+    bc_lr: float = option(1e-3, 1e-8, 1.0, "Adam learning rate of the behaviour cloning")
+    critic_warmup: int = option(2_000, 0, 1_000_000, "critic-only updates on the demonstrations before TD3")
+    actor_start: int = option(
+        5_000, 0, 100_000_000, "steps of critic-only updates on the policy's own experience first"
+    )
+    bc_weight: float = option(5.0, 0.0, 100.0, "weight of the actor's distance to demonstrated actions (TD3+BC)")
+    bc_decay_steps: int = option(100_000, 1, 100_000_000, "steps over which bc_weight decays linearly to 0")
+    eval_every: int = option(10_000, 1, 100_000_000, "steps between evaluations and checkpoints")
+    eval_episodes: int = option(30, 1, 10_000, "episodes per evaluation (training worlds, seeds of their own)")
+    threads: int = option(2, 1, MAX_WORKERS, "PyTorch threads (and demonstration processes)")
+    seed: int = option(0, 0, MAX_SEED, "seed of torch, the buffers and the environments")
+
+    def env_kwargs(self) -> dict:
+        return {
+            "world_set": self.world_set,
+            "difficulty": self.difficulty,
+            "protocol": self.protocol,
+            "lookahead": self.lookahead,
+        }
+
+
+@dataclass
+class DaggerConfig:
+    iterations: int = option(12, 1, 10_000, "DAgger iterations (collect, relabel, aggregate, fit, validate)")
+    episodes: int = option(240, 1, 1_000_000, "training episodes per iteration, each in a fresh procedural world")
+    max_steps: int = option(400, 10, 100_000, "steps after which a training episode is cut")
+    """A training episode ends after this many steps (40 s; the protocol allows 100 s): a
+    student that stalls early in training would otherwise fill the dataset with waiting."""
+    beta_decay: float = option(0.5, 0.0, 1.0, "the teacher drives with probability beta_decay ** iteration")
+    teacher: str = "oracle_present"
+    updates: int = option(4000, 1, 100_000_000, "gradient steps per iteration over the whole aggregated dataset")
+    final_updates: int = option(0, 0, 100_000_000, "updates after the last iteration, the learning rate falling to 0")
+    """After the last iteration, this many more updates on the whole dataset with the
+    learning rate falling linearly to 0 (then one more validation)."""
+    batch_size: int = option(512, 1, 1_000_000, "rows per gradient step")
+    lr: float = option(1e-3, 1e-8, 1.0, "Adam learning rate")
+    validation_episodes: int = option(60, 0, 100_000, "student-only episodes on validation worlds per iteration")
+    history: int = option(2, 0, 16, "earlier scans the student sees (0: the paper's single scan)")
+    history_every: int = option(2, 1, 50, "control ticks between history frames")
+    velocity: bool = True
+    tracks: int = option(8, 0, 64, "nearest laser-tracker tracks the student sees (0: no tracker)")
+    protocol: str = "barn"
+    workers: int = option(2, 1, MAX_WORKERS, "collection processes")
+    threads: int = option(2, 1, MAX_WORKERS, "PyTorch threads for fitting")
+    seed: int = option(0, 0, MAX_SEED, "seed of the split, the trials, the coin and torch")
+    profile_sets: list[str] = field(default_factory=lambda: list(DEFAULT_PROFILE_SETS))
+
+    def features(self) -> FeatureConfig:
+        return FeatureConfig(
+            history=self.history, history_every=self.history_every, velocity=self.velocity, tracks=self.tracks
+        )
