@@ -20,6 +20,9 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
+from dynabarn.errors import DynabarnError
+from dynabarn.mjcf import ROBOT_PREFIX
+
 _FULL = int(mujoco.mjtState.mjSTATE_FULLPHYSICS.value)
 _CONTROLS = int(mujoco.mjtState.mjSTATE_CTRL.value | mujoco.mjtState.mjSTATE_MOCAP_POS.value)
 
@@ -37,8 +40,11 @@ class PhysicsPeriod:
         self._mocap = self._controls[0, :, model.nu :].reshape(k, model.nmocap, 3)  # a view
         self._states = np.empty((1, k, self._state0.shape[1]))
         self._sensors = np.empty((1, k, model.nsensordata))
-        # The runner's Jackal counts every contact in one sensor (`mjSENS_CONTACT`, "found").
-        (contact,) = np.flatnonzero(model.sensor_type == mujoco.mjtSensor.mjSENS_CONTACT)
+        # The runner's Jackal counts every contact in its sensor (`mjSENS_CONTACT`, "found").
+        try:
+            contact = model.sensor(f"{ROBOT_PREFIX}contact").id
+        except KeyError:
+            raise DynabarnError("the model's robot has no contact sensor (not the runner's Jackal)") from None
         self._touches = self._sensors[0, :, int(model.sensor_adr[contact])]  # views, read after each period
         self._poses = self._states[0, :, 1:4]
 

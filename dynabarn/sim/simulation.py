@@ -60,7 +60,6 @@ class Simulation:
         self.model = compiled_model(self.world_path, data, self.world_sha256)
         self.model.opt.timestep = config.dt
         self.data = mujoco.MjData(self.model)
-        self.physics = PhysicsPeriod(self.model, self.data, config.steps_per_tick)
         try:
             mocap_ids = [self.model.body(o.name).mocapid[0] for o in self.world.obstacles]
             self.model.body(f"{ROBOT_PREFIX}base_link")
@@ -68,6 +67,7 @@ class Simulation:
             raise DynabarnError(f"{self.world_path}: the model has no body {exc}") from None
         if mocap_ids != list(range(len(mocap_ids))):
             raise DynabarnError(f"{self.world_path}: obstacle bodies are not the first mocap bodies in order")
+        self.physics = PhysicsPeriod(self.model, self.data, config.steps_per_tick)
         self.static_cylinders = np.array(self.world.layout.cylinders, dtype=np.float64).reshape(-1, 3)
         self.laser = Laser(self.model, static_cylinders=self.static_cylinders)
         obstacles = self.world.obstacles
