@@ -19,12 +19,14 @@ from dynabarn.errors import LEARN_EXTRA, DynabarnError
 
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-train`'s parser (its `--help`, and the documentation's page of the command)."""
-    from dynabarn.learn.configs import DaggerConfig, TD3Config  # no PyTorch: --help works without the extra
-
     parser = make_parser(
         "dynabarn-train",
         f"Train the learned baselines (needs {LEARN_EXTRA}).",
     )
+    # After make_parser has chosen MuJoCo's OpenGL platform (Gymnasium's registration loads
+    # MuJoCo); no PyTorch: --help works without the extra.
+    from dynabarn.learn.configs import DaggerConfig, TD3Config
+
     sub = subcommands(parser)
     bc = sub.add_parser(
         "bc", help="behaviour cloning from a dataset", formatter_class=argparse.ArgumentDefaultsHelpFormatter
