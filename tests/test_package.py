@@ -137,3 +137,18 @@ def test_every_command_chooses_mujocos_opengl_platform_before_mujoco_is_imported
         proc = run_headless(code.replace("sys.argv[1]", repr(name)))
         assert proc.returncode == 0, proc.stderr
         assert proc.stdout.strip() in ("egl", "not imported"), (name, proc.stdout)
+
+
+def test_the_command_table_is_pyprojects_scripts():
+    """A command is added in one module (`dynabarn/cli/NAME.py` with NAME_main, listed in
+    `cli.__all__`); `[project.scripts]` must name exactly those, each at its module."""
+    import tomllib
+
+    from dynabarn.cli.dispatch import COMMANDS
+    from tests.conftest import REPO
+
+    scripts = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["scripts"]
+    expected = {f"dynabarn-{name}": f"dynabarn.cli.{name}:{name}_main" for name in COMMANDS}
+    assert scripts == expected
+    for name, main in COMMANDS.items():
+        assert main.__module__ == f"dynabarn.cli.{name}" and main.__name__ == f"{name}_main"
