@@ -15,6 +15,7 @@ so the two robot-reference elements are added to its output as the only text edi
 
 from __future__ import annotations
 
+import copy
 import functools
 import hashlib
 import json
@@ -322,9 +323,19 @@ def _check_sizes(path: Path, tag: str, element: ET.Element) -> None:
 def read_world(path: Path | str, data: bytes | None = None) -> WorldSpec:
     """The WorldSpec stored in a world MJCF file (no compilation needed); `data`: the file's
     bytes when already read."""
+    return open_world(path, data)[1]
+
+
+def open_world(path: Path | str, data: bytes | None = None) -> tuple[ET.Element, WorldSpec]:
+    """A world file parsed and checked once: its document (what `load_model` compiles,
+    `root=`) and its WorldSpec."""
     path = Path(path)
     root = _parse(path, world_bytes(path) if data is None else data)
     check_self_contained(path, root)
+    return root, _world_spec(path, root)
+
+
+def _world_spec(path: Path, root: ET.Element) -> WorldSpec:
     text = root.find(f"./custom/text[@name='{METADATA_TEXT}']")
     if text is None or (text.get("data") is None and not (text.text or "").strip()):
         raise WorldError(f"{path}: not a DynaBARN world (no <text name='{METADATA_TEXT}'>)")
@@ -364,17 +375,22 @@ def _robot_xml(beam_sensors: bool) -> bytes:
     return JACKAL_XML.read_bytes() if beam_sensors else build_jackal_spec(beam_sensors=False).to_xml().encode()
 
 
-def load_model(path: Path | str, *, beam_sensors: bool = True, data: bytes | None = None) -> mujoco.MjModel:
+def load_model(
+    path: Path | str, *, beam_sensors: bool = True, data: bytes | None = None, root: ET.Element | None = None
+) -> mujoco.MjModel:
     """Compile a world file with MuJoCo, turning its errors into one clear line.
 
     The world is checked to be self-contained (`check_self_contained`) and compiled from its
     bytes (`data` when already read) with the package's Jackal handed to MuJoCo through its
     asset dictionary, so nothing else is read and the current directory does not matter.
-    `beam_sensors=False` gives the runner's variant of the robot."""
+    `beam_sensors=False` gives the runner's variant of the robot; `root`: the document
+    `open_world` parsed and checked (so a load parses once)."""
     path = Path(path)
-    data = world_bytes(path) if data is None else data
-    root = _parse(path, data)
-    check_self_contained(path, root)
+    if root is None:
+        root = _parse(path, world_bytes(path) if data is None else data)
+        check_self_contained(path, root)
+    else:  # `open_world`'s document, parsed and checked: rewritten below, so a copy
+        root = copy.deepcopy(root)
     # MuJoCo compiles the document that was checked, written out anew, never the file's own
     # spelling: attributes in any order or quoting, entities, a second parser's reading of
     # the same bytes cannot bring in anything the check did not see. The Jackal's one

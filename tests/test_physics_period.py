@@ -84,3 +84,27 @@ def test_a_forked_simulation_runs_the_same_episode_as_a_new_one():
         outcome = ep.apply(v, w)
     assert outcome is fresh.outcome and outcome in (Outcome.SUCCESS, Outcome.COLLISION, Outcome.TIMEOUT)
     assert ep.step * ep.dt == fresh.sim_time
+
+
+def test_a_world_is_parsed_and_checked_once_per_load(monkeypatch, tmp_path):
+    import shutil
+
+    from dynabarn import mjcf
+
+    world = tmp_path / "w.xml"
+    shutil.copy(resolve_world(137), world)
+    world.write_bytes(world.read_bytes() + b"\n")  # bytes no other test compiled: a first load
+    calls = {"parse": 0, "check": 0}
+    parse, check = mjcf._parse, mjcf.check_self_contained
+
+    def counted(name, f):
+        def wrapper(*a, **k):
+            calls[name] += 1
+            return f(*a, **k)
+
+        return wrapper
+
+    monkeypatch.setattr(mjcf, "_parse", counted("parse", parse))
+    monkeypatch.setattr(mjcf, "check_self_contained", counted("check", check))
+    sim = Simulation(world)
+    assert calls == {"parse": 1, "check": 1} and sim.model.nmocap == len(sim.world.obstacles)

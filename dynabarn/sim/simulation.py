@@ -16,7 +16,7 @@ from dynabarn.metrics import (
     footprint_clearance,
     shape_clearance,
 )
-from dynabarn.mjcf import ROBOT_PREFIX, load_model, read_world, world_bytes
+from dynabarn.mjcf import ROBOT_PREFIX, load_model, open_world, world_bytes
 from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL, JackalParams
 from dynabarn.sim.behaviors import check_behaviors
@@ -32,11 +32,12 @@ COMPILED_CACHE = 64
 _compiled: OrderedDict[str, mujoco.MjModel] = OrderedDict()
 
 
-def compiled_model(path: Path, data: bytes, key: str) -> mujoco.MjModel:
-    """The runner's model of a world file's bytes (`key`: their sha256): compiled once per
-    process, a copy each time (an episode sets its model's options), the same model either way."""
+def compiled_model(path: Path, data: bytes, key: str, root=None) -> mujoco.MjModel:
+    """The runner's model of a world file's bytes (`key`: their sha256; `root`: their
+    document, parsed and checked): compiled once per process, a copy each time (an episode
+    sets its model's options), the same model either way."""
     if key not in _compiled:
-        _compiled[key] = load_model(path, beam_sensors=False, data=data)
+        _compiled[key] = load_model(path, beam_sensors=False, data=data, root=root)
         while len(_compiled) > COMPILED_CACHE:
             _compiled.popitem(last=False)
     _compiled.move_to_end(key)
@@ -49,7 +50,7 @@ class Simulation:
     def __init__(self, world_path: Path | str, *, config: SimConfig = SimConfig()) -> None:
         self.world_path = Path(world_path)
         data = world_bytes(self.world_path)  # read once: the hash covers what is compiled
-        self.world = read_world(self.world_path, data)
+        root, self.world = open_world(self.world_path, data)  # parsed and checked once
         check_behaviors(self.world.obstacles)
         self.world_sha256 = hashlib.sha256(data).hexdigest()
         self.world_fingerprint = world_fingerprint(self.world)
@@ -57,7 +58,7 @@ class Simulation:
         self.config = config
         # The runner casts its own scans with mj_multiRay, so it compiles the world with the
         # Jackal's variant without the 720 beam sites and rangefinders (same geometry).
-        self.model = compiled_model(self.world_path, data, self.world_sha256)
+        self.model = compiled_model(self.world_path, data, self.world_sha256, root)
         self.model.opt.timestep = config.dt
         self.data = mujoco.MjData(self.model)
         try:
