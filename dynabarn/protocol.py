@@ -28,6 +28,7 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.errors import DynabarnError, unknown_choice
+from dynabarn.registry import Registry
 
 
 class GoalRegion(enum.StrEnum):
@@ -162,40 +163,46 @@ class EvalProtocol:
             raise DynabarnError(f"malformed protocol: {exc}") from None
 
 
-PROTOCOLS: dict[str, EvalProtocol] = {
-    # The BARN Challenge on the static BARN worlds: start (-1, 1) facing +y below the
-    # obstacle grid, goal region 1 m, 100 s from the first 0.1 m of motion, score with the
-    # world's own reference path (BARN's path file) as the optimal length.
-    "barn-static": EvalProtocol(
-        "barn-static",
-        spawn=(-1.0, 1.0, math.pi / 2),
-        goal_region=GoalRegion.DISC,
-        goal_tolerance=1.0,
-        time_limit=100.0,
-        timer_start_distance=0.1,
-        reference_from_world=True,
-    ),
-    "barn": EvalProtocol("barn"),
-    "paper2022": EvalProtocol(
-        "paper2022",
-        spawn=(12.0, 0.0, math.pi),
-        goal_region=GoalRegion.SQUARE,
-        goal_tolerance=0.3,
-        time_limit=100.0,
-        timer_start_distance=0.0,
-    ),
-}
+PROTOCOLS: Registry[EvalProtocol] = Registry(
+    "protocol",
+    {
+        # The BARN Challenge on the static BARN worlds: start (-1, 1) facing +y below the
+        # obstacle grid, goal region 1 m, 100 s from the first 0.1 m of motion, score with the
+        # world's own reference path (BARN's path file) as the optimal length.
+        "barn-static": EvalProtocol(
+            "barn-static",
+            spawn=(-1.0, 1.0, math.pi / 2),
+            goal_region=GoalRegion.DISC,
+            goal_tolerance=1.0,
+            time_limit=100.0,
+            timer_start_distance=0.1,
+            reference_from_world=True,
+        ),
+        "barn": EvalProtocol("barn"),
+        "paper2022": EvalProtocol(
+            "paper2022",
+            spawn=(12.0, 0.0, math.pi),
+            goal_region=GoalRegion.SQUARE,
+            goal_tolerance=0.3,
+            time_limit=100.0,
+            timer_start_distance=0.0,
+        ),
+    },
+    group="dynabarn.protocols",
+)
+"""Every protocol by name: built in, registered at run time, installed."""
 
 
 def register_protocol(protocol: EvalProtocol) -> None:
-    """Make `protocol` available by name (e.g. from a plugin package)."""
-    PROTOCOLS[protocol.name] = protocol
+    """Make `protocol` available by name in this process (other processes: install it under
+    the entry-point group `dynabarn.protocols`)."""
+    PROTOCOLS.register(protocol.name, protocol)
 
 
 def get_protocol(name_or_path: str) -> EvalProtocol:
-    """A registered protocol by name, or one read from a JSON file."""
-    if name_or_path in PROTOCOLS:
-        return PROTOCOLS[name_or_path]
+    """A protocol by name (built in, registered, installed), or one read from a JSON file."""
+    if name_or_path in PROTOCOLS or name_or_path in PROTOCOLS.installed():
+        return PROTOCOLS.get_item(name_or_path)
     path = Path(name_or_path)
     if path.suffix == ".json":
         if not path.is_file():
@@ -204,4 +211,4 @@ def get_protocol(name_or_path: str) -> EvalProtocol:
             return EvalProtocol.from_dict(json.loads(path.read_text()))
         except (json.JSONDecodeError, RecursionError, UnicodeDecodeError) as exc:
             raise DynabarnError(f"{path}: protocol is not valid JSON ({type(exc).__name__})") from None
-    raise DynabarnError(unknown_choice("protocol", name_or_path, list(PROTOCOLS)) + " (or a .json file)")
+    raise DynabarnError(unknown_choice("protocol", name_or_path, PROTOCOLS.names()) + " (or a .json file)")

@@ -15,9 +15,11 @@ import pytest
 PACKAGE = Path(__file__).resolve().parent.parent / "dynabarn"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("errors", "determinism", "files", "processes", "provenance", "robot", "protocol", "metrics"),  # foundations
+    # foundations
+    ("errors", "registry", "determinism", "files", "processes", "provenance", "robot", "protocol", "metrics"),
     ("interfaces",),  # what planners and observers are written against: no MuJoCo, no simulator
     ("worlds",),
+    ("world_file",),  # a world file read, parsed and checked as untrusted input
     ("mjcf",),
     ("worldset",),
     ("sim",),

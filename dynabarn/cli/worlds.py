@@ -54,7 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     g.add_argument(
         "--profiles",
-        choices=sorted(PROFILE_SETS),
+        choices=PROFILE_SETS.names(),
         default="table1",
         help="motion profile set: table1 = the paper's Table I; release2022 = measured from the 2022 release",
     )
@@ -67,14 +67,14 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--end", choices=["loop", "hold"], default="loop", help="after the last waypoint")
     g.add_argument(
         "--shapes",
-        choices=sorted(SHAPE_MIXES),
+        choices=SHAPE_MIXES.names(),
         default="cylinder",
         help="obstacle shapes (beyond the paper): cylinder = the paper's; mixed = cylinders, boxes and "
         "capsules in equal shares, sizes drawn per obstacle",
     )
     g.add_argument(
         "--static",
-        choices=["none", *sorted(STATIC_FIELDS)],
+        choices=["none", *STATIC_FIELDS.names()],
         default="none",
         help="static obstacles beside the moving ones (beyond the paper): barn-grid = a BARN-style "
         "cellular-automaton field of r 0.075 m cylinders across the arena's middle, always crossable",

@@ -9,7 +9,6 @@ own package without touching this one:
 from __future__ import annotations
 
 from collections.abc import Callable
-from importlib.metadata import entry_points
 from pathlib import Path
 
 from dynabarn.errors import DynabarnError, unknown_choice
@@ -20,6 +19,7 @@ from dynabarn.planners.oracle import OraclePlanner, PresentStateOraclePlanner
 from dynabarn.planners.predictive import PredictivePlanner
 from dynabarn.planners.simple import StopPlanner, StraightPlanner
 from dynabarn.planners.teb import TEBPlanner
+from dynabarn.registry import Registry
 
 ENTRY_POINT_GROUP = "dynabarn.planners"
 
@@ -36,40 +36,28 @@ _BUILTIN: dict[str, Callable[..., Planner]] = {
     "straight": StraightPlanner,
     "stop": StopPlanner,
 }
-_registered: dict[str, Callable[..., Planner]] = {}
+PLANNERS: Registry[Callable[..., Planner]] = Registry("planner", _BUILTIN, group=ENTRY_POINT_GROUP)
+"""Every planner factory by name: built in, registered at run time, installed."""
 
 
 def register_planner(name: str, factory: Callable[..., Planner]) -> None:
     """Register a planner factory under `name` at run time."""
-    _registered[name] = factory
-
-
-def _entry_point_planners() -> dict[str, object]:
-    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+    PLANNERS.register(name, factory)
 
 
 def available_planners() -> list[str]:
-    return sorted({*_BUILTIN, *_registered, *_entry_point_planners()})
+    return PLANNERS.names()
 
 
 def planner_factory(name: str) -> Callable[..., Planner]:
     """The factory registered under `name`: registered at run time, built in, or installed."""
-    factory = _registered.get(name) or _BUILTIN.get(name)
-    if factory is not None:
-        return factory
-    ep = _entry_point_planners().get(name)
-    if ep is None:
-        raise DynabarnError(unknown_choice("planner", name, available_planners()))
-    try:
-        return ep.load()
-    except Exception as exc:  # a broken third-party package: say which one
-        raise DynabarnError(f"planner {name!r} failed to load from {ep.value}: {exc}") from None
+    return PLANNERS.get_item(name)
 
 
 def registered_at_run_time(name: str) -> bool:
     """`name` lives only in this process (`register_planner`): worker processes that do not
     fork must be handed its factory (pickled by reference)."""
-    return name in _registered
+    return PLANNERS.registered_at_run_time(name)
 
 
 def get_planner(name: str, *, factory: Callable[..., Planner] | None = None, **config) -> Planner:

@@ -253,7 +253,7 @@ def read_recording(path: Path | str, *, decode: bool = True) -> Recording:
         raise RecordingError(f"{path}: corrupt or empty recording ({rec.error})")
     _check_messages(rec)
     rec.attachments, rec.records = _attachments_and_records(path)
-    from dynabarn.mjcf import check_world_data
+    from dynabarn.world_file import check_world_data
 
     for name, data in rec.attachments.items():  # the attached world is a world file like any other
         if name.endswith(".xml"):

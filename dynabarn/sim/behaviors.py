@@ -23,14 +23,14 @@ import abc
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from importlib.metadata import entry_points
 from types import MappingProxyType
 from typing import ClassVar
 
 import numpy as np
 
 from dynabarn.determinism import OBSTACLE_SPEED_RESOLUTION, snap_array
-from dynabarn.errors import WorldError, unknown_choice
+from dynabarn.errors import WorldError
+from dynabarn.registry import Registry
 from dynabarn.robot import JACKAL
 from dynabarn.worlds.schedule import SchedulePlayer
 from dynabarn.worlds.spec import SCRIPTED, Obstacle
@@ -185,30 +185,25 @@ class Avoid(ObstacleBehavior):
 
 
 _BUILTIN: dict[str, type[ObstacleBehavior]] = {b.name: b for b in (Scripted, Yield, Avoid)}
-_registered: dict[str, type[ObstacleBehavior]] = {}
+BEHAVIORS: Registry[type[ObstacleBehavior]] = Registry(
+    "obstacle behaviour", _BUILTIN, group=ENTRY_POINT_GROUP, error=WorldError
+)
+"""Every obstacle behaviour by name: built in, registered at run time, installed."""
 
 
 def register_behavior(behavior: type[ObstacleBehavior]) -> None:
     """Make a behaviour available by its name in this process (for worker processes and
     other machines, install it under the entry-point group `dynabarn.behaviors`)."""
-    _registered[behavior.name] = behavior
+    BEHAVIORS.register(behavior.name, behavior)
 
 
 def available_behaviors() -> list[str]:
-    return sorted({*_BUILTIN, *_registered, *(ep.name for ep in entry_points(group=ENTRY_POINT_GROUP))})
+    return BEHAVIORS.names()
 
 
 def get_behavior(name: str) -> type[ObstacleBehavior]:
     """The behaviour class registered under `name` (WorldError if none is)."""
-    found = _registered.get(name) or _BUILTIN.get(name)
-    if found is not None:
-        return found
-    for ep in entry_points(group=ENTRY_POINT_GROUP, name=name):
-        try:
-            return ep.load()
-        except Exception as exc:  # a broken third-party package: say which one
-            raise WorldError(f"obstacle behaviour {name!r} failed to load from {ep.value}: {exc}") from None
-    raise WorldError(unknown_choice("obstacle behaviour", name, available_behaviors()))
+    return BEHAVIORS.get_item(name)
 
 
 def check_behaviors(obstacles: Sequence[Obstacle]) -> None:

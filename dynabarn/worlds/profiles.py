@@ -21,6 +21,7 @@ import enum
 from dataclasses import dataclass, field
 
 from dynabarn.errors import ProfileError, unknown_choice
+from dynabarn.registry import Registry
 from dynabarn.worlds.classes import (  # noqa: F401 (Fig. 2's classes, named here too)
     HIGH_COUNT,
     LOW_COUNT,
@@ -254,10 +255,15 @@ class ShapeMix:
         }
 
 
-SHAPE_MIXES: dict[str, ShapeMix] = {
-    "cylinder": ShapeMix("cylinder"),
-    "mixed": ShapeMix("mixed", weights=(1.0, 1.0, 1.0)),
-}
+SHAPE_MIXES: Registry[ShapeMix] = Registry(
+    "shape mix",
+    {
+        "cylinder": ShapeMix("cylinder"),
+        "mixed": ShapeMix("mixed", weights=(1.0, 1.0, 1.0)),
+    },
+    group="dynabarn.shape_mixes",
+    error=ProfileError,
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -318,7 +324,9 @@ class StaticField:
         }
 
 
-STATIC_FIELDS: dict[str, StaticField] = {"barn-grid": StaticField("barn-grid")}
+STATIC_FIELDS: Registry[StaticField] = Registry(
+    "static field", {"barn-grid": StaticField("barn-grid")}, group="dynabarn.static_fields", error=ProfileError
+)
 
 
 # Paper Table I, verbatim.
@@ -340,40 +348,37 @@ RELEASE_HARD = MotionProfile(
     "hard", order=(3, 4), speed=(1.5, 2.0), std=(0.1, 0.2), speed_step=0.1, speed_limit="redraw"
 )
 
-PROFILE_SETS: dict[str, ProfileSet] = {
-    "table1": ProfileSet(
-        "table1",
-        easy_motion=(TABLE1_EASY,),
-        hard_motion=(TABLE1_HARD,),
-        waypoints=WaypointScheme.INTEGER,
-        description="paper Table I; waypoints at every integer x (Sec. III-A)",
-    ),
-    "release2022": ProfileSet(
-        "release2022",
-        easy_motion=(RELEASE_EASY,),
-        hard_motion=(RELEASE_MEDIUM, RELEASE_HARD),
-        waypoints=WaypointScheme.RELEASE,
-        description="measured from the 2022 release: 3 speed bands on a 0.1 m/s grid",
-    ),
-}
+PROFILE_SETS: Registry[ProfileSet] = Registry(
+    "profile set",
+    {
+        "table1": ProfileSet(
+            "table1",
+            easy_motion=(TABLE1_EASY,),
+            hard_motion=(TABLE1_HARD,),
+            waypoints=WaypointScheme.INTEGER,
+            description="paper Table I; waypoints at every integer x (Sec. III-A)",
+        ),
+        "release2022": ProfileSet(
+            "release2022",
+            easy_motion=(RELEASE_EASY,),
+            hard_motion=(RELEASE_MEDIUM, RELEASE_HARD),
+            waypoints=WaypointScheme.RELEASE,
+            description="measured from the 2022 release: 3 speed bands on a 0.1 m/s grid",
+        ),
+    },
+    group="dynabarn.profile_sets",
+    error=ProfileError,
+)
+"""Profile sets by name: built in, registered at run time (`PROFILE_SETS.register`), installed."""
 
 
 def get_profile_set(name: str) -> ProfileSet:
-    try:
-        return PROFILE_SETS[name]
-    except KeyError:
-        raise ProfileError(unknown_choice("profile set", name, list(PROFILE_SETS))) from None
+    return PROFILE_SETS.get_item(name)
 
 
 def get_shape_mix(name: str) -> ShapeMix:
-    try:
-        return SHAPE_MIXES[name]
-    except KeyError:
-        raise ProfileError(unknown_choice("shape mix", name, list(SHAPE_MIXES))) from None
+    return SHAPE_MIXES.get_item(name)
 
 
 def get_static_field(name: str) -> StaticField:
-    try:
-        return STATIC_FIELDS[name]
-    except KeyError:
-        raise ProfileError(unknown_choice("static field", name, list(STATIC_FIELDS))) from None
+    return STATIC_FIELDS.get_item(name)

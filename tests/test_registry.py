@@ -1,0 +1,90 @@
+"""One registry helper for every named kind: planners, obstacle behaviours, protocols,
+profile sets (and shape mixes, static fields) are found the same way: built in,
+registered at run time, or installed by another package under an entry-point group. The
+installed package here is a real distribution on sys.path, outside this package."""
+
+import textwrap
+
+import pytest
+
+from dynabarn.errors import DynabarnError, ProfileError, WorldError
+from dynabarn.planners.registry import PLANNERS, available_planners, get_planner
+from dynabarn.protocol import PROTOCOLS, get_protocol
+from dynabarn.registry import Registry
+from dynabarn.sim.behaviors import BEHAVIORS, get_behavior
+from dynabarn.worlds.profiles import PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS, get_profile_set
+
+GROUPS = {
+    "dynabarn.planners": "ext_planner = dynabarn_ext:ExtPlanner",
+    "dynabarn.behaviors": "ext_freeze = dynabarn_ext:Freeze",
+    "dynabarn.protocols": "ext_protocol = dynabarn_ext:PROTOCOL",
+    "dynabarn.profile_sets": "ext_profiles = dynabarn_ext:PROFILES\nbroken = dynabarn_ext_missing:NOTHING",
+}
+
+
+@pytest.fixture
+def installed(tmp_path, monkeypatch):
+    (tmp_path / "dynabarn_ext.py").write_text(
+        textwrap.dedent(
+            """
+            import dataclasses
+            import numpy as np
+            from dynabarn.planners.simple import StraightPlanner
+            from dynabarn.protocol import get_protocol
+            from dynabarn.sim.behaviors import ObstacleBehavior
+            from dynabarn.worlds.profiles import get_profile_set
+
+            class ExtPlanner(StraightPlanner):
+                name = "ext_planner"
+
+            class Freeze(ObstacleBehavior):
+                name = "ext_freeze"
+                def rates(self, s):
+                    return np.zeros(len(self.members))
+
+            PROTOCOL = dataclasses.replace(get_protocol("barn"), name="ext_protocol", time_limit=50.0)
+            PROFILES = dataclasses.replace(get_profile_set("table1"), name="ext_profiles")
+            """
+        )
+    )
+    dist = tmp_path / "dynabarn_ext-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: dynabarn-ext\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("".join(f"[{g}]\n{lines}\n\n" for g, lines in GROUPS.items()))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return tmp_path
+
+
+def test_every_named_kind_is_one_registry():
+    for registry in (PLANNERS, BEHAVIORS, PROTOCOLS, PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS):
+        assert isinstance(registry, Registry) and registry.builtin <= set(registry.names())
+    assert {PLANNERS.group, BEHAVIORS.group, PROTOCOLS.group, PROFILE_SETS.group} == set(GROUPS)
+
+
+def test_an_installed_package_adds_one_of_each_kind(installed):
+    assert "ext_planner" in available_planners()
+    assert get_planner("ext_planner").act  # the factory loads from the other package
+    assert get_behavior("ext_freeze").name == "ext_freeze"
+    assert get_protocol("ext_protocol").time_limit == 50.0
+    assert get_profile_set("ext_profiles").name == "ext_profiles"
+    with pytest.raises(ProfileError, match=r"'broken' failed to load from dynabarn_ext_missing:NOTHING"):
+        get_profile_set("broken")
+
+
+def test_unknown_names_are_one_line_listing_what_exists(installed):
+    with pytest.raises(DynabarnError, match=r"unknown planner 'nope'; available: .*ext_planner"):
+        get_planner("nope")
+    with pytest.raises(WorldError, match="unknown obstacle behaviour 'nope'"):
+        get_behavior("nope")
+    with pytest.raises(DynabarnError, match=r"unknown protocol 'nope'.*ext_protocol.*\(or a \.json file\)"):
+        get_protocol("nope")
+
+
+def test_registering_at_run_time_is_seen_by_the_registry_only_here():
+    PROFILE_SETS.register("run_time_set", get_profile_set("table1"))
+    try:
+        assert get_profile_set("run_time_set") is get_profile_set("table1")
+        assert PROFILE_SETS.registered_at_run_time("run_time_set")
+        assert not PROFILE_SETS.registered_at_run_time("table1")
+    finally:
+        del PROFILE_SETS["run_time_set"]
