@@ -213,3 +213,16 @@ def test_beyond_paper_worlds_record_byte_identically(tmp_path):
         run_episode(path, get_planner("dwa"), get_protocol("barn"), seed=seed, observers=[McapRecorder(files[-1])])
     a, b, c = (f.read_bytes() for f in files)
     assert a == b and a != c
+
+
+def test_every_topic_protobuf_ones_too_is_defined_once_in_the_table():
+    from dynabarn.recording.layout import SCENE_TOPICS
+    from dynabarn.recording.topics import TOPICS
+    from dynabarn.recording.writer import LATCHED
+
+    for t in TOPICS:
+        assert (t.message_type is None) == (t.json_schema is not None), t.name  # one kind each
+        if t.message_type is not None:
+            assert t.message_type.get_schema().name == t.schema, t.name
+    assert set(LATCHED) == {t.name for t in TOPICS if t.rate == "once"}
+    assert {t.schema for t in SCENE_TOPICS} <= {"foxglove.SceneUpdate", "foxglove.LaserScan", "foxglove.PoseInFrame"}

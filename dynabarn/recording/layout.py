@@ -18,28 +18,22 @@ from pathlib import Path
 
 import foxglove.layouts as fl
 
-from dynabarn.recording.topics import (
-    FRAMES,
-    TOPIC_GOAL,
-    TOPIC_OBSTACLES,
-    TOPIC_PLANS,
-    TOPIC_RESULT,
-    TOPIC_SCAN,
-    TOPIC_STATIC,
-    TOPIC_TRACK_SCENE,
-    plotted,
-)
+from dynabarn.recording.topics import FRAMES, RESULT, TOPICS, plotted
 
 LAYOUT_FILE = Path(__file__).resolve().parents[2] / "assets" / "foxglove" / "dynabarn.json"
 """The shipped copy, in a checkout of the repository."""
-SCENE_TOPICS = (TOPIC_STATIC, TOPIC_OBSTACLES, TOPIC_PLANS, TOPIC_TRACK_SCENE, TOPIC_SCAN, TOPIC_GOAL)
-"""What the 3D panels draw (the frame tree on `/tf` places them)."""
+SCENE_TOPICS = tuple(t for t in TOPICS if t.in_3d)
+"""What the 3D panels draw (the frame tree on `/tf` places them): the table's `in_3d` topics."""
+_SETTINGS = {
+    "foxglove.SceneUpdate": lambda: fl.BaseRendererSceneUpdateTopicSettings(visible=True),
+    "foxglove.LaserScan": lambda: fl.BaseRendererLaserScanTopicSettings(visible=True, point_size=4),
+    "foxglove.PoseInFrame": lambda: fl.BaseRendererPoseTopicSettings(visible=True),
+}
+"""How a 3D panel draws a topic of each schema."""
 
 
 def _scene(follow: str | None, camera: fl.ThreeDeeCameraState, title: str) -> fl.ThreeDeePanel:
-    topics: dict = {t: fl.BaseRendererSceneUpdateTopicSettings(visible=True) for t in SCENE_TOPICS}
-    topics[TOPIC_SCAN] = fl.BaseRendererLaserScanTopicSettings(visible=True, point_size=4)
-    topics[TOPIC_GOAL] = fl.BaseRendererPoseTopicSettings(visible=True)
+    topics: dict = {t.name: _SETTINGS[t.schema]() for t in SCENE_TOPICS}
     return fl.ThreeDeePanel(
         title=title,
         config=fl.ThreeDeeConfig(
@@ -68,7 +62,7 @@ def foxglove_layout() -> fl.Layout:
         )
         for topic, name in plotted()
     ]
-    result = fl.RawMessagesPanel(config=fl.RawMessagesConfig(topic_path=TOPIC_RESULT, expansion="all"))
+    result = fl.RawMessagesPanel(config=fl.RawMessagesConfig(topic_path=RESULT.name, expansion="all"))
     return fl.Layout(
         content=fl.SplitContainer(
             direction="row",

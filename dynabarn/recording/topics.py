@@ -12,8 +12,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from foxglove.messages import FrameTransforms, LaserScan, PoseInFrame, SceneUpdate
 
 from dynabarn.determinism import snap_array
 from dynabarn.interfaces.events import Tick
@@ -47,6 +49,9 @@ class Topic:
         per_tick: for JSON topics written every control tick, the message of a tick
             (None: nothing this tick).
         plots: fields `dynabarn-replay` draws as time series (under `metrics/<field>`).
+        message_type: a protobuf topic's foxglove message class (its schema comes from it).
+        latched: written once at the start and sent again to late live subscribers.
+        in_3d: shown in the Foxglove layout's 3D panel.
     """
 
     name: str
@@ -56,6 +61,9 @@ class Topic:
     json_schema: dict | None = None
     per_tick: Callable[[Tick], dict | None] | None = None
     plots: tuple[str, ...] = ()
+    message_type: Any = None
+    latched: bool = False
+    in_3d: bool = False
 
     @property
     def encoding(self) -> str:
@@ -127,30 +135,52 @@ METADATA = Topic(
     "world, keyframes, protocol, planner and config, seed, clock offset, versions (dynabarn, mujoco, "
     "numpy, scipy; torch for bc/td3)",
     json_schema=METADATA_SCHEMA,
+    latched=True,
 )
 STATIC = Topic(
     "/world/static",
     "foxglove.SceneUpdate",
     "once",
     "walls (cubes), goal region (cylinder), static cylinders (entity `static_obstacles`, when the world has any)",
+    message_type=SceneUpdate,
+    latched=True,
+    in_3d=True,
 )
-GOAL = Topic("/goal", "foxglove.PoseInFrame", "once", "the goal, frame `world`")
+GOAL = Topic(
+    "/goal",
+    "foxglove.PoseInFrame",
+    "once",
+    "the goal, frame `world`",
+    message_type=PoseInFrame,
+    latched=True,
+    in_3d=True,
+)
 OBSTACLES = Topic(
     "/world/obstacles",
     "foxglove.SceneUpdate",
     "10 Hz",
     "cylinders for the cylinder and capsule obstacles (a capsule as a horizontal cylinder along its axis), "
     "cubes for the boxes, each list in world order; `dynabarn.recording.obstacle_track` undoes it",
+    message_type=SceneUpdate,
+    in_3d=True,
 )
-SCAN = Topic("/scan", "foxglove.LaserScan", "10 Hz", "frame `laser` (placed by `/tf`), pose = identity")
+SCAN = Topic(
+    "/scan",
+    "foxglove.LaserScan",
+    "10 Hz",
+    "frame `laser` (placed by `/tf`), pose = identity",
+    message_type=LaserScan,
+    in_3d=True,
+)
 TF = Topic(
     "/tf",
     "foxglove.FrameTransforms",
     "50 Hz",
     "the frame tree `world -> odom -> base_link -> laser` in every message (odom = world: the pose is the "
     "simulator's, without drift)",
+    message_type=FrameTransforms,
 )
-POSE = Topic("/robot/pose", "foxglove.PoseInFrame", "50 Hz", "frame `world`")
+POSE = Topic("/robot/pose", "foxglove.PoseInFrame", "50 Hz", "frame `world`", message_type=PoseInFrame)
 CMD = Topic(
     "/cmd_vel",
     "dynabarn.Command",
@@ -203,6 +233,8 @@ PLANS = Topic(
     "10 Hz",
     "the local plan (entity `local_plan`, yellow) and the global plan (`global_plan`, blue) as line strips, "
     "frame `world`, when the planner has them",
+    message_type=SceneUpdate,
+    in_3d=True,
 )
 TRACKS = Topic(
     "/perception/tracks",
@@ -219,6 +251,8 @@ TRACK_SCENE = Topic(
     "10 Hz",
     "each track as a translucent cylinder of its size (entity `tracks`) and its velocity as a line to where "
     "it will be in 1 s (entity `track_velocities`), frame `world`",
+    message_type=SceneUpdate,
+    in_3d=True,
 )
 RESULT = Topic(
     "/episode/result",

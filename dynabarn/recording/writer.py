@@ -21,7 +21,6 @@ from pathlib import Path
 import foxglove
 import numpy as np
 from foxglove.mcap import MCAPWriteOptions
-from foxglove.messages import FrameTransforms, LaserScan, PoseInFrame, SceneUpdate
 
 from dynabarn.files import fsync_folder
 from dynabarn.interfaces.events import EpisodeStart, Tick
@@ -30,19 +29,19 @@ from dynabarn.provenance import portable_path
 from dynabarn.recording import scene, wire
 from dynabarn.recording.schemas import MACHINE_FIELDS
 from dynabarn.recording.topics import (
-    TOPIC_DEBUG,
-    TOPIC_GOAL,
-    TOPIC_METADATA,
-    TOPIC_OBSTACLES,
-    TOPIC_PLANS,
-    TOPIC_POSE,
-    TOPIC_RESULT,
-    TOPIC_SCAN,
-    TOPIC_STATIC,
-    TOPIC_TF,
-    TOPIC_TRACK_SCENE,
-    TOPIC_TRACKS,
+    DEBUG,
+    GOAL,
+    METADATA,
+    OBSTACLES,
+    PLANS,
+    POSE,
+    RESULT,
+    SCAN,
+    STATIC,
+    TF,
     TOPICS,
+    TRACK_SCENE,
+    TRACKS,
     Topic,
 )
 from dynabarn.robot import JACKAL
@@ -58,7 +57,7 @@ RESULT_METADATA = "dynabarn.result"
 without reading its messages (every value a string, as MCAP requires)."""
 PROFILE = "dynabarn"
 PER_TICK = tuple(t for t in TOPICS if t.per_tick is not None)
-LATCHED = (TOPIC_METADATA, TOPIC_STATIC, TOPIC_GOAL)
+LATCHED = tuple(t.name for t in TOPICS if t.latched)
 """Topics written once at the start: a live viewer that subscribes late is sent them again."""
 
 
@@ -192,30 +191,30 @@ class McapRecorder:
             # One context (the usual file-only case): the channel itself, no call in between.
             return channels[0] if len(channels) == 1 else _Fanout(channels)
 
-        def proto(topic: str, message_type) -> _Fanout:
-            return fanout(topic, message_type.get_schema(), "protobuf")
-
-        self._scan = proto(TOPIC_SCAN, LaserScan)
-        self._tf = proto(TOPIC_TF, FrameTransforms)
-        self._pose = proto(TOPIC_POSE, PoseInFrame)
-        self._goal = proto(TOPIC_GOAL, PoseInFrame)
-        self._static = proto(TOPIC_STATIC, SceneUpdate)
-        self._obstacles = proto(TOPIC_OBSTACLES, SceneUpdate)
-        self._plans = proto(TOPIC_PLANS, SceneUpdate)
-        self._track_scene = proto(TOPIC_TRACK_SCENE, SceneUpdate)
-        for t in (*(t for t in TOPICS if t.json_schema is not None), *self.extra_channels):
-            schema = foxglove.Schema(name=t.schema, encoding="jsonschema", data=json.dumps(t.schema_document).encode())
-            self._json[t.name] = fanout(t.name, schema, "json")
+        # Every topic of the table, in its order: protobuf ones with their foxglove schema.
+        channels = {}
+        for t in (*TOPICS, *self.extra_channels):
+            if t.message_type is not None:
+                schema = t.message_type.get_schema()
+            else:
+                schema = foxglove.Schema(
+                    name=t.schema, encoding="jsonschema", data=json.dumps(t.schema_document).encode()
+                )
+            channels[t.name] = fanout(t.name, schema, t.encoding)
+        self._json = {t.name: channels[t.name] for t in (*TOPICS, *self.extra_channels) if t.json_schema is not None}
+        self._scan, self._tf, self._pose = channels[SCAN.name], channels[TF.name], channels[POSE.name]
+        self._goal, self._static, self._obstacles = channels[GOAL.name], channels[STATIC.name], channels[OBSTACLES.name]
+        self._plans, self._track_scene = channels[PLANS.name], channels[TRACK_SCENE.name]
         info = start.info
         self._start_angle = float(info.laser_angles[0])
         self._end_angle = float(info.laser_angles[-1])
         self._laser_z = JACKAL.laser_z
         self._frames = scene.FrameTree(float(info.laser_offset[0]), float(info.laser_offset[1]), self._laser_z)
         self._obstacle_block, self._obstacle_order = scene.obstacle_block(start.world.obstacles)
-        self.log_json(TOPIC_METADATA, 0.0, self._metadata(start))
+        self.log_json(METADATA.name, 0.0, self._metadata(start))
         static_update, goal_pose = scene.static_scene(start.world, start.protocol.goal_tolerance)
-        self._log(self._static, TOPIC_STATIC, static_update, 0)
-        self._log(self._goal, TOPIC_GOAL, goal_pose, 0)
+        self._log(self._static, STATIC.name, static_update, 0)
+        self._log(self._goal, GOAL.name, goal_pose, 0)
 
     def on_tick(self, tick: Tick) -> None:
         if not self._open:
@@ -237,9 +236,9 @@ class McapRecorder:
             message = topic.per_tick(tick)
             if message is not None:
                 self.log_json(topic.name, t, message)
-                if topic.name == TOPIC_DEBUG:
+                if topic.name == DEBUG.name:
                     self._plans.log(scene.plans_update(ns, message), log_time=ns)
-                elif topic.name == TOPIC_TRACKS:
+                elif topic.name == TRACKS.name:
                     self._track_scene.log(scene.tracks_update(ns, message), log_time=ns)
 
     def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
@@ -263,7 +262,7 @@ class McapRecorder:
         if self._writer is not None:
             self._writer.write_metadata(MACHINE_METADATA, _strings(d.get("machine", {})))
             self._writer.write_metadata(RESULT_METADATA, _strings(judged))
-        self.log_json(TOPIC_RESULT, result.sim_time, judged)
+        self.log_json(RESULT.name, result.sim_time, judged)
         self.close()
 
     # -- helpers ------------------------------------------------------------------------
