@@ -19,6 +19,8 @@ GROUPS = {
     "dynabarn.behaviors": "ext_freeze = dynabarn_ext:Freeze",
     "dynabarn.protocols": "ext_protocol = dynabarn_ext:PROTOCOL",
     "dynabarn.profile_sets": "ext_profiles = dynabarn_ext:PROFILES\nbroken = dynabarn_ext_missing:NOTHING",
+    "dynabarn.topics": "ext_speed = dynabarn_ext:SPEED",
+    "dynabarn.commands": "hello = dynabarn_ext:hello_main",
 }
 
 
@@ -43,6 +45,18 @@ def installed(tmp_path, monkeypatch):
                     return np.zeros(len(self.members))
 
             PROTOCOL = dataclasses.replace(get_protocol("barn"), name="ext_protocol", time_limit=50.0)
+
+            from dynabarn.recording.topics import Topic
+            SPEED = Topic(
+                "/robot/speed", "ext.Speed", "10 Hz", "measured |v| [m/s]",
+                json_schema={"type": "object", "properties": {"speed": {"type": "number"}}},
+                per_tick=lambda tick: {"speed": abs(float(tick.velocity[0]))},
+                plots=("speed",),
+            )
+
+            def hello_main(argv):
+                print("hello", *argv)
+                return 0
             PROFILES = dataclasses.replace(get_profile_set("table1"), name="ext_profiles")
             """
         )
@@ -58,7 +72,10 @@ def installed(tmp_path, monkeypatch):
 def test_every_named_kind_is_one_registry():
     for registry in (PLANNERS, BEHAVIORS, PROTOCOLS, PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS):
         assert isinstance(registry, Registry) and registry.builtin <= set(registry.names())
-    assert {PLANNERS.group, BEHAVIORS.group, PROTOCOLS.group, PROFILE_SETS.group} == set(GROUPS)
+    assert {PLANNERS.group, BEHAVIORS.group, PROTOCOLS.group, PROFILE_SETS.group} | {
+        "dynabarn.topics",
+        "dynabarn.commands",
+    } == set(GROUPS)
 
 
 def test_an_installed_package_adds_one_of_each_kind(installed):
@@ -88,3 +105,18 @@ def test_registering_at_run_time_is_seen_by_the_registry_only_here():
         assert not PROFILE_SETS.registered_at_run_time("table1")
     finally:
         del PROFILE_SETS["run_time_set"]
+
+
+def test_an_installed_package_adds_a_recording_topic_and_a_command(installed, tmp_path, capsys):
+    from dynabarn.cli.dispatch import main
+    from dynabarn.recording import read_recording
+    from dynabarn.recording.topics import plotted
+    from dynabarn.runner import EpisodeSpec, run_spec
+    from dynabarn.worldset import resolve_world
+
+    rec = tmp_path / "ep.mcap"
+    run_spec(EpisodeSpec.make(resolve_world(5), "straight", get_protocol("barn")), record_to=rec)
+    speeds = read_recording(rec).topic("/robot/speed")
+    assert len(speeds) > 10 and max(m["speed"] for _, m in speeds) > 1.0  # it drove
+    assert ("/robot/speed", "speed") in [(t.name, f) for t, f in plotted()]
+    assert main(["hello", "world"]) == 0 and capsys.readouterr().out.strip() == "hello world"

@@ -8,11 +8,16 @@ from collections.abc import Callable, Sequence
 
 from dynabarn import cli
 from dynabarn.cli.common import EXIT_USAGE
+from dynabarn.errors import DynabarnError
+from dynabarn.registry import Registry
 
 COMMANDS: dict[str, Callable[[Sequence[str] | None], int]] = {
     name.removesuffix("_main"): getattr(cli, name) for name in cli.__all__
 }
-"""Command name (`run` for `dynabarn-run`) -> its main."""
+"""Command name (`run` for `dynabarn-run`) -> its main: this package's own."""
+INSTALLED = Registry("command", COMMANDS, group="dynabarn.commands")
+"""And the commands other packages add under the entry-point group `dynabarn.commands`
+(name = "module:main", a main(argv) -> int), run as `python -m dynabarn NAME`."""
 
 
 def _summary(command: Callable) -> str:
@@ -26,11 +31,17 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m dynabarn") ->
     args = list(sys.argv[1:] if argv is None else argv)
     if not args or args[0] in ("-h", "--help"):
         print(f"usage: {prog} COMMAND [options]   (the same as dynabarn-COMMAND)\n\ncommands:")
-        for name, command in COMMANDS.items():
-            print(f"  {name:<8} {_summary(command)}")
+        for name in INSTALLED.names():
+            summary = _summary(COMMANDS[name]) if name in COMMANDS else f"(from {INSTALLED.installed()[name].value})"
+            print(f"  {name:<8} {summary}")
         print(f"\n{prog} COMMAND --help explains a command's options.")
         return 0 if args else EXIT_USAGE
-    if args[0] not in COMMANDS:
-        print(f"{prog}: unknown command {args[0]!r}; choose from {', '.join(COMMANDS)}", file=sys.stderr)
+    if args[0] not in INSTALLED.names():
+        print(f"{prog}: unknown command {args[0]!r}; choose from {', '.join(INSTALLED.names())}", file=sys.stderr)
         return EXIT_USAGE
-    return COMMANDS[args[0]](args[1:])
+    try:
+        command = INSTALLED.get_item(args[0])
+    except DynabarnError as exc:  # an installed package that breaks on import
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    return command(args[1:])

@@ -10,6 +10,7 @@ function (return None to skip a tick); docs/architecture.md, "Extending", walks 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -291,6 +292,41 @@ FRAMES = ("world", "odom", "base_link", "laser")
 """The frame tree on `/tf`, root first: each frame is the child of the one before."""
 
 
+TOPICS_GROUP = "dynabarn.topics"
+"""Entry-point group under which other packages add JSON per-tick topics (name = "module:TOPIC")."""
+
+
+def recorded_topics() -> tuple[Topic, ...]:
+    """The table, then the JSON per-tick topics installed by other packages (by name): what
+    the recorder writes and the replay plots. An installed topic that is not a JSON topic
+    made each tick, or that reuses a name, is one clear error."""
+    import sys
+
+    return _with_installed(tuple(sys.path))
+
+
+@functools.lru_cache(maxsize=4)
+def _with_installed(path: tuple[str, ...]) -> tuple[Topic, ...]:
+    """`recorded_topics` for one sys.path (scanning the installed packages costs ~2 ms: once
+    per process, again only when the path changes)."""
+    from importlib.metadata import entry_points
+
+    from dynabarn.errors import DynabarnError
+
+    extra = []
+    for ep in sorted(entry_points(group=TOPICS_GROUP), key=lambda e: e.name):
+        try:
+            topic = ep.load()
+        except Exception as exc:  # a broken third-party package: say which one
+            raise DynabarnError(f"recording topic {ep.name!r} failed to load from {ep.value}: {exc}") from None
+        if not isinstance(topic, Topic) or topic.json_schema is None or topic.per_tick is None:
+            raise DynabarnError(f"{ep.value}: an installed topic is a Topic with a json_schema and a per_tick function")
+        if topic.name in {t.name for t in (*TOPICS, *extra)}:
+            raise DynabarnError(f"{ep.value}: topic {topic.name} is already recorded")
+        extra.append(topic)
+    return (*TOPICS, *extra)
+
+
 def markdown_table() -> str:
     """The topic table of docs/concepts/recordings.md."""
     rows = ["| topic | schema | rate |", "|---|---|---|"]
@@ -302,4 +338,4 @@ def markdown_table() -> str:
 
 def plotted() -> list[tuple[Topic, str]]:
     """(topic, field) of every time series the replay draws, in table order."""
-    return [(t, f) for t in TOPICS for f in t.plots]
+    return [(t, f) for t in recorded_topics() for f in t.plots]

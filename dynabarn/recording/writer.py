@@ -43,6 +43,7 @@ from dynabarn.recording.topics import (
     TRACK_SCENE,
     TRACKS,
     Topic,
+    recorded_topics,
 )
 from dynabarn.robot import JACKAL
 
@@ -56,7 +57,6 @@ RESULT_METADATA = "dynabarn.result"
 """MCAP metadata records: what `mcap info` and Foxglove's metadata view show of an episode
 without reading its messages (every value a string, as MCAP requires)."""
 PROFILE = "dynabarn"
-PER_TICK = tuple(t for t in TOPICS if t.per_tick is not None)
 LATCHED = tuple(t.name for t in TOPICS if t.latched)
 """Topics written once at the start: a live viewer that subscribes late is sent them again."""
 
@@ -193,7 +193,9 @@ class McapRecorder:
 
         # Every topic of the table, in its order: protobuf ones with their foxglove schema.
         channels = {}
-        for t in (*TOPICS, *self.extra_channels):
+        topics = (*recorded_topics(), *self.extra_channels)  # the table and any installed ones
+        self._per_tick = [t for t in topics if t.per_tick is not None]
+        for t in topics:
             if t.message_type is not None:
                 schema = t.message_type.get_schema()
             else:
@@ -201,7 +203,7 @@ class McapRecorder:
                     name=t.schema, encoding="jsonschema", data=json.dumps(t.schema_document).encode()
                 )
             channels[t.name] = fanout(t.name, schema, t.encoding)
-        self._json = {t.name: channels[t.name] for t in (*TOPICS, *self.extra_channels) if t.json_schema is not None}
+        self._json = {t.name: channels[t.name] for t in topics if t.json_schema is not None}
         self._scan, self._tf, self._pose = channels[SCAN.name], channels[TF.name], channels[POSE.name]
         self._goal, self._static, self._obstacles = channels[GOAL.name], channels[STATIC.name], channels[OBSTACLES.name]
         self._plans, self._track_scene = channels[PLANS.name], channels[TRACK_SCENE.name]
@@ -232,7 +234,7 @@ class McapRecorder:
         block = self._obstacle_block.encode(tick.obstacles[self._obstacle_order])
         entity = wire.scene_entity(ns, scene.WORLD_FRAME, "obstacles", primitives=block)
         self._obstacles.log(wire.scene_update([entity]), log_time=ns)
-        for topic in PER_TICK:
+        for topic in self._per_tick:
             message = topic.per_tick(tick)
             if message is not None:
                 self.log_json(topic.name, t, message)
