@@ -37,11 +37,11 @@ import rerun.blueprint as rrb
 from dynabarn.errors import DynabarnError
 from dynabarn.files import staged_path
 from dynabarn.recording import (
-    TOPIC_CMD,
-    TOPIC_DEBUG,
-    TOPIC_POSE,
-    TOPIC_SCAN,
-    TOPIC_TRACKS,
+    CMD,
+    DEBUG,
+    POSE,
+    SCAN,
+    TRACKS,
     Recording,
     obstacle_track,
     recorded_world,
@@ -82,7 +82,7 @@ def _times(msgs: list) -> np.ndarray:
 
 def _log_tracks(stream, run: str, rec: Recording) -> None:
     """The planner's tracks of a recording (`/perception/tracks`), every control tick."""
-    msgs = rec.topic(TOPIC_TRACKS)
+    msgs = rec.topic(TRACKS.name)
     if not msgs:
         return
     log_tracks(
@@ -108,7 +108,7 @@ def log_recording(
     length, width = robot.get("footprint", [0.508, 0.430])
 
     # Robot pose: Transform3D columns, footprint box static under it.
-    poses = rec.topic(TOPIC_POSE)
+    poses = rec.topic(POSE.name)
     pt = _times(poses)
     pxy = np.array([[m.pose.position.x, m.pose.position.y] for _, m in poses]).reshape(-1, 2)
     pyaw = np.array([2.0 * math.atan2(m.pose.orientation.z, m.pose.orientation.w) for _, m in poses])
@@ -119,7 +119,7 @@ def log_recording(
     # Scans: returns (not max-range) as points in the world, every fourth beam as a line.
     # The scan is in the `laser` frame, placed by the robot's pose and the laser's mounting
     # (recordings before /tf carried the laser's world pose in the scan itself).
-    scans = rec.topic(TOPIC_SCAN)
+    scans = rec.topic(SCAN.name)
     st, lasers = scan_lasers(rec)
     laser_z = robot.get("laser_z", 0.3)
     pts_all, beams_all, n_pts, n_beams = [], [], [], []
@@ -161,7 +161,7 @@ def log_recording(
         log_obstacles(stream, run, world, ot, oxy)
 
     # The path so far, at the control ticks, decimated to PATH_VERTICES.
-    ticks = rec.topic(TOPIC_CMD)
+    ticks = rec.topic(CMD.name)
     tt = _times(ticks)
     if len(tt) and len(pt):
         strips = []
@@ -176,7 +176,7 @@ def log_recording(
 
     # Local and global plans, when the planner recorded them.
     for key, plan_color, z in (("local_plan", (250, 200, 0), 0.05), ("global_plan", (50, 115, 255), 0.03)):
-        plans = [(t, m[key]) for t, m in rec.topic(TOPIC_DEBUG) if m.get(key)]
+        plans = [(t, m[key]) for t, m in rec.topic(DEBUG.name) if m.get(key)]
         if not plans:
             continue
         stream.send_columns(

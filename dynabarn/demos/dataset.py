@@ -33,7 +33,7 @@ import numpy as np
 from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.recording import TOPIC_CMD, TOPIC_SCAN, Recording, read_recording, scan_lasers
+from dynabarn.recording import CMD, SCAN, Recording, read_recording, scan_lasers
 from dynabarn.robot import JACKAL, mounted_pose, to_robot_frame
 
 DATASET_FORMAT = "dynabarn-demos-v1"
@@ -84,9 +84,9 @@ def episode_rows(rec: Recording, *, lookahead: float = DEFAULT_LOOKAHEAD) -> Epi
         np.array(layout.get("cylinders", []), dtype=float).reshape(-1, 3),
     )
     offset = np.array(meta["robot"]["laser_offset"], dtype=float)
-    cmds = {round(t, 6): m for t, m in rec.topic(TOPIC_CMD)}
+    cmds = {round(t, 6): m for t, m in rec.topic(CMD.name)}
     scans, goals, actions, times = [], [], [], []
-    scan_msgs = rec.topic(TOPIC_SCAN)
+    scan_msgs = rec.topic(SCAN.name)
     # The robot when each scan was cast: the laser's pose then, less its mounting.
     robot = mounted_pose(scan_lasers(rec)[1], -offset).tolist()
     for k, (t, scan) in enumerate(scan_msgs):

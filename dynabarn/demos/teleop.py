@@ -45,7 +45,6 @@ INPUT = Topic(
         ("keys", "v", "w", "mode", "gamepad"),
     ),
 )
-TOPIC_INPUT = INPUT.name
 MANIFEST = "manifest.jsonl"
 
 KEY_UP, KEY_DOWN, KEY_LEFT, KEY_RIGHT = 265, 264, 263, 262
@@ -164,7 +163,7 @@ class TeleopPlanner(Planner):
         pad = self.gamepad.poll(self.state) if self.gamepad is not None else None
         v, w, mode, keys, stop = self.state.take()
         if self.recorder is not None:
-            self.recorder.log_json(TOPIC_INPUT, obs.time, {"keys": keys, "v": v, "w": w, "mode": mode, "gamepad": pad})
+            self.recorder.log_json(INPUT.name, obs.time, {"keys": keys, "v": v, "w": w, "mode": mode, "gamepad": pad})
         if stop:
             raise OperatorStop(OperatorStop.REASON)
         return v, w

@@ -18,24 +18,7 @@ from dynabarn.recording.reader import (
 )
 from dynabarn.recording.scene import obstacle_pose
 from dynabarn.recording.schemas import MACHINE_FIELDS, WALL_CLOCK_FIELDS
-from dynabarn.recording.topics import (
-    TOPIC_CMD,
-    TOPIC_DEBUG,
-    TOPIC_GOAL,
-    TOPIC_METADATA,
-    TOPIC_METRICS,
-    TOPIC_OBSTACLES,
-    TOPIC_PLANS,
-    TOPIC_POSE,
-    TOPIC_RESULT,
-    TOPIC_SCAN,
-    TOPIC_STATIC,
-    TOPIC_TF,
-    TOPIC_TRACK_SCENE,
-    TOPIC_TRACKS,
-    TOPICS,
-    Topic,
-)
+from dynabarn.recording.topics import TOPICS, Topic
 from dynabarn.recording.writer import (
     EPISODE_METADATA,
     MACHINE_METADATA,
@@ -51,20 +34,6 @@ __all__ = [
     "MACHINE_METADATA",
     "RESULT_METADATA",
     "TOPICS",
-    "TOPIC_CMD",
-    "TOPIC_DEBUG",
-    "TOPIC_GOAL",
-    "TOPIC_METADATA",
-    "TOPIC_METRICS",
-    "TOPIC_OBSTACLES",
-    "TOPIC_PLANS",
-    "TOPIC_POSE",
-    "TOPIC_RESULT",
-    "TOPIC_SCAN",
-    "TOPIC_STATIC",
-    "TOPIC_TF",
-    "TOPIC_TRACKS",
-    "TOPIC_TRACK_SCENE",
     "WALL_CLOCK_FIELDS",
     "WORLD_MEDIA_TYPE",
     "McapRecorder",
@@ -84,3 +53,10 @@ __all__ = [
     "returns_in_world",
     "scan_lasers",
 ]
+
+
+def __getattr__(name: str) -> str:
+    """`TOPIC_SCAN` and the like, the topic names of earlier releases: from the table."""
+    from dynabarn.recording import topics
+
+    return getattr(topics, name)

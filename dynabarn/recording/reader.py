@@ -15,7 +15,7 @@ import numpy as np
 
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import OUTCOMES, numbers_ok
-from dynabarn.recording.topics import TOPIC_METADATA, TOPIC_OBSTACLES, TOPIC_RESULT
+from dynabarn.recording.topics import METADATA, OBSTACLES, RESULT
 from dynabarn.robot import JACKAL, mounted_pose
 from dynabarn.worlds.spec import WorldSpec
 
@@ -47,12 +47,12 @@ class Recording:
 
     @property
     def metadata(self) -> dict | None:
-        m = self.topic(TOPIC_METADATA)
+        m = self.topic(METADATA.name)
         return m[0][1] if m else None  # type: ignore[return-value]
 
     @property
     def result(self) -> dict | None:
-        m = self.topic(TOPIC_RESULT)
+        m = self.topic(RESULT.name)
         return m[-1][1] if m else None  # type: ignore[return-value]
 
     def counts(self) -> dict[str, int]:
@@ -97,9 +97,9 @@ def recorded_world(rec: Recording) -> WorldSpec:
 
 def pose_track(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
     """The robot's recorded poses: times (T,) [s] and (x, y, yaw) (T, 3), yaw unwrapped."""
-    from dynabarn.recording.topics import TOPIC_POSE
+    from dynabarn.recording.topics import POSE
 
-    poses = rec.topic(TOPIC_POSE)
+    poses = rec.topic(POSE.name)
     if not poses:
         raise DynabarnError(f"{rec.path}: the recording holds no robot poses")
     t = np.array([p[0] for p in poses])
@@ -125,9 +125,9 @@ def scan_lasers(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
     """Times (S,) of the recorded scans and the laser's (x, y, yaw) (S, 3) at each: from
     the frame tree (the scan is in the `laser` frame), or for recordings from before it,
     the laser's world pose the scan itself carried."""
-    from dynabarn.recording.topics import TOPIC_SCAN
+    from dynabarn.recording.topics import SCAN
 
-    scans = rec.topic(TOPIC_SCAN)
+    scans = rec.topic(SCAN.name)
     t = np.array([s[0] for s in scans], dtype=np.float64)
     if not scans:
         return t, np.zeros((0, 3))
@@ -164,7 +164,7 @@ def obstacle_track(rec: Recording, world: WorldSpec) -> tuple[np.ndarray, np.nda
 
     The recorder puts boxes in the update's cubes and the other obstacles in its
     cylinders, each in world order; this undoes that."""
-    updates = rec.topic(TOPIC_OBSTACLES)
+    updates = rec.topic(OBSTACLES.name)
     n = len(world.obstacles)
     is_box = np.array([o.shape == "box" for o in world.obstacles], dtype=bool)
     times = np.array([t for t, _ in updates], dtype=np.float64)
@@ -277,7 +277,7 @@ def _check_messages(rec: Recording) -> None:
     meta = rec.metadata
     for key, kind in _METADATA_FIELDS.items():
         if meta is not None and key in meta and not (isinstance(meta[key], kind) and not isinstance(meta[key], bool)):
-            raise RecordingError(f"{rec.path}: {TOPIC_METADATA} field {key!r} is not a JSON {kind.__name__}")
+            raise RecordingError(f"{rec.path}: {METADATA.name} field {key!r} is not a JSON {kind.__name__}")
     result = rec.result
     if result is not None and result.get("outcome") not in OUTCOMES:
         raise RecordingError(f"{rec.path}: the recorded result has no outcome the runner gives")

@@ -281,12 +281,14 @@ TOPICS: tuple[Topic, ...] = (
 )
 """Every topic, in the documentation's order; per-tick JSON topics are written in this order."""
 
-# The names under which the rest of the package knows them.
-TOPIC_METADATA, TOPIC_STATIC, TOPIC_GOAL = METADATA.name, STATIC.name, GOAL.name
-TOPIC_OBSTACLES, TOPIC_SCAN, TOPIC_POSE = OBSTACLES.name, SCAN.name, POSE.name
-TOPIC_CMD, TOPIC_METRICS, TOPIC_DEBUG, TOPIC_RESULT = CMD.name, METRICS.name, DEBUG.name, RESULT.name
-TOPIC_TF, TOPIC_PLANS = TF.name, PLANS.name
-TOPIC_TRACKS, TOPIC_TRACK_SCENE = TRACKS.name, TRACK_SCENE.name
+
+def __getattr__(name: str) -> str:
+    """`TOPIC_SCAN` is `SCAN.name` (the names earlier releases exported): the table's entry."""
+    topic = globals().get(name.removeprefix("TOPIC_")) if name.startswith("TOPIC_") else None
+    if isinstance(topic, Topic):
+        return topic.name
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 FRAMES = ("world", "odom", "base_link", "laser")
 """The frame tree on `/tf`, root first: each frame is the child of the one before."""

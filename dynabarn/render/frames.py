@@ -16,8 +16,8 @@ import numpy as np
 
 from dynabarn.errors import DynabarnError
 from dynabarn.recording import (
-    TOPIC_METRICS,
-    TOPIC_SCAN,
+    METRICS,
+    SCAN,
     Recording,
     obstacle_track,
     pose_track,
@@ -68,7 +68,7 @@ def scan_returns(rec: Recording) -> tuple[np.ndarray, list[np.ndarray]]:
     t, lasers = scan_lasers(rec)
     if not len(t):
         return t, []
-    scans = rec.topic(TOPIC_SCAN)
+    scans = rec.topic(SCAN.name)
     first = scans[0][1]
     ranges = np.array([np.asarray(m.ranges)[::SCAN_STRIDE] for _, m in scans])  # (S, B)
     angles = np.linspace(first.start_angle, first.end_angle, len(first.ranges))[::SCAN_STRIDE]
@@ -90,7 +90,7 @@ def frame_tracks(rec: Recording, world: WorldSpec, frame_times: np.ndarray) -> F
         obstacles, _ = player.positions_at(frame_times)
         trails, _ = player.positions_at(trail_times)
     robot = np.column_stack([np.interp(frame_times, t_pose, track[:, k]) for k in range(3)])
-    metrics = rec.topic(TOPIC_METRICS)
+    metrics = rec.topic(METRICS.name)
     if metrics:
         t_m = np.array([t for t, _ in metrics])
         v = np.array([m.get("v", 0.0) for _, m in metrics], dtype=np.float64)

@@ -27,10 +27,10 @@ import numpy as np
 from dynabarn.errors import DynabarnError
 from dynabarn.files import fsync_folder
 from dynabarn.recording import (
-    TOPIC_CMD,
-    TOPIC_METRICS,
-    TOPIC_POSE,
-    TOPIC_SCAN,
+    CMD,
+    METRICS,
+    POSE,
+    SCAN,
     Recording,
     obstacle_track,
     recorded_world,
@@ -96,7 +96,7 @@ def export_bag(rec: Recording, out: Path, fmt: str) -> dict[str, int]:
     robot = meta.get("robot", {})
     laser_x = float(robot.get("laser_offset", [0.12, 0.0])[0])
     laser_z = float(robot.get("laser_z", 0.3))
-    measured = {round(tm * 1e3): m for tm, m in rec.topic(TOPIC_METRICS)}
+    measured = {round(tm * 1e3): m for tm, m in rec.topic(METRICS.name)}
     world = recorded_world(rec)
     ot, oxy = obstacle_track(rec, world)
     zero6 = np.zeros(36)
@@ -133,7 +133,7 @@ def export_bag(rec: Recording, out: Path, fmt: str) -> dict[str, int]:
             transform=Transform(translation=Vector3(x=laser_x, y=0.0, z=laser_z), rotation=quat(0.0)),
         )
         write("/tf_static", "tf2_msgs/msg/TFMessage", 0.0, TFMessage(transforms=[static]))
-        for k, (ts, m) in enumerate(rec.topic(TOPIC_SCAN)):
+        for k, (ts, m) in enumerate(rec.topic(SCAN.name)):
             ranges = np.asarray(m.ranges, dtype=np.float32)
             scan = LaserScan(
                 header=header(ts, "front_laser", k),
@@ -148,7 +148,7 @@ def export_bag(rec: Recording, out: Path, fmt: str) -> dict[str, int]:
                 intensities=np.zeros(0, dtype=np.float32),
             )
             write("/front/scan", "sensor_msgs/msg/LaserScan", ts, scan)
-        for k, (ts, m) in enumerate(rec.topic(TOPIC_POSE)):
+        for k, (ts, m) in enumerate(rec.topic(POSE.name)):
             p, q = m.pose.position, m.pose.orientation
             yaw = 2.0 * math.atan2(q.z, q.w)
             tick = measured.get(round(ts * 1e3), {})
@@ -172,7 +172,7 @@ def export_bag(rec: Recording, out: Path, fmt: str) -> dict[str, int]:
                 transform=Transform(translation=Vector3(x=p.x, y=p.y, z=0.0), rotation=quat(yaw)),
             )
             write("/tf", "tf2_msgs/msg/TFMessage", ts, TFMessage(transforms=[tf]))
-        for ts, m in rec.topic(TOPIC_CMD):
+        for ts, m in rec.topic(CMD.name):
             cmd = Twist(linear=Vector3(x=float(m["v"]), y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=float(m["w"])))
             write("/cmd_vel", "geometry_msgs/msg/Twist", ts, cmd)
         red = ColorRGBA(r=0.85, g=0.15, b=0.12, a=1.0)
