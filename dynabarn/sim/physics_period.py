@@ -47,20 +47,22 @@ class PhysicsPeriod:
             raise DynabarnError("the model's robot has no contact sensor (not the runner's Jackal)") from None
         self._touches = self._sensors[0, :, int(model.sensor_adr[contact])]  # views, read after each period
         self._poses = self._states[0, :, 1:4]
+        self._state_row, self._ctrl = self._state0[0], self._controls[0, :, : model.nu]
+        self._models, self._datas = [model], [data]
 
     def run(self, obstacle_xy: np.ndarray, poses_out: np.ndarray) -> tuple[int, bool]:
         """Step with the first n mocap bodies at obstacle_xy[j] (k, n, 2) before step j; the
         robot's pose (x, y, yaw) after each step into poses_out's rows. Returns (steps run,
         contact): all k without a contact, else up to and including the first that touched."""
-        model, data, k = self.model, self.data, self.k
-        mujoco.mj_getState(model, data, self._state0[0], _FULL)
+        data, k = self.data, self.k
+        mujoco.mj_getState(self.model, data, self._state_row, _FULL)
         self._warm0[0] = data.qacc_warmstart
-        self._controls[0, :, : model.nu] = data.ctrl
+        self._ctrl[:] = data.ctrl
         self._mocap[:] = data.mocap_pos  # heights and any other mocap bodies stay where they are
         self._mocap[:, : obstacle_xy.shape[1], :2] = obstacle_xy[:k]
         self._runner.rollout(
-            [model],
-            [data],
+            self._models,
+            self._datas,
             self._state0,
             self._controls,
             control_spec=_CONTROLS,
