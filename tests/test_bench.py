@@ -41,7 +41,7 @@ def test_sweep_rows_and_summary_match_individual_runs(tmp_path):
     assert len(rows) == 6
     by_key = {r["key"]: r for r in rows}
     for job in jobs:
-        direct = run_episode(resolve_world(job.world_id), get_planner("straight"), BARN, seed=job.seed).to_dict()
+        direct = run_episode(resolve_world(job.world_id), get_planner("straight"), BARN, seed=job.spec.seed).to_dict()
         row = by_key[job.key]
         assert {k: row[k] for k in _strip(direct)} == _strip(direct)
         assert row["versions"]["mujoco"] and len(row["world_sha256"]) == 64
@@ -127,6 +127,9 @@ def test_cli_writes_summary_files_and_records_failures(tmp_path, capsys):
     # Another protocol into the same folder is refused without --force.
     assert bench_main([*argv, "--protocol", "paper2022"]) == 2
     assert "different sweep" in capsys.readouterr().err
+    # So are other simulation settings: their episodes would share the planner's rows.
+    assert bench_main([*argv, "--dt", "0.0025", "--control-rate", "20"]) == 2
+    assert "different sweep (sim differs)" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

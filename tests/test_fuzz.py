@@ -523,7 +523,7 @@ def _run_job_or_die(job):
     native code, the OOM killer); module level, so the pool can send it to its workers."""
     from dynabarn.bench.jobs import run_job
 
-    if job.world_id == 1 and job.seed == 0:
+    if job.world_id == 1 and job.spec.seed == 0:
         os.kill(os.getpid(), signal.SIGKILL)
     return run_job(job)
 

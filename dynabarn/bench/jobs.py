@@ -18,37 +18,17 @@ from dynabarn.sim.config import SimConfig
 
 @dataclass(frozen=True)
 class Job:
-    """One episode to run."""
+    """One episode of a sweep: the episode itself (`spec`), where it sits in the world set,
+    and what becomes of its recording."""
 
-    planner: str
-    planner_config: tuple  # sorted (key, value) pairs, hashable
-    world_file: str
+    spec: EpisodeSpec
     world_id: int
     difficulty: str
-    protocol: dict
-    seed: int
     record: str = "none"  # none | failures | all
     recordings_dir: str = ""
     factory: Callable | None = None
     """The planner's factory, for a planner registered at run time (`register_planner`):
     worker processes that do not fork (spawn, Ray) know only installed planners."""
-    label: str = ""
-    """The name rows carry, when not the registry name (`dwa@dwa_dynabarn_authors`)."""
-    sim: tuple = ()
-    """The simulation's settings that differ from the defaults (`EpisodeSpec.sim`)."""
-
-    @property
-    def spec(self) -> EpisodeSpec:
-        """The episode itself, as every command describes one."""
-        return EpisodeSpec(
-            world=self.world_file,
-            planner=self.planner,
-            protocol=self.protocol,
-            planner_config=self.planner_config,
-            seed=self.seed,
-            sim=self.sim,
-            label=self.label,
-        )
 
     @property
     def shown(self) -> str:
@@ -70,21 +50,14 @@ def make_jobs(
     recordings_dir: Path | None = None,
     sim: SimConfig = SimConfig(),
 ) -> list[Job]:
-    settings = EpisodeSpec.make("", "", protocol, sim=sim).sim
     return [
         Job(
-            planner=name,
-            planner_config=tuple(sorted(cfg.items())),
-            world_file=file,
+            spec=EpisodeSpec.make(file, name, protocol, config=cfg, seed=seed, sim=sim, label=(label or [""])[0]),
             world_id=wid,
             difficulty=difficulty,
-            protocol=protocol.to_dict(),
-            seed=seed,
             record=record,
             recordings_dir=str(recordings_dir or ""),
             factory=planner_factory(name) if registered_at_run_time(name) else None,
-            label=label[0] if label and label[0] != name else "",
-            sim=settings,
         )
         for name, cfg, *label in planners
         for wid, file, difficulty in worlds
@@ -99,8 +72,8 @@ def row_head(job: Job) -> dict:
         "planner": job.shown,
         "world_id": job.world_id,
         "difficulty": job.difficulty,
-        "seed": job.seed,
-        "protocol": job.protocol["name"],
+        "seed": job.spec.seed,
+        "protocol": job.spec.protocol["name"],
     }
 
 
@@ -116,7 +89,7 @@ def run_job(job: Job) -> dict:
         sim = Simulation(spec.world, config=spec.sim_config)
         if job.record != "none":
             rec_path = default_run_path(
-                Path(job.recordings_dir), sim.world.name, job.planner, job.protocol["name"], job.seed
+                Path(job.recordings_dir), sim.world.name, spec.planner, spec.protocol["name"], spec.seed
             )  # written as rec_path.part, renamed when whole
         result = run_spec(spec, factory=job.factory, sim=sim, record_to=rec_path, on_recorder=recorders.append)
         row.update(result.to_dict())

@@ -159,21 +159,24 @@ def locked(out_dir: Path):
 def metadata(args_dict: dict, jobs: list[Job]) -> dict:
     from dynabarn.provenance import versions
 
-    world_hashes = sorted({hashlib.sha256(Path(j.world_file).read_bytes()).hexdigest()[:16] for j in jobs})
+    world_hashes = sorted({hashlib.sha256(Path(j.spec.world).read_bytes()).hexdigest()[:16] for j in jobs})
+    settings = dict(jobs[0].spec.sim) if jobs else {}
     return {
         "format": "dynabarn-bench",
         "versions": versions(),
         "python": sys.version.split()[0],
         "arguments": args_dict,
-        "protocol": jobs[0].protocol if jobs else None,
+        "protocol": jobs[0].spec.protocol if jobs else None,
         "planners": sorted({j.shown for j in jobs}),
         "episodes": len(jobs),
         "worlds_digest": hashlib.sha256("".join(world_hashes).encode()).hexdigest()[:16],
+        **({"sim": settings} if settings else {}),  # the simulation's settings, when not the defaults
     }
 
 
 def check_or_write_metadata(out_dir: Path, meta: dict, *, force: bool) -> None:
-    """Refuse to mix sweeps in one folder: same planners/protocol/worlds, or --force."""
+    """Refuse to mix sweeps in one folder: same protocol, worlds and simulation settings,
+    or --force."""
     path = out_dir / METADATA
     out_dir.mkdir(parents=True, exist_ok=True)
     meta = json.loads(json.dumps(meta))  # compare as stored (tuples become lists)
@@ -184,7 +187,7 @@ def check_or_write_metadata(out_dir: Path, meta: dict, *, force: bool) -> None:
             old = None
         if not isinstance(old, dict):
             raise DynabarnError(f"{path} is not a sweep's metadata; use another --out, or --force to start over")
-        for key in ("protocol", "worlds_digest"):
+        for key in ("protocol", "worlds_digest", "sim"):
             if old.get(key) != meta.get(key):
                 raise DynabarnError(f"{out_dir} holds a different sweep ({key} differs); use another --out or --force")
     elif path.is_file() and force:
@@ -214,7 +217,7 @@ def write_worlds(out_dir: Path, jobs: list[Job]) -> Path:
         except (json.JSONDecodeError, UnicodeDecodeError, RecursionError, KeyError, TypeError):
             old = {}
     worlds = dict(old)
-    files = {(Path(j.world_file).parent, Path(j.world_file).name) for j in jobs}  # once, not per entry
+    files = {(Path(j.spec.world).parent, Path(j.spec.world).name) for j in jobs}  # once, not per entry
     for folder in sorted({folder for folder, _ in files}):
         try:
             index = read_index(folder)
