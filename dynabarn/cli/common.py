@@ -16,6 +16,7 @@ from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, version
 
 from dynabarn.errors import DynabarnError, ImportFormatError, Terminated
+from dynabarn.limits import MAX_JOBS, MAX_SEED
 
 WORLD_HELP = (
     "a world by id or name (137, world_137, world_137.xml; from $DYNABARN_WORLDS, else the shipped 300) "
@@ -80,11 +81,6 @@ def ranged(kind: type, low: float, high: float) -> Callable[[str], float]:
 
     parse.__name__ = kind.__name__  # argparse names the type in its messages
     return parse
-
-
-MAX_JOBS = 256
-"""Parallel workers a command starts at most (each holds a MuJoCo model and a planner)."""
-MAX_SEED = 2**32 - 1
 
 
 def make_parser(prog: str, description: str) -> argparse.ArgumentParser:

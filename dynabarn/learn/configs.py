@@ -8,10 +8,8 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 from dynabarn.learn.split import DEFAULT_PROFILE_SETS
+from dynabarn.limits import MAX_JOBS, MAX_SEED
 from dynabarn.planners.learned.features import FeatureConfig
-
-MAX_WORKERS = 256
-MAX_SEED = 2**32 - 1
 
 
 def option(default: Any, low: float, high: float, text: str) -> Any:
@@ -32,7 +30,7 @@ def cli_options(config: type) -> list[tuple[str, type, float, float, str, Any]]:
 @dataclass
 class TD3Config:
     steps: int = option(80_000, 1, 100_000_000, "environment steps in total")
-    envs: int = option(1, 1, MAX_WORKERS, "parallel environments (one process each when > 1)")
+    envs: int = option(1, 1, MAX_JOBS, "parallel environments (one process each when > 1)")
     world_set: str = "paper60"
     difficulty: str | None = "all"
     protocol: str = "barn"
@@ -62,7 +60,7 @@ class TD3Config:
     bc_decay_steps: int = option(100_000, 1, 100_000_000, "steps over which bc_weight decays linearly to 0")
     eval_every: int = option(10_000, 1, 100_000_000, "steps between evaluations and checkpoints")
     eval_episodes: int = option(30, 1, 10_000, "episodes per evaluation (training worlds, seeds of their own)")
-    threads: int = option(2, 1, MAX_WORKERS, "PyTorch threads (and demonstration processes)")
+    threads: int = option(2, 1, MAX_JOBS, "PyTorch threads (and demonstration processes)")
     seed: int = option(0, 0, MAX_SEED, "seed of torch, the buffers and the environments")
 
     def env_kwargs(self) -> dict:
@@ -95,8 +93,8 @@ class DaggerConfig:
     velocity: bool = True
     tracks: int = option(8, 0, 64, "nearest laser-tracker tracks the student sees (0: no tracker)")
     protocol: str = "barn"
-    workers: int = option(2, 1, MAX_WORKERS, "collection processes")
-    threads: int = option(2, 1, MAX_WORKERS, "PyTorch threads for fitting")
+    workers: int = option(2, 1, MAX_JOBS, "collection processes")
+    threads: int = option(2, 1, MAX_JOBS, "PyTorch threads for fitting")
     seed: int = option(0, 0, MAX_SEED, "seed of the split, the trials, the coin and torch")
     profile_sets: list[str] = field(default_factory=lambda: list(DEFAULT_PROFILE_SETS))
 
