@@ -162,19 +162,28 @@ class GlobalPlanner:
         c = _cell(x, y, f.nx, f.ny, self.resolution)
         if not math.isfinite(f.cost.flat[c]):
             return np.array([[x, y], self.goal])
-        cells = []
-        pred = f.pred
-        limit = f.nx * f.ny if max_cells is None else min(max_cells, f.nx * f.ny)
+        cells, cut = self._walk(c, f.nx * f.ny if max_cells is None else min(max_cells, f.nx * f.ny))
+        out = self._points(cells, cut and max_cells is not None)
+        out[0] = x, y  # the robot's position in place of its own cell's centre
+        return out
+
+    def _walk(self, c: int, limit: int) -> tuple[list[int], bool]:
+        """The plan's cells from cell c (c first), at most `limit`; whether the walk was cut
+        short before the goal."""
+        cells, pred = [], self.field.pred
         while c >= 0 and len(cells) < limit:
             cells.append(c)
             c = pred[c]
-        cut = c >= 0 and max_cells is not None  # cut short before the goal
-        # The robot's position, the cells' centres after its own, then the goal (unless cut).
+        return cells, c >= 0
+
+    def _points(self, cells: list[int], cut: bool) -> np.ndarray:
+        """(len(cells) + 1 unless cut, 2): row 0 left for the caller, then the centres of the
+        cells after the first, then the goal unless the walk was cut."""
+        nx = self.field.nx
         idx = np.array(cells[1:], dtype=np.int64)
         out = np.empty((len(cells) + (0 if cut else 1), 2))
-        out[0] = x, y
-        out[1 : len(cells), 0] = self._cx[idx % f.nx]
-        out[1 : len(cells), 1] = self._cy[idx // f.nx]
+        out[1 : len(cells), 0] = self._cx[idx % nx]
+        out[1 : len(cells), 1] = self._cy[idx // nx]
         if not cut:
             out[-1] = self.goal
         return out
@@ -260,23 +269,12 @@ class GlobalPlanner:
         keep the suffix of every cell on the way (slices of one array of cell centres): a
         robot that follows the plan meets them next. Each is `plan(...)[1:]` of its cell:
         the centres of its next max_cells - 1 cells, then the goal if it is among them."""
-        f, pred = self.field, self.field.pred
-        cells = []
-        c = cell
-        while c >= 0 and len(cells) < max_cells + CHAIN_SUFFIXES:
-            cells.append(c)
-            c = pred[c]
-        ends = c < 0  # the walk reached the goal
-        idx = np.array(cells, dtype=np.int64)
-        points = np.empty((len(cells) + ends, 2))
-        points[: len(cells), 0] = self._cx[idx % f.nx]
-        points[: len(cells), 1] = self._cy[idx // f.nx]
-        if ends:
-            points[-1] = self.goal
+        cells, cut = self._walk(cell, max_cells + CHAIN_SUFFIXES)
+        points = self._points(cells, cut)  # row j + 1: the centre of cells[j + 1] (or the goal)
         for j, cj in enumerate(cells):
             if j + max_cells < len(cells):  # cut short before the goal
                 part = points[j + 1 : j + max_cells]
-            elif ends:
+            elif not cut:
                 part = points[j + 1 :]
             else:
                 break  # its suffix would run past the walk
