@@ -31,13 +31,17 @@ def main(argv: Sequence[str] | None = None, prog: str = "python -m dynabarn") ->
     args = list(sys.argv[1:] if argv is None else argv)
     if not args or args[0] in ("-h", "--help"):
         print(f"usage: {prog} COMMAND [options]   (the same as dynabarn-COMMAND)\n\ncommands:")
+        installed = INSTALLED.installed()
         for name in INSTALLED.names():
-            summary = _summary(COMMANDS[name]) if name in COMMANDS else f"(from {INSTALLED.installed()[name].value})"
+            summary = _summary(COMMANDS[name]) if name in COMMANDS else f"(from {installed[name].value})"
             print(f"  {name:<8} {summary}")
         print(f"\n{prog} COMMAND --help explains a command's options.")
         return 0 if args else EXIT_USAGE
-    if args[0] not in INSTALLED.names():
-        print(f"{prog}: unknown command {args[0]!r}; choose from {', '.join(INSTALLED.names())}", file=sys.stderr)
+    if args[0] in COMMANDS:  # this package's own: no scan of the installed packages
+        return COMMANDS[args[0]](args[1:])
+    names = INSTALLED.names()
+    if args[0] not in names:
+        print(f"{prog}: unknown command {args[0]!r}; choose from {', '.join(names)}", file=sys.stderr)
         return EXIT_USAGE
     try:
         command = INSTALLED.get_item(args[0])

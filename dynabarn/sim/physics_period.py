@@ -81,7 +81,7 @@ class PhysicsPeriod:
         """The period again from its start, step by step, up to the first contact (rare: it
         ends the episode), leaving data exactly as that step left it."""
         model, data = self.model, self.data
-        mujoco.mj_setState(model, data, self._state0[0], _FULL)
+        mujoco.mj_setState(model, data, self._state_row, _FULL)
         data.qacc_warmstart[:] = self._warm0[0]
         mocap_xy = data.mocap_pos[: obstacle_xy.shape[1], :2]
         for j in range(self.k):
