@@ -167,3 +167,40 @@ def test_schedule_batch_counts_keys_exactly_when_a_period_passes_many(span):
             ref_pos, ref_vel = p.positions_at(t[i] + offsets)
             np.testing.assert_array_equal(pos[i], ref_pos)
             np.testing.assert_array_equal(vel[i], ref_vel)
+
+
+def test_local_goal_batch_has_each_planners_bits():
+    # Every world's plan walked in one numpy pass must give what each planner's own walk
+    # gives: anywhere in and around the arena (unreachable cells, the goal's cell, the
+    # grid's edge), on the plan, at several lookaheads, and after plans were dropped for
+    # others (a capacity smaller than the plans met; the shipped worlds share one plan, so
+    # other goals make the others).
+    from dynabarn.learn.shared_worlds import shared_world
+    from dynabarn.planners.global_planner import GlobalPlanner, local_goals_in_robot
+    from dynabarn.planners.local_goal_batch import LocalGoalBatch
+
+    shipped = shared_world(str(resolve_world(137)))[1]
+    walls = np.array([[-10, 0, 0.5, 20], [0, 10, 20, 0.5], [0, -10, 20, 0.5]], dtype=float)
+    others = [GlobalPlanner(walls, np.array(goal)) for goal in ((-9.0, 5.0), (-9.0, -5.0), (0.0, 0.0), (5.0, 8.0))]
+    planners = [shipped, *others]
+    batch = LocalGoalBatch(capacity=4)
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        chosen = [planners[k] for k in rng.choice(len(planners), size=int(rng.integers(1, 5)), replace=False)]
+        poses = np.column_stack(
+            [rng.uniform(-13, 16, len(chosen)), rng.uniform(-13, 16, len(chosen)), rng.uniform(-4, 4, len(chosen))]
+        )
+        lookahead = float(rng.choice([0.1, 0.75, 2.0, 3.3]))
+        np.testing.assert_array_equal(
+            batch.local_goals_in_robot(chosen, poses, lookahead), local_goals_in_robot(chosen, poses, lookahead)
+        )
+    for planner in planners:
+        plan = planner.plan(11.0, 0.0)
+        poses = np.column_stack([plan, np.linspace(-3, 3, len(plan))])
+        many = [planner] * len(plan)
+        np.testing.assert_array_equal(
+            batch.local_goals_in_robot(many, poses, 2.0), local_goals_in_robot(many, poses, 2.0)
+        )
+    assert len(batch._slots) == 4  # plans were dropped and copied in again
+    with pytest.raises(ValueError, match="capacity"):
+        batch.local_goals_in_robot(planners, np.zeros((len(planners), 3)), 2.0)

@@ -32,8 +32,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from dynabarn.learn.env import DynaBARNEnv
-from dynabarn.planners.global_planner import local_goals_in_robot
 from dynabarn.planners.learned.spaces import action_to_command
+from dynabarn.planners.local_goal_batch import LocalGoalBatch
 from dynabarn.sim.ray_batch import BatchCaster, supports
 from dynabarn.worlds.schedule_batch import ScheduleBatch, batchable
 
@@ -48,6 +48,7 @@ class WorldBatch:
         self._caster_sims: list | None = None
         self._schedule: ScheduleBatch | None = None
         self._players: list | None = None
+        self._local_goals = LocalGoalBatch(capacity=2 * n + 4)  # a world that comes back keeps its plan
 
     def reset(self, seeds: list[int | None], options: dict | None) -> tuple[np.ndarray, list[dict]]:
         out = [env.reset(seed=s, options=options) for env, s in zip(self.envs, seeds, strict=True)]
@@ -94,7 +95,7 @@ class WorldBatch:
         poses = np.empty((len(running), 3))
         for k, (env, ep) in enumerate(zip(envs, episodes, strict=True)):
             poses[k] = env._seen(ep.observe_scan(scans[k])).pose
-        goals = local_goals_in_robot([env._planner for env in envs], poses, envs[0].lookahead)
+        goals = self._local_goals.local_goals_in_robot([env._planner for env in envs], poses, envs[0].lookahead)
         obs[running, : scans.shape[1]] = scans
         obs[running, scans.shape[1] :] = goals
 

@@ -38,6 +38,7 @@ CIRCLE_INFLATION = JACKAL.width / 2 + MARGIN
 class _Field:
     cost: np.ndarray  # (ny, nx) cost-to-go [m], inf where unreachable
     pred: list[int]  # flat predecessor towards the goal, -9999 at the goal / unreachable
+    pred_array: np.ndarray  # the same as int32 (a batch of worlds walks them in numpy)
     nx: int
     ny: int
 
@@ -88,7 +89,7 @@ def _dijkstra_field(
     graph = coo_matrix((w, (r, c)), shape=(nx * ny, nx * ny)).tocsr()
     goal_cell = _cell(goal[0], goal[1], nx, ny, resolution)
     cost, pred = dijkstra(graph, directed=False, indices=goal_cell, return_predecessors=True)
-    return _Field(cost=cost.reshape(ny, nx), pred=pred.tolist(), nx=nx, ny=ny)
+    return _Field(cost=cost.reshape(ny, nx), pred=pred.tolist(), pred_array=pred.astype(np.int32), nx=nx, ny=ny)
 
 
 def _cell(x: float, y: float, nx: int, ny: int, resolution: float) -> int:
@@ -248,7 +249,7 @@ class GlobalPlanner:
         them, and a cumulative sum's prefix is the prefix of the whole one (the same bits)."""
         if path is None:
             path = np.vstack([[x, y], self._plan_suffix(x, y, lookahead)])
-        return _points_along(path[None], lookahead)[0], path
+        return points_along(path[None], lookahead)[0], path
 
     def _plan_suffix(self, x: float, y: float, lookahead: float) -> np.ndarray:
         """`plan(x, y, max_cells)[1:]` for a local goal `lookahead` away: it depends on the
@@ -297,7 +298,11 @@ def local_goals_in_robot(planners: list[GlobalPlanner], poses: np.ndarray, looka
     for row, suffix in zip(paths, suffixes, strict=True):
         row[1 : len(suffix) + 1] = suffix
         row[len(suffix) + 1 :] = suffix[-1]  # segments of length 0: the cumulative sum stays
-    goals = _points_along(paths, lookahead)
+    return goals_in_robot_frame(points_along(paths, lookahead), poses)
+
+
+def goals_in_robot_frame(goals: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """(W, 2) world points goals (W, 2) in the frames of poses (W, 3) (x, y, yaw)."""
     # As `to_robot_frame` turns one point: libm's cos and sin (numpy's may differ in the last bit).
     yaws = poses[:, 2].tolist()
     c = np.array([math.cos(a) for a in yaws])
@@ -306,7 +311,7 @@ def local_goals_in_robot(planners: list[GlobalPlanner], poses: np.ndarray, looka
     return np.column_stack([c * dx + s * dy, -s * dx + c * dy])
 
 
-def _points_along(paths: np.ndarray, lookahead: float) -> np.ndarray:
+def points_along(paths: np.ndarray, lookahead: float) -> np.ndarray:
     """(W, 2) the point `lookahead` metres along each path of (W, P, 2) (its end if shorter)."""
     step = np.diff(paths, axis=1)
     seg = np.hypot(step[..., 0], step[..., 1])
