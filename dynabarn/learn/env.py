@@ -237,6 +237,12 @@ class DynaBARNEnv(gymnasium.Env):
         return obs
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        self._begin(seed, options)
+        return self._started(self._observe())
+
+    def _begin(self, seed: int | None, options: dict[str, Any] | None) -> None:
+        """`reset` up to its observation: the world and the trial drawn, the episode started
+        (a batch of worlds observes its new episodes together, then calls `_started`)."""
         super().reset(seed=seed)
         options = options or {}
         if self.procedural is not None:
@@ -259,8 +265,6 @@ class DynaBARNEnv(gymnasium.Env):
         # Privileged episodes let a demonstrator (the oracle) see the obstacles' true states;
         # the policy's observation is the same either way.
         self.episode = Episode(sim, self.protocol, seed=trial, privileged=bool(options.get("privileged", False)))
-        observation = self._observe()
-        self._cost_to_go = self._planner.cost_to_go(float(self._pose[0]), float(self._pose[1]))
         self._info = {
             "world": sim.world.name,
             "world_id": wid,
@@ -268,6 +272,10 @@ class DynaBARNEnv(gymnasium.Env):
             "trial_seed": trial,
             "fingerprint": sim.world_fingerprint,
         }
+
+    def _started(self, observation: np.ndarray) -> tuple[np.ndarray, dict]:
+        """`reset`'s values once the episode's first observation is known."""
+        self._cost_to_go = self._planner.cost_to_go(float(self._pose[0]), float(self._pose[1]))
         if self.render_mode == "human":
             self._show()
         return observation, {**self._info, "is_success": False}

@@ -51,40 +51,52 @@ class WorldBatch:
         self._local_goals = LocalGoalBatch(capacity=2 * n + 4)  # a world that comes back keeps its plan
 
     def reset(self, seeds: list[int | None], options: dict | None) -> tuple[np.ndarray, list[dict]]:
-        out = [env.reset(seed=s, options=options) for env, s in zip(self.envs, seeds, strict=True)]
+        for env, seed in zip(self.envs, seeds, strict=True):
+            env._begin(seed, options)
+        obs = self._new_obs()
+        fresh = list(range(len(self.envs)))
+        self._observe(fresh, obs)
+        infos = [self.envs[i]._started(obs[i])[1] for i in fresh]
         self.needs_reset[:] = False
-        return np.stack([o for o, _ in out]), _infos([i for _, i in out])
+        return obs, _infos(infos)
+
+    def _new_obs(self) -> np.ndarray:
+        return np.zeros((len(self.envs), *self.envs[0].observation_space.shape), np.float32)
 
     def step(self, actions: np.ndarray):
         n = len(self.envs)
-        obs = np.zeros((n, *self.envs[0].observation_space.shape), np.float32)
+        obs = self._new_obs()
         rewards, terminated, truncated = np.zeros(n), np.zeros(n, bool), np.zeros(n, bool)
         infos: list[dict] = [{} for _ in range(n)]
-        outcomes: list = [None] * n
-        running = []
+        running, fresh = [], []
         v, w = action_to_command(np.asarray(actions).T)  # elementwise: each world's own bits
         for i, env in enumerate(self.envs):
-            if self.needs_reset[i]:
-                obs[i], infos[i] = env.reset()
+            if self.needs_reset[i]:  # Gymnasium's NEXT_STEP autoreset: a new episode, observed below
+                env._begin(None, None)
+                fresh.append(i)
                 continue
-            outcomes[i] = env.episode.apply(float(v[i]), float(w[i]))
-            if outcomes[i] is None:
+            outcome = env.episode.apply(float(v[i]), float(w[i]))
+            if outcome is None:
                 running.append(i)
             else:
                 obs[i], rewards[i], terminated[i], truncated[i], infos[i] = env._conclude(
-                    outcomes[i], env._last_observation()
+                    outcome, env._last_observation()
                 )
-        if running:
-            self._observe(running, obs)
+        # New episodes' first observations and the running ones' next, in one batch.
+        if running or fresh:
+            self._observe(sorted(running + fresh), obs)
         for i in running:
             _, rewards[i], terminated[i], truncated[i], infos[i] = self.envs[i]._conclude(None, None)
+        for i in fresh:
+            infos[i] = self.envs[i]._started(obs[i])[1]
         self.needs_reset = terminated | truncated
         # The infos as Gymnasium's arrays here, in the worker: the parent only joins them.
         return obs, rewards, terminated, truncated, _infos(infos)
 
     def _observe(self, running: list[int], obs: np.ndarray) -> None:
-        """The running worlds' observations into obs's rows: obstacles placed, rays cast,
-        noise drawn (each world from its own generator) and local goals found, all at once."""
+        """The observations of the worlds `running` (stepped or just started) into obs's rows:
+        obstacles placed, rays cast, noise drawn (each world from its own generator) and local
+        goals found, all at once."""
         envs = [self.envs[i] for i in running]
         episodes = [env.episode for env in envs]
         schedules = self._schedules(running)
