@@ -110,7 +110,8 @@ def interpolate(interpolation: Interpolation, flat_t, flat_p, flat_m, tl: np.nda
     p1 = np.take(flat_p, nxt, axis=0)
     dt = dt[..., None]
     if interpolation is Interpolation.LINEAR:
-        return p0 + (p1 - p0) * u, (p1 - p0) / dt
+        d = p1 - p0
+        return p0 + d * u, d / dt
     m0 = np.take(flat_m, seg, axis=0)
     m1 = np.take(flat_m, nxt, axis=0)
     u2 = u * u

@@ -37,7 +37,8 @@ class ScheduleBatch:
         self.loop = players[0].end_behavior is EndBehavior.LOOP
         counts = np.array([p.n_obstacles for p in players], dtype=np.int64)
         self.world_of = np.repeat(np.arange(len(players)), counts)
-        self.splits = np.cumsum(counts)[:-1]
+        ends = np.cumsum(counts).tolist()
+        self._rows = [slice(a, b) for a, b in zip([0, *ends[:-1]], ends, strict=True)]  # each world's obstacles
         live = [p for p in players if p.n_obstacles]
         self.n = int(counts.sum())
         if not self.n:
@@ -53,18 +54,22 @@ class ScheduleBatch:
         self._start = start
         self._seg_lo = start
         self._seg_hi = start + np.maximum(n_key - 2, 0)
-        # Every obstacle's own keys (shifted as its world's player shifts them), +inf padded.
-        keys = np.full((self.n, int(n_key.max())), np.inf)
+        # Every obstacle's own keys (shifted as its world's player shifts them), +inf padded,
+        # with WINDOW more +inf columns so a window past the last key needs no bounds check.
+        width = int(n_key.max()) + WINDOW
+        keys = np.full((self.n, width), np.inf)
         own = np.concatenate([p._flat_key for p in live])
         col = np.arange(len(own)) - np.repeat(start, n_key)
         keys[np.repeat(np.arange(self.n), n_key), col] = own
         self._keys = keys
+        self._keys_by_column = np.ascontiguousarray(keys.T)  # a sum over the long axis: numpy's fast case
+        self._window = np.arange(self.n)[:, None] * width + np.arange(WINDOW)  # flat indices from column 0
 
     def positions_at(self, times: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """times (T, W): world w's T query times. Per world: positions and velocities (T, n_w, 2)."""
         if not self.n:
             empty = np.zeros((times.shape[0], 0, 2))
-            return [empty] * (len(self.splits) + 1), [empty] * (len(self.splits) + 1)
+            return [empty] * len(self._rows), [empty] * len(self._rows)
         tl = times[:, self.world_of] + self.offset  # as SchedulePlayer.local_time: t + clock_offset
         # fmod is np.mod's first step and, for the non-negative clocks here, its result.
         tl = np.fmod(tl, self.durations) if self.loop else np.minimum(tl, self.durations)
@@ -72,21 +77,19 @@ class ScheduleBatch:
         seg = self._start + self._keys_at_or_before(q) - 1
         np.clip(seg, self._seg_lo, self._seg_hi, out=seg)
         pos, vel = interpolate(self.interpolation, self._flat_t, self._flat_p, self._flat_m, tl, seg)
-        return np.split(pos, self.splits, axis=1), np.split(vel, self.splits, axis=1)
+        return [pos[:, r] for r in self._rows], [vel[:, r] for r in self._rows]  # views, as np.split gives
 
     def _keys_at_or_before(self, q: np.ndarray) -> np.ndarray:
         """(T, n) how many of each obstacle's keys are <= q (T, n): the comparisons of all of
         them for the first time only; a period's later times, no earlier than the first (no
         loop wrapped inside it), can only pass the next few keys, so only those are compared.
         The same counts, exactly; all keys compared again when a period passes more."""
-        first = (self._keys <= q[0][:, None]).sum(axis=-1)  # (n,)
+        first = (self._keys_by_column <= q[0]).sum(axis=0)  # (n,)
         if len(q) > 1 and (q[1:] >= q[0]).all():
-            cols = np.minimum(first[:, None] + np.arange(WINDOW), self._keys.shape[1] - 1)
-            ahead = np.take_along_axis(self._keys, cols, axis=1)  # (n, WINDOW), +inf beyond the last key
-            ahead[first[:, None] + np.arange(WINDOW) >= self._keys.shape[1]] = np.inf
+            ahead = np.take(self._keys, self._window + first[:, None])  # (n, WINDOW), +inf beyond the last key
             if (ahead[:, -1] > q[-1]).all():
-                count = np.broadcast_to(first, q.shape).copy()
-                for w in range(WINDOW):  # a sum over a short last axis is numpy's slow case
+                count = first + (ahead[:, 0] <= q)
+                for w in range(1, WINDOW):  # a sum over a short last axis is numpy's slow case
                     count += ahead[:, w] <= q
                 return count
         return (self._keys[None] <= q[..., None]).sum(axis=-1)
