@@ -20,12 +20,67 @@ A clock offset (seconds) shifts every obstacle's clock; trials use it.
 
 from __future__ import annotations
 
+from collections import OrderedDict
+from dataclasses import dataclass
+
 import numpy as np
 
 from dynabarn.worlds.spec import EndBehavior, Interpolation, WorldSpec
 
 _STRIDE = 1.0e6
 """Seconds between obstacles in the flat key array; schedules are far shorter."""
+
+
+@dataclass(frozen=True)
+class _Keyframes:
+    """A world's keyframes as the player evaluates them (read only: shared by its players)."""
+
+    n: int
+    n_keyframes: np.ndarray
+    durations: np.ndarray
+    seg_lo: np.ndarray
+    seg_hi: np.ndarray
+    stride_offsets: np.ndarray
+    flat_key: np.ndarray | None
+    flat_t: np.ndarray | None
+    flat_p: np.ndarray | None
+    flat_m: np.ndarray | None
+
+
+_KEPT_WORLDS = 256
+_kept: OrderedDict[int, tuple[WorldSpec, _Keyframes]] = OrderedDict()
+
+
+def _keyframes(world: WorldSpec) -> _Keyframes:
+    """The world's keyframe arrays, built once per world object: every episode's player
+    (one per trial) shares them; only the clock offset is its own."""
+    hit = _kept.get(id(world))
+    if hit is not None and hit[0] is world:
+        _kept.move_to_end(id(world))
+        return hit[1]
+    obstacles = world.obstacles
+    n = len(obstacles)
+    n_keyframes = np.array([len(o.trajectory.times) for o in obstacles], dtype=np.int64)
+    # All keyframes in one flat array, obstacle i's times shifted by i * _STRIDE, so one
+    # searchsorted finds every obstacle's segment at every query time at once.
+    start = np.concatenate([[0], np.cumsum(n_keyframes)[:-1]]).astype(np.int64)
+    flat = (None, None, None, None)
+    if n:
+        flat = (
+            np.concatenate([o.trajectory.times + i * _STRIDE for i, o in enumerate(obstacles)]),
+            np.concatenate([o.trajectory.times for o in obstacles]),
+            np.concatenate([o.trajectory.xy for o in obstacles]),
+            np.concatenate([_catmull_rom_tangents(o.trajectory.xy) for o in obstacles]),
+        )
+    arrays = [n_keyframes, np.array([o.trajectory.duration for o in obstacles], dtype=np.float64), start]
+    arrays += [start + np.maximum(n_keyframes - 2, 0), np.arange(n) * _STRIDE, *(a for a in flat if a is not None)]
+    for a in arrays:
+        a.flags.writeable = False  # shared by every player of the world
+    table = _Keyframes(n, arrays[0], arrays[1], arrays[2], arrays[3], arrays[4], *flat)
+    _kept[id(world)] = (world, table)  # the world kept with it: its id cannot be reused meanwhile
+    while len(_kept) > _KEPT_WORLDS:
+        _kept.popitem(last=False)
+    return table
 
 
 class SchedulePlayer:
@@ -40,23 +95,12 @@ class SchedulePlayer:
         self.interpolation = Interpolation(world.interpolation)
         self.end_behavior = EndBehavior(world.end_behavior)
         self.clock_offset = float(clock_offset)
-        obstacles = world.obstacles
-        n = len(obstacles)
-        self.n_obstacles = n
-        self.n_keyframes = np.array([len(o.trajectory.times) for o in obstacles], dtype=np.int64)
-        self.durations = np.array([o.trajectory.duration for o in obstacles], dtype=np.float64)
-        # All keyframes in one flat array, obstacle i's times shifted by i * _STRIDE, so one
-        # searchsorted finds every obstacle's segment at every query time at once.
-        start = np.concatenate([[0], np.cumsum(self.n_keyframes)[:-1]]).astype(np.int64)
-        self._seg_lo = start
-        self._seg_hi = start + np.maximum(self.n_keyframes - 2, 0)
-        self._stride_offsets = np.arange(n) * _STRIDE
-
-        if n:
-            self._flat_key = np.concatenate([o.trajectory.times + i * _STRIDE for i, o in enumerate(obstacles)])
-            self._flat_t = np.concatenate([o.trajectory.times for o in obstacles])
-            self._flat_p = np.concatenate([o.trajectory.xy for o in obstacles])
-            self._flat_m = np.concatenate([_catmull_rom_tangents(o.trajectory.xy) for o in obstacles])
+        k = _keyframes(world)
+        self.n_obstacles = k.n
+        self.n_keyframes, self.durations = k.n_keyframes, k.durations
+        self._seg_lo, self._seg_hi, self._stride_offsets = k.seg_lo, k.seg_hi, k.stride_offsets
+        if k.n:
+            self._flat_key, self._flat_t, self._flat_p, self._flat_m = k.flat_key, k.flat_t, k.flat_p, k.flat_m
 
     def local_time(self, t: float | np.ndarray) -> np.ndarray:
         """Each obstacle's clock at world time(s) t [s]: shape (n_obstacles,) or (T, n_obstacles)."""
