@@ -79,6 +79,25 @@ def test_vector_env_equals_single_envs_across_workers_and_splits():
     assert all(not p.is_alive() for p in vec._procs) and not vec._procs
 
 
+@pytest.mark.slow
+def test_vector_env_returns_its_own_observations_and_a_dead_worker_is_one_clear_error():
+    # The workers write into a buffer shared with this process: what step returned must not
+    # change when the next step writes it again. A worker that died is named, not a pipe error.
+    vec = DynaBARNVectorEnv(4, workers=2, world_set="paper60", difficulty="hard")
+    try:
+        first, _ = vec.reset(seed=0)
+        kept = first.copy()
+        second, *_ = vec.step(np.full((4, 2), 0.5, np.float32))
+        np.testing.assert_array_equal(first, kept)
+        assert not np.array_equal(first[2:], second[2:])  # the worker's rows did change
+        vec._procs[0].kill()
+        vec._procs[0].join()
+        with pytest.raises(RuntimeError, match="worker process 1 ended"):
+            vec.step(np.zeros((4, 2), np.float32))
+    finally:
+        vec.close()
+
+
 def test_make_vec_uses_the_vector_entry_point():
     vec = gymnasium.make_vec(
         dynabarn.learn.ENV_ID, num_envs=2, vectorization_mode="vector_entry_point", workers=0, world_set="paper60"
