@@ -24,6 +24,7 @@ SKIPS_NO_INSTALL_BRINGS = (
     "reference data",  # the original release's data (../shared/reference) is not distributed
     "on this CPU",  # a CPU feature the machine lacks
     "make ros-nav",  # move_base built from source: fetched from GitHub, which CI does not reach
+    "make ros-teb",  # teb_local_planner and g2o built from source: the same
 )
 
 

@@ -353,6 +353,53 @@ def test_real_move_base_starts_and_drives_in_lockstep():
     assert result["n_ticks"] >= 20 and result["path_length"] >= 3.0, result
 
 
+def test_real_teb_starts_and_drives_in_lockstep():
+    """teb_local_planner under move_base (built by `make ros-teb`), launched as the DynaBARN
+    authors launch it (TEB's own defaults): it starts, plans and drives; judged, not an error."""
+    from dynabarn.ros.nav_build import default_workspace
+    from dynabarn.ros.teb_build import built
+
+    if built(default_workspace()) is None:
+        pytest.skip(f"teb_local_planner is not built in {default_workspace()}: run `make ros-teb`")
+    proc = _ros("--world", "137", "--stack", "move_base_teb", "--no-log", "--json", timeout=600)
+    result = json.loads(proc.stdout)
+    assert result["outcome"] in ("success", "collision", "timeout"), result["reason"]
+    assert result["n_ticks"] >= 20 and result["path_length"] >= 2.0, result
+
+
+def test_the_teb_stack_without_teb_built_is_one_line(tmp_path):
+    # A workspace with move_base (its marker) but no TEB: the stack says what to run.
+    workspace = tmp_path / "ws"
+    workspace.mkdir()
+    (workspace / "dynabarn-nav.json").write_text('{"commit": "test"}')
+    env = {**os.environ, "DYNABARN_NAV_WS": str(workspace)}
+    proc = subprocess.run(
+        [sys.executable, "-m", "dynabarn", "ros", "--world", "0", "--stack", "move_base_teb", "--no-log"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "teb_local_planner is not built" in proc.stderr and "make ros-teb" in proc.stderr
+
+
+def test_teb_build_refuses_a_workspace_without_move_base_and_incomplete_sources(tmp_path, capsys):
+    from dynabarn.ros.teb_build import SOURCES, main
+
+    sources = tmp_path / "sources"
+    for s in SOURCES[:-1]:  # no g2o
+        (sources / s.name).mkdir(parents=True)
+    workspace = tmp_path / "ws"
+    workspace.mkdir()
+    assert main(["--workspace", str(workspace), "--sources", str(sources)]) == 2
+    assert "no finished move_base build" in capsys.readouterr().err
+    (workspace / "dynabarn-nav.json").write_text('{"commit": "test"}')
+    assert main(["--workspace", str(workspace), "--sources", str(sources)]) == 2
+    assert "no g2o folder" in capsys.readouterr().err
+    assert not (workspace / "src").exists() and not (workspace / "dynabarn-teb.json").exists()
+
+
 def test_a_stack_of_ours_without_move_base_built_is_one_line(tmp_path):
     env = {**os.environ, "DYNABARN_NAV_WS": str(tmp_path / "no_workspace")}
     proc = subprocess.run(

@@ -97,31 +97,46 @@ def built(workspace: Path) -> dict | None:
         return None
 
 
-def _run(cmd: list[str], log, *, cwd: Path | None = None, env: dict | None = None) -> None:
+def run_logged(cmd: list[str], log, *, cwd: Path | None = None, env: dict | None = None) -> None:
+    """cmd with its output into the open log file; one clear error naming the log if it fails."""
     log.write(f"$ {' '.join(cmd)}\n")
     log.flush()
     done = subprocess.run(cmd, cwd=cwd, env=env, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
     if done.returncode:
-        raise DynabarnError(f"{cmd[0]} failed with status {done.returncode}: see {log.name}")
+        raise DynabarnError(f"{Path(cmd[0]).name} failed with status {done.returncode}: see {log.name}")
+
+
+def debian_env() -> dict:
+    """This environment with Debian's interpreter and tools first: a virtual environment's
+    python would build the messages' Python for the wrong interpreter."""
+    env = {**os.environ, "PATH": "/usr/bin:/bin:" + os.environ.get("PATH", "")}
+    env.pop("VIRTUAL_ENV", None)
+    env.pop("PYTHONPATH", None)
+    return env
+
+
+def checkout(repository: str, commit: str, dest: Path, local: Path | None, log) -> str:
+    """The source tree at dest, copied from a local checkout (never written to) or fetched
+    at `commit` with git; the commit it holds ('local' when it cannot be told)."""
+    if dest.exists():
+        shutil.rmtree(dest)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    if local is not None:
+        shutil.copytree(local, dest, ignore=shutil.ignore_patterns(".git"))
+        head = subprocess.run(["git", "-C", str(local), "rev-parse", "HEAD"], capture_output=True, text=True)
+        return head.stdout.strip() if head.returncode == 0 else "local"
+    if shutil.which("git") is None:
+        raise DynabarnError("git is not installed: install it, or give a local checkout")
+    run_logged(["git", "init", "-q", str(dest)], log)
+    run_logged(["git", "-C", str(dest), "fetch", "-q", "--depth", "1", repository, commit], log)
+    run_logged(["git", "-C", str(dest), "checkout", "-q", "FETCH_HEAD"], log)
+    return commit
 
 
 def _sources(workspace: Path, source: Path | None, log) -> str:
     """The navigation tree in workspace/src/navigation; its commit (or 'local')."""
     dest = workspace / "src" / "navigation"
-    if dest.exists():
-        shutil.rmtree(dest)
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    if source is not None:
-        shutil.copytree(source, dest, ignore=shutil.ignore_patterns(".git"))
-        head = subprocess.run(["git", "-C", str(source), "rev-parse", "HEAD"], capture_output=True, text=True)
-        commit = head.stdout.strip() if head.returncode == 0 else "local"
-    else:
-        if shutil.which("git") is None:
-            raise DynabarnError("git is not installed: install it, or pass --source with a navigation checkout")
-        _run(["git", "init", "-q", str(dest)], log)
-        _run(["git", "-C", str(dest), "fetch", "-q", "--depth", "1", NAV_REPOSITORY, NAV_COMMIT], log)
-        _run(["git", "-C", str(dest), "checkout", "-q", "FETCH_HEAD"], log)
-        commit = NAV_COMMIT
+    commit = checkout(NAV_REPOSITORY, NAV_COMMIT, dest, source, log)
     for name in LEFT_OUT:
         if (dest / name).is_dir():
             (dest / name / "CATKIN_IGNORE").write_text("left out by dynabarn.ros.nav_build\n")
@@ -148,12 +163,7 @@ def build(workspace: Path, source: Path | None = None, *, jobs: int = 2) -> dict
         print(f"sources into {workspace / 'src'} (log: {log_path})", file=sys.stderr)
         commit = _sources(workspace, source, log)
         print(f"building with catkin_make -j{jobs} (about 6 minutes on 2 cores)", file=sys.stderr)
-        # Debian's interpreter and tools first: a virtual environment's python would build the
-        # messages' Python for the wrong interpreter.
-        env = {**os.environ, "PATH": "/usr/bin:/bin:" + os.environ.get("PATH", "")}
-        env.pop("VIRTUAL_ENV", None)
-        env.pop("PYTHONPATH", None)
-        _run(
+        run_logged(
             [
                 str(catkin_make),
                 "-C",  # catkin_make reads $PWD, not the working directory
@@ -165,7 +175,7 @@ def build(workspace: Path, source: Path | None = None, *, jobs: int = 2) -> dict
             ],
             log,
             cwd=workspace,
-            env=env,
+            env=debian_env(),
         )
     if not (workspace / "devel" / "lib" / "move_base" / "move_base").exists():
         raise DynabarnError(f"the build ended without devel/lib/move_base/move_base: see {log_path}")

@@ -1,5 +1,5 @@
 """Navigation stacks `dynabarn-ros --stack NAME` starts: ROS 1's move_base, built from
-source by `make ros-nav` (`nav_build`), with the launch and parameter files of
+source by `make ros-nav` (`nav_build`; TEB by `make ros-teb`, `teb_build`), with the launch and parameter files of
 `dynabarn/ros/launch/` (each value with its source in the BARN Challenge's branches)."""
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from pathlib import Path
 
 from dynabarn.errors import DynabarnError
 from dynabarn.ros.nav_build import built, default_workspace
+from dynabarn.ros.teb_build import built as teb_built
 
 LAUNCH = Path(__file__).resolve().parent / "launch"
 
@@ -23,6 +24,8 @@ class Stack:
     about: str = ""
     control_rate: float = 20.0
     """[Hz] move_base's controller_frequency (dyna_barn/move_base.yaml): its loop's timer."""
+    teb: bool = False
+    """Needs teb_local_planner (`make ros-teb`) in the workspace too."""
 
 
 STACKS = {
@@ -37,6 +40,12 @@ STACKS = {
         about="the same with the BARN Challenge main branch's planner values (0.5 m/s, 6 x 20 samples; the "
         "dyna_barn global costmap, since main's puts the goal off it)",
     ),
+    "move_base_teb": Stack(
+        "move_base_teb.launch",
+        about="move_base, navfn and teb_local_planner with its ROS defaults, as the DynaBARN authors launch it "
+        "(the BARN Challenge's dyna_barn branch; `make ros-teb`)",
+        teb=True,
+    ),
 }
 
 
@@ -49,6 +58,10 @@ def stack_command(name: str, workspace: Path | None = None) -> list[str]:
     if built(workspace) is None:
         raise DynabarnError(f"move_base is not built in {workspace}: run `make ros-nav` (about 6 minutes on 2 cores)")
     stack = STACKS[name]
+    if stack.teb and teb_built(workspace) is None:
+        raise DynabarnError(
+            f"teb_local_planner is not built in {workspace}: run `make ros-teb` (about 25 minutes on 2 cores)"
+        )
     args = " ".join(f"{k}:={shlex.quote(v.format(launch=LAUNCH))}" for k, v in stack.args)
     # The workspace's environment (ROS_PACKAGE_PATH, libraries) for roslaunch and move_base.
     setup = shlex.quote(str(workspace / "devel" / "setup.bash"))
