@@ -9,26 +9,65 @@ move_base_dwa` and `--planner dwa@dwa_dynabarn_authors` into the same `--out`
 from __future__ import annotations
 
 from collections import Counter
+from dataclasses import dataclass
 
 from dynabarn.bench import DIFFICULTIES
 from dynabarn.bench.summary import FLOOR
 
-MOVE_BASE_SETS = {"move_base_paper60": "paper60", "move_base_original60": "release's 60"}
-MOVE_BASE_ROWS = (
-    ("ros", "real move_base (`--stack move_base_dwa`, lockstep at its 20 Hz)"),
-    ("dwa@dwa_dynabarn_authors", "our DWA, the same configuration (`dwa@dwa_dynabarn_authors`)"),
-    (FLOOR, "blind floor (`straight`)"),
+
+@dataclass(frozen=True)
+class Comparison:
+    """A results folder where a real ROS stack and our planner with its configuration ran the
+    same worlds and trials, with the floor."""
+
+    folder: str
+    title: str
+    real: str  # how the real stack's rows (planner "ros") are named
+    ours: str  # our planner's name in the rows
+    ours_name: str
+
+
+COMPARISONS = (
+    Comparison(
+        "move_base_paper60",
+        "paper60",
+        "real move_base (`--stack move_base_dwa`, lockstep at its 20 Hz)",
+        "dwa@dwa_dynabarn_authors",
+        "our DWA, the same configuration (`dwa@dwa_dynabarn_authors`)",
+    ),
+    Comparison(
+        "move_base_original60",
+        "release's 60",
+        "real move_base (`--stack move_base_dwa`, lockstep at its 20 Hz)",
+        "dwa@dwa_dynabarn_authors",
+        "our DWA, the same configuration (`dwa@dwa_dynabarn_authors`)",
+    ),
+    Comparison(
+        "move_base_teb_paper60",
+        "paper60",
+        "real TEB under move_base (`--stack move_base_teb`, its ROS defaults)",
+        "teb@teb_ros_defaults",
+        "our TEB, ROS's defaults (`teb@teb_ros_defaults`)",
+    ),
+    Comparison(
+        "move_base_teb_original60",
+        "release's 60",
+        "real TEB under move_base (`--stack move_base_teb`, its ROS defaults)",
+        "teb@teb_ros_defaults",
+        "our TEB, ROS's defaults (`teb@teb_ros_defaults`)",
+    ),
 )
+MOVE_BASE_SETS = {c.folder: c.title for c in COMPARISONS}
 
 
 def _cell(s: dict | None) -> str:
     return "-" if s is None else f"{s['success']:.2f} [{s['success_lo']:.2f}, {s['success_hi']:.2f}]"
 
 
-def _agreement(rows: list[dict]) -> str:
-    """How often real move_base and our DWA ended the same (world, trial) the same way."""
+def _agreement(rows: list[dict], ours: str) -> str:
+    """How often the real stack and our planner ended the same (world, trial) the same way."""
     outcome = {(r["planner"], r["world"], r["seed"]): r["outcome"] for r in rows}
-    pairs = [(o, outcome.get(("dwa@dwa_dynabarn_authors", w, s))) for (p, w, s), o in outcome.items() if p == "ros"]
+    pairs = [(o, outcome.get((ours, w, s))) for (p, w, s), o in outcome.items() if p == "ros"]
     pairs = [(a, b) for a, b in pairs if b is not None]
     if not pairs:
         return "-"
@@ -39,24 +78,25 @@ def _agreement(rows: list[dict]) -> str:
 
 
 def move_base_table(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
-    """Success [95% interval] per difficulty of real move_base, our DWA with its
+    """Success [95% interval] per difficulty of each real stack, our planner with its
     configuration and the floor, on each set; then how often the two agree."""
     lines = [
         "| worlds | planner | trials | " + " | ".join(DIFFICULTIES) + " | all | skill over floor, all |",
         "|---|---|---|" + "---|" * (len(DIFFICULTIES) + 2),
     ]
     notes = []
-    for folder, title in MOVE_BASE_SETS.items():
-        rows, summary = folders.get(folder, ([], []))
+    for c in COMPARISONS:
+        rows, summary = folders.get(c.folder, ([], []))
         by = {(s["planner"], s["difficulty"]): s for s in summary}
-        for planner, name in MOVE_BASE_ROWS:
+        for planner, name in (("ros", c.real), (c.ours, c.ours_name), (FLOOR, "blind floor (`straight`)")):
             if (planner, "all") not in by:
                 continue
             trials = len({r["seed"] for r in rows if r["planner"] == planner})
             cells = " | ".join(_cell(by.get((planner, d))) for d in (*DIFFICULTIES, "all"))
             s = by[(planner, "all")]
             skill = "-" if s.get("skill") is None else f"{s['skill']:+.2f} [{s['skill_lo']:+.2f}, {s['skill_hi']:+.2f}]"
-            lines.append(f"| {title} | {name} | {trials} | {cells} | {skill} |")
+            lines.append(f"| {c.title} | {name} | {trials} | {cells} | {skill} |")
         if rows:
-            notes.append(f"- {title}: the same outcome in {_agreement(rows)}.")
+            kind = c.ours.split("@")[0].upper()
+            notes.append(f"- {c.title}, {kind}: the same outcome in {_agreement(rows, c.ours)}.")
     return "\n".join(lines + (["", *notes] if notes else []))
