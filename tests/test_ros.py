@@ -367,23 +367,6 @@ def test_real_teb_starts_and_drives_in_lockstep():
     assert result["n_ticks"] >= 20 and result["path_length"] >= 2.0, result
 
 
-def test_the_teb_stack_without_teb_built_is_one_line(tmp_path):
-    # A workspace with move_base (its marker) but no TEB: the stack says what to run.
-    workspace = tmp_path / "ws"
-    workspace.mkdir()
-    (workspace / "dynabarn-nav.json").write_text('{"commit": "test"}')
-    env = {**os.environ, "DYNABARN_NAV_WS": str(workspace)}
-    proc = subprocess.run(
-        [sys.executable, "-m", "dynabarn", "ros", "--world", "0", "--stack", "move_base_teb", "--no-log"],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        env=env,
-    )
-    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
-    assert "teb_local_planner is not built" in proc.stderr and "make ros-teb" in proc.stderr
-
-
 def test_teb_build_refuses_a_workspace_without_move_base_and_incomplete_sources(tmp_path, capsys):
     from dynabarn.ros.teb_build import SOURCES, main
 
@@ -400,17 +383,27 @@ def test_teb_build_refuses_a_workspace_without_move_base_and_incomplete_sources(
     assert not (workspace / "src").exists() and not (workspace / "dynabarn-teb.json").exists()
 
 
-def test_a_stack_of_ours_without_move_base_built_is_one_line(tmp_path):
-    env = {**os.environ, "DYNABARN_NAV_WS": str(tmp_path / "no_workspace")}
+@pytest.mark.parametrize(
+    ("stack", "has_move_base", "missing", "target"),
+    [
+        ("move_base_dwa", False, "move_base is not built", "make ros-nav"),
+        ("move_base_teb", True, "teb_local_planner is not built", "make ros-teb"),  # move_base there, TEB not
+    ],
+)
+def test_a_stack_of_ours_not_built_is_one_line(tmp_path, stack, has_move_base, missing, target):
+    workspace = tmp_path / "ws"
+    workspace.mkdir()
+    if has_move_base:
+        (workspace / "dynabarn-nav.json").write_text('{"commit": "test"}')
     proc = subprocess.run(
-        [sys.executable, "-m", "dynabarn", "ros", "--world", "0", "--stack", "move_base_dwa", "--no-log"],
+        [sys.executable, "-m", "dynabarn", "ros", "--world", "0", "--stack", stack, "--no-log"],
         capture_output=True,
         text=True,
         timeout=120,
-        env=env,
+        env={**os.environ, "DYNABARN_NAV_WS": str(workspace)},
     )
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
-    assert "move_base is not built" in proc.stderr and "make ros-nav" in proc.stderr
+    assert missing in proc.stderr and target in proc.stderr
 
 
 def test_nav_build_takes_a_local_checkout_and_leaves_out_what_a_run_does_not_use(tmp_path):

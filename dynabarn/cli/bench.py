@@ -69,7 +69,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--ros-stack",
         default=None,
         choices=sorted(STACKS),
-        help="with --planner ros: a stack of ours instead of --ros-launch (move_base from `make ros-nav`)",
+        help="with --planner ros: a stack of ours instead of --ros-launch (move_base from `make ros-nav`; "
+        "move_base_teb also needs `make ros-teb`)",
     )
     parser.add_argument("--set", default="paper60", help="world set: paper60, dynabarn300, or a folder with index.json")
     parser.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")

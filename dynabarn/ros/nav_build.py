@@ -179,14 +179,22 @@ def build(workspace: Path, source: Path | None = None, *, jobs: int = 2) -> dict
         )
     if not (workspace / "devel" / "lib" / "move_base" / "move_base").exists():
         raise DynabarnError(f"the build ended without devel/lib/move_base/move_base: see {log_path}")
+    return write_marker(
+        workspace / MARKER,
+        {"repository": NAV_REPOSITORY if source is None else str(source), "commit": commit, "left_out": list(LEFT_OUT)},
+        t0,
+    )
+
+
+def write_marker(path: Path, info: dict, t0: float) -> dict:
+    """A finished build's description (with when, and its seconds since t0), written last
+    and whole: a workspace without it is not finished."""
     info = {
-        "repository": NAV_REPOSITORY if source is None else str(source),
-        "commit": commit,
-        "left_out": list(LEFT_OUT),
+        **info,
         "built": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "seconds": round(time.monotonic() - t0, 1),
     }
-    write_atomically(workspace / MARKER, json.dumps(info, indent=2) + "\n")
+    write_atomically(path, json.dumps(info, indent=2) + "\n")
     return info
 
 

@@ -9,7 +9,8 @@ system needs beyond the sources, and what this module does without touching them
   workspace's `g2o/` prefix; teb's `FindG2O` finds it through `CMAKE_PREFIX_PATH`;
 - shim headers for pluginlib 5.2, which removed the deprecated `class_list_macros.h` and
   `class_loader.h` (each includes its `.hpp` successor);
-- `-DBOOST_BIND_GLOBAL_PLACEHOLDERS` (Boost 1.74 moved `_1` out of the global namespace);
+- `-DBOOST_BIND_GLOBAL_PLACEHOLDERS` with `boost/bind.hpp` included first (Boost 1.74 moved
+  `_1` out of the global namespace; costmap_converter uses it without the header);
 - teb's and costmap_converter's `-std=c++11` left out (their `COMPILER_SUPPORTS_CXX11`
   checks answered in advance): Debian's ROS headers need C++17, gcc 12's default.
 
@@ -34,9 +35,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dynabarn.errors import DynabarnError
-from dynabarn.files import write_atomically
 from dynabarn.ros.nav_build import built as nav_built
-from dynabarn.ros.nav_build import checkout, debian_env, default_workspace, run_logged
+from dynabarn.ros.nav_build import checkout, debian_env, default_workspace, run_logged, write_marker
 
 MARKER = "dynabarn-teb.json"
 
@@ -116,7 +116,8 @@ def _g2o(workspace: Path, log, jobs: int) -> Path:
         "-DCMAKE_BUILD_TYPE=Release",
         f"-DCMAKE_INSTALL_PREFIX={prefix}",
         "-DG2O_BUILD_APPS=OFF",
-        "-DG2O_BUILD_EXAMPLES=OFF",
+        # The examples hold g2o_incremental, which teb's FindG2O requires (ROS's libg2o had it).
+        "-DG2O_BUILD_EXAMPLES=ON",
         "-DG2O_USE_OPENGL=OFF",
         "-DBUILD_WITH_MARCH_NATIVE=OFF",  # the workspace may be copied to another CPU
         "-DBUILD_UNITTESTS=OFF",
@@ -165,7 +166,8 @@ def build(workspace: Path, sources: Path | None = None, *, jobs: int = 2) -> dic
                 f"-DCMAKE_PREFIX_PATH={prefix}",
                 "-DCOMPILER_SUPPORTS_CXX11=0",  # keeps gcc's C++17: Debian's ROS headers need it
                 "-DCOMPILER_SUPPORTS_CXX0X=0",
-                f"-DCMAKE_CXX_FLAGS=-isystem {shims} -DBOOST_BIND_GLOBAL_PLACEHOLDERS",
+                # Boost's placeholders global again, as before 1.73 (sources use _1 without the header).
+                f"-DCMAKE_CXX_FLAGS=-isystem {shims} -DBOOST_BIND_GLOBAL_PLACEHOLDERS -include boost/bind.hpp",
             ],
             log,
             cwd=workspace,
@@ -174,13 +176,8 @@ def build(workspace: Path, sources: Path | None = None, *, jobs: int = 2) -> dic
     plugin = workspace / "devel" / "lib" / "libteb_local_planner.so"
     if not plugin.exists():
         raise DynabarnError(f"the build ended without {plugin.relative_to(workspace)}: see {log_path}")
-    info = {
-        "sources": {s.name: {"repository": s.repository, "commit": commits[s.name]} for s in SOURCES},
-        "built": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "seconds": round(time.monotonic() - t0, 1),
-    }
-    write_atomically(workspace / MARKER, json.dumps(info, indent=2) + "\n")
-    return info
+    sources_used = {s.name: {"repository": s.repository, "commit": commits[s.name]} for s in SOURCES}
+    return write_marker(workspace / MARKER, {"sources": sources_used}, t0)
 
 
 def main(argv: list[str] | None = None) -> int:
