@@ -35,10 +35,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dynabarn.errors import DynabarnError
+from dynabarn.files import write_atomically
 from dynabarn.ros.nav_build import built as nav_built
 from dynabarn.ros.nav_build import checkout, debian_env, default_workspace, run_logged, write_marker
 
 MARKER = "dynabarn-teb.json"
+G2O_MARKER = "dynabarn-g2o-commit"
 
 
 @dataclass(frozen=True)
@@ -103,9 +105,15 @@ def built(workspace: Path) -> dict | None:
         return None
 
 
-def _g2o(workspace: Path, log, jobs: int) -> Path:
-    """g2o built and installed into workspace/g2o; the prefix."""
+def _g2o(workspace: Path, commit: str, log, jobs: int) -> Path:
+    """g2o built and installed into workspace/g2o (kept when an earlier run installed this
+    commit there: a failed catkin_make run again does not rebuild it); the prefix."""
     prefix, build_dir = workspace / "g2o", workspace / "g2o_build"
+    installed = prefix / G2O_MARKER
+    if commit != "local" and installed.is_file() and installed.read_text().strip() == commit:
+        print(f"g2o {commit[:7]} already installed in {prefix}", file=sys.stderr)
+        return prefix
+    installed.unlink(missing_ok=True)
     shutil.rmtree(build_dir, ignore_errors=True)
     cmake = [
         "cmake",
@@ -124,6 +132,7 @@ def _g2o(workspace: Path, log, jobs: int) -> Path:
     ]
     run_logged(cmake, log, env=debian_env())
     run_logged(["cmake", "--build", str(build_dir), "-j", str(jobs), "--target", "install"], log, env=debian_env())
+    write_atomically(installed, commit + "\n")
     return prefix
 
 
@@ -152,7 +161,7 @@ def build(workspace: Path, sources: Path | None = None, *, jobs: int = 2) -> dic
             (shims / rel).parent.mkdir(parents=True, exist_ok=True)
             (shims / rel).write_text(text)
         print(f"building g2o (about 8 minutes on {jobs} cores)", file=sys.stderr)
-        prefix = _g2o(workspace, log, jobs)
+        prefix = _g2o(workspace, commits["g2o"], log, jobs)
         print("building teb_local_planner and the rest with catkin_make (about 15 minutes)", file=sys.stderr)
         run_logged(
             [
@@ -164,6 +173,8 @@ def build(workspace: Path, sources: Path | None = None, *, jobs: int = 2) -> dic
                 "-DPYTHON_EXECUTABLE=/usr/bin/python3",
                 "-DCATKIN_ENABLE_TESTING=OFF",
                 f"-DCMAKE_PREFIX_PATH={prefix}",
+                # FindG2O would take include/g2o (where g2o's folders are); the sources include <g2o/...>.
+                f"-DG2O_INCLUDE_DIR={prefix / 'include'}",
                 "-DCOMPILER_SUPPORTS_CXX11=0",  # keeps gcc's C++17: Debian's ROS headers need it
                 "-DCOMPILER_SUPPORTS_CXX0X=0",
                 # Boost's placeholders global again, as before 1.73 (sources use _1 without the header).
