@@ -22,7 +22,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-from dynabarn.perception.map_distance import BOUNDS
+from dynabarn.perception.map_distance import grid_indices
 from dynabarn.planners.global_planner import GlobalPlanner, goals_in_robot_frame, local_goals_in_robot, points_along
 
 
@@ -53,8 +53,7 @@ class LocalGoalBatch:
         n_cells = nx * ny
         m = math.floor(lookahead / res) + 3  # the cells a local goal needs (as GlobalPlanner counts)
         # The robot's cell, as `global_planner._cell` finds it (truncation, then the grid's edge).
-        i = np.clip(((poses[:, 1] - BOUNDS[2]) / res).astype(np.int64), 0, ny - 1)
-        j = np.clip(((poses[:, 0] - BOUNDS[0]) / res).astype(np.int64), 0, nx - 1)
+        i, j = grid_indices(poses[:, 0], poses[:, 1], res, nx, ny)
         base = slots * n_cells
         cells = np.empty((len(poses), m), np.int64)
         at = base + i * nx + j

@@ -64,19 +64,21 @@ def _keyframes(world: WorldSpec) -> _Keyframes:
     # All keyframes in one flat array, obstacle i's times shifted by i * _STRIDE, so one
     # searchsorted finds every obstacle's segment at every query time at once.
     start = np.concatenate([[0], np.cumsum(n_keyframes)[:-1]]).astype(np.int64)
-    flat = (None, None, None, None)
-    if n:
-        flat = (
-            np.concatenate([o.trajectory.times + i * _STRIDE for i, o in enumerate(obstacles)]),
-            np.concatenate([o.trajectory.times for o in obstacles]),
-            np.concatenate([o.trajectory.xy for o in obstacles]),
-            np.concatenate([_catmull_rom_tangents(o.trajectory.xy) for o in obstacles]),
-        )
-    arrays = [n_keyframes, np.array([o.trajectory.duration for o in obstacles], dtype=np.float64), start]
-    arrays += [start + np.maximum(n_keyframes - 2, 0), np.arange(n) * _STRIDE, *(a for a in flat if a is not None)]
-    for a in arrays:
-        a.flags.writeable = False  # shared by every player of the world
-    table = _Keyframes(n, arrays[0], arrays[1], arrays[2], arrays[3], arrays[4], *flat)
+    table = _Keyframes(
+        n=n,
+        n_keyframes=n_keyframes,
+        durations=np.array([o.trajectory.duration for o in obstacles], dtype=np.float64),
+        seg_lo=start,
+        seg_hi=start + np.maximum(n_keyframes - 2, 0),
+        stride_offsets=np.arange(n) * _STRIDE,
+        flat_key=np.concatenate([o.trajectory.times + i * _STRIDE for i, o in enumerate(obstacles)]) if n else None,
+        flat_t=np.concatenate([o.trajectory.times for o in obstacles]) if n else None,
+        flat_p=np.concatenate([o.trajectory.xy for o in obstacles]) if n else None,
+        flat_m=np.concatenate([_catmull_rom_tangents(o.trajectory.xy) for o in obstacles]) if n else None,
+    )
+    for a in vars(table).values():
+        if isinstance(a, np.ndarray):
+            a.flags.writeable = False  # shared by every player of the world
     _kept[id(world)] = (world, table)  # the world kept with it: its id cannot be reused meanwhile
     while len(_kept) > _KEPT_WORLDS:
         _kept.popitem(last=False)
