@@ -80,7 +80,7 @@ ros-nav: $(STAMP) ros-deps ros-nav-deps
 
 # teb_local_planner (with costmap_converter, move_base_flex's core and g2o) from source
 # into the same workspace: `make ros-teb` after `make ros-nav` (TEB_SRC=DIR: a folder of
-# local checkouts, see `python -m dynabarn.ros.teb_build --help`). About 25 minutes on 2 cores.
+# local checkouts, see `python -m dynabarn.ros.teb_build --help`). About 20 minutes on 2 cores.
 ros-teb-deps:
 	@if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
 	  need=""; for p in $$($(BIN)/python -c 'from dynabarn.ros.teb_build import BUILD_DEPENDENCIES as d; print(*d)'); do \
@@ -88,7 +88,7 @@ ros-teb-deps:
 	  if [ -n "$$need" ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$need >/dev/null; fi; \
 	else echo "ros-teb-deps: run as root to install Debian's build dependencies"; fi
 
-ros-teb: ros-nav-deps ros-teb-deps
+ros-teb: $(STAMP) ros-deps ros-nav-deps ros-teb-deps
 	@$(BIN)/python -c 'import sys; from dynabarn.ros.nav_build import built, default_workspace; sys.exit(built(default_workspace()) is None)' \
 	  || $(MAKE) ros-nav
 	$(BIN)/python -m dynabarn.ros.teb_build $(if $(TEB_SRC),--sources $(TEB_SRC))

@@ -338,33 +338,29 @@ def test_everything_the_bridge_starts_listens_on_loopback_only():
     assert all(address.startswith("127.0.0.1:") for address in local), listening
 
 
-def test_real_move_base_starts_and_drives_in_lockstep():
-    """ROS 1's move_base (built by `make ros-nav`), with the DynaBARN authors' configuration:
-    it starts through the boot (tf2 waits on a running clock) and drives in lockstep. Its
-    threads make the exact result vary from run to run, so the test asks that the episode is
-    judged (not an error) after it drove a good way towards the goal."""
-    from dynabarn.ros.nav_build import built, default_workspace
+@pytest.mark.parametrize(
+    ("stack", "builder", "what", "target", "min_path"),
+    [
+        ("move_base_dwa", "dynabarn.ros.nav_build", "move_base", "make ros-nav", 3.0),
+        ("move_base_teb", "dynabarn.ros.teb_build", "teb_local_planner", "make ros-teb", 2.0),  # TEB: 0.4 m/s
+    ],
+)
+def test_real_stack_starts_and_drives_in_lockstep(stack, builder, what, target, min_path):
+    """ROS 1's move_base (built by `make ros-nav`), with the DynaBARN authors' configuration,
+    with DWA or with teb_local_planner (`make ros-teb`, TEB's own defaults, as they launch
+    it): it starts through the boot (tf2 waits on a running clock) and drives in lockstep.
+    Its threads make the exact result vary from run to run, so the test asks that the
+    episode is judged (not an error) after it drove a good way towards the goal."""
+    import importlib
 
-    if built(default_workspace()) is None:
-        pytest.skip(f"move_base is not built in {default_workspace()}: run `make ros-nav`")
-    proc = _ros("--world", "137", "--stack", "move_base_dwa", "--no-log", "--json", timeout=600)
-    result = json.loads(proc.stdout)
-    assert result["outcome"] in ("success", "collision", "timeout"), result["reason"]
-    assert result["n_ticks"] >= 20 and result["path_length"] >= 3.0, result
-
-
-def test_real_teb_starts_and_drives_in_lockstep():
-    """teb_local_planner under move_base (built by `make ros-teb`), launched as the DynaBARN
-    authors launch it (TEB's own defaults): it starts, plans and drives; judged, not an error."""
     from dynabarn.ros.nav_build import default_workspace
-    from dynabarn.ros.teb_build import built
 
-    if built(default_workspace()) is None:
-        pytest.skip(f"teb_local_planner is not built in {default_workspace()}: run `make ros-teb`")
-    proc = _ros("--world", "137", "--stack", "move_base_teb", "--no-log", "--json", timeout=600)
+    if importlib.import_module(builder).built(default_workspace()) is None:
+        pytest.skip(f"{what} is not built in {default_workspace()}: run `{target}`")
+    proc = _ros("--world", "137", "--stack", stack, "--no-log", "--json", timeout=600)
     result = json.loads(proc.stdout)
     assert result["outcome"] in ("success", "collision", "timeout"), result["reason"]
-    assert result["n_ticks"] >= 20 and result["path_length"] >= 2.0, result
+    assert result["n_ticks"] >= 20 and result["path_length"] >= min_path, result
 
 
 def test_teb_build_refuses_a_workspace_without_move_base_and_incomplete_sources(tmp_path, capsys):

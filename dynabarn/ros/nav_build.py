@@ -91,8 +91,13 @@ def default_workspace() -> Path:
 
 def built(workspace: Path) -> dict | None:
     """The finished build's description, or None when the workspace has none."""
+    return read_marker(workspace / MARKER)
+
+
+def read_marker(path: Path) -> dict | None:
+    """A finished build's description (`write_marker`'s), or None when there is none."""
     try:
-        return json.loads((workspace / MARKER).read_text())
+        return json.loads(path.read_text())
     except (OSError, ValueError):
         return None
 

@@ -60,7 +60,7 @@ def stack_command(name: str, workspace: Path | None = None) -> list[str]:
     stack = STACKS[name]
     if stack.teb and teb_built(workspace) is None:
         raise DynabarnError(
-            f"teb_local_planner is not built in {workspace}: run `make ros-teb` (about 25 minutes on 2 cores)"
+            f"teb_local_planner is not built in {workspace}: run `make ros-teb` (about 20 minutes on 2 cores)"
         )
     args = " ".join(f"{k}:={shlex.quote(v.format(launch=LAUNCH))}" for k, v in stack.args)
     # The workspace's environment (ROS_PACKAGE_PATH, libraries) for roslaunch and move_base.

@@ -27,7 +27,6 @@ move_base_flex: only the four packages teb needs (`mbf_abstract_core`, `mbf_cost
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import sys
 import time
@@ -37,7 +36,7 @@ from pathlib import Path
 from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
 from dynabarn.ros.nav_build import built as nav_built
-from dynabarn.ros.nav_build import checkout, debian_env, default_workspace, run_logged, write_marker
+from dynabarn.ros.nav_build import checkout, debian_env, default_workspace, read_marker, run_logged, write_marker
 
 MARKER = "dynabarn-teb.json"
 G2O_MARKER = "dynabarn-g2o-commit"
@@ -99,10 +98,7 @@ SHIMS = {
 
 def built(workspace: Path) -> dict | None:
     """The finished TEB build's description, or None."""
-    try:
-        return json.loads((workspace / MARKER).read_text())
-    except (OSError, ValueError):
-        return None
+    return read_marker(workspace / MARKER)
 
 
 def _g2o(workspace: Path, commit: str, log, jobs: int) -> Path:
