@@ -9,8 +9,11 @@ taken while it runs. Software WebGPU/WebGL (SwiftShader): no GPU needed.
 from __future__ import annotations
 
 import base64
+import contextlib
 import json
+import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -44,16 +47,19 @@ class Browser:
 
         connect = require("websockets.sync.client", "test").connect
 
-        self._profile = tempfile.TemporaryDirectory(prefix="dynabarn-chromium-")
         exe = chromium()
         if exe is None:
             raise RuntimeError("chromium is not installed (make system-deps)")
+        self._profile = Path(tempfile.mkdtemp(prefix="dynabarn-chromium-"))
+        # Its own session, so that closing reaches the renderer, GPU and crash-handler children
+        # too: they write into the profile after the main process is gone.
         self._proc = subprocess.Popen(
-            [exe, *FLAGS, f"--user-data-dir={self._profile.name}", "--remote-debugging-port=0", "about:blank"],
+            [exe, *FLAGS, f"--user-data-dir={self._profile}", "--remote-debugging-port=0", "about:blank"],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
+            start_new_session=True,
         )
-        port_file = Path(self._profile.name) / "DevToolsActivePort"
+        port_file = self._profile / "DevToolsActivePort"
         deadline = time.monotonic() + 30
         while not (port_file.is_file() and port_file.read_text().strip()):
             if time.monotonic() > deadline or self._proc.poll() is not None:
@@ -91,14 +97,29 @@ class Browser:
         ws = getattr(self, "_ws", None)
         if ws is not None:
             ws.close()
-        if self._proc.poll() is None:
-            self._proc.terminate()
+        self._signal_group(signal.SIGTERM)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self._proc.wait(timeout=10)
+        self._signal_group(signal.SIGKILL)
+        self._proc.wait()
+        self._remove_profile()
+
+    def _signal_group(self, sig: int) -> None:
+        with contextlib.suppress(ProcessLookupError):  # the whole group has gone
+            os.killpg(self._proc.pid, sig)
+
+    def _remove_profile(self) -> None:
+        # A child killed a moment ago may still be flushing a file into the profile (under load it
+        # has been seen as "Directory not empty"); try again for a while, never fail a test for it.
+        deadline = time.monotonic() + 10
+        while self._profile.exists():
             try:
-                self._proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self._proc.kill()
-                self._proc.wait()
-        self._profile.cleanup()
+                shutil.rmtree(self._profile)
+            except OSError:
+                if time.monotonic() > deadline:
+                    shutil.rmtree(self._profile, ignore_errors=True)
+                    return
+                time.sleep(0.2)
 
     def __enter__(self) -> Browser:
         return self
