@@ -19,6 +19,7 @@ from dynabarn.planners.oracle import OraclePlanner, PresentStateOraclePlanner
 from dynabarn.planners.predictive import PredictivePlanner
 from dynabarn.planners.simple import StopPlanner, StraightPlanner
 from dynabarn.planners.teb import TEBPlanner
+from dynabarn.planners.trajectory_planner import TrajectoryPlanner
 from dynabarn.registry import Registry
 
 ENTRY_POINT_GROUP = "dynabarn.planners"
@@ -27,6 +28,7 @@ ENTRY_POINT_GROUP = "dynabarn.planners"
 _BUILTIN: dict[str, Callable[..., Planner]] = {
     "dwa": DWAPlanner,
     "teb": TEBPlanner,
+    "trajectory_planner": TrajectoryPlanner,
     "oracle": OraclePlanner,
     "oracle_present": PresentStateOraclePlanner,
     "predictive": PredictivePlanner,

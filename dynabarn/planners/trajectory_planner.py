@@ -1,0 +1,231 @@
+"""`trajectory_planner`: base_local_planner's TrajectoryPlanner (TrajectoryPlannerROS with
+`dwa: true`), the local planner the BARN Challenge's and the DynaBARN authors' move_base
+launch files name, where it differs from `dwa` (which scores as dwa_local_planner does).
+
+What this planner does as base_local_planner/src/trajectory_planner.cpp does (navigation
+noetic-devel), each a switch of its own so that a comparison can take them one at a time:
+- `ramp`: a rollout starts at the measured velocity and accelerates to its sample at the
+  limits (Euler steps, the pose updated with the new velocity), and its first point is the
+  robot's pose now; `dwa`'s are constant-velocity arcs from the first step.
+- `score_at_end`: the path and goal distances are those of the rollout's last point, with
+  no point pushed ahead (`heading_scoring: false`), the local goal `lookahead` along the
+  plan (there: the plan's last point inside the 10 m local costmap, 5 m away).
+- `rotate_in_place`: when every forward sample is blocked, or a rotation costs no more than
+  the best of them, the robot stops and turns (samples at v = 0, |w| at least
+  `min_in_place_vel_theta`), towards the rotation whose heading point ends nearest the goal.
+  This is how move_base's DWA waits for an obstacle to pass; `dwa` can only back up.
+- `escape` as there: nothing admissible, back up straight at `escape_vel` (turning only by
+  rotations) until moved `escape_reset_dist` or turned `escape_reset_theta`; with the
+  robot's own cell blocked, stop.
+- `slow_near_goal`: max_vel_x <= (distance to the goal) / sim_time.
+- `sim_period`: the dynamic window is acc x sim_period wide (1 / controller_frequency, 0.05
+  s at move_base's 20 Hz), not the control period.
+
+Not reproduced: the path and goal distances are Euclidean (there: 4-connected flood fills
+over the local costmap), the footprint's edges are not checked against lethal cells
+separately (the circle of `collision_radius` is the padded footprint's inscribed one), and
+the oscillation flags (`stuck_left` / `stuck_right`) are left out.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
+from dynabarn.interfaces import EpisodeInfo, Observation, config_from_kwargs
+from dynabarn.planners.costmap import with_costmap
+from dynabarn.planners.dwa import DWAConfig, DWAPlanner, distance_to_polyline
+from dynabarn.planners.tracking import with_tracker
+
+
+@dataclass
+class TrajectoryPlannerConfig(DWAConfig):
+    ramp: bool = True
+    """Rollouts accelerate from the measured velocity at the limits (TrajectoryPlanner)."""
+    score_at_end: bool = True
+    """Path and goal distances of the rollout's last point, no point ahead."""
+    rotate_in_place: bool = True
+    """Sample stopping and turning in place (TrajectoryPlanner's rotation samples)."""
+    min_in_place_vel_theta: float = 0.4
+    """Smallest |w| of an in-place rotation [rad/s] (base_local_planner default)."""
+    ros_escape: bool = True
+    """Nothing admissible: back up straight, or stop when the robot's own cell is blocked."""
+    escape_reset_dist: float = 0.1
+    """Escaping ends after moving this far [m] (base_local_planner default)."""
+    escape_reset_theta: float = math.pi / 4
+    """... or turning this much [rad] (base_local_planner default pi/4)."""
+    slow_near_goal: bool = True
+    """max_vel_x <= distance to the goal / sim_time."""
+    sim_period: float = 0.05
+    """The dynamic window's time [s]: 1 / move_base's controller_frequency (20 Hz); 0 takes
+    the control period."""
+
+    LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        **DWAConfig.LIMITS,
+        "min_in_place_vel_theta": (0.0, 10.0),
+        "escape_reset_dist": (0.0, 10.0),
+        "escape_reset_theta": (0.0, math.pi),
+        "sim_period": (0.0, 1.0),
+    }
+
+    @classmethod
+    def from_kwargs(cls, **kwargs) -> TrajectoryPlannerConfig:
+        what = "trajectory_planner"
+        return config_from_kwargs(cls, with_tracker(with_costmap(kwargs, what), what), what)
+
+
+def ramped_rollout(
+    pose: np.ndarray, v0: float, w0: float, v: np.ndarray, w: np.ndarray, acc: tuple[float, float], dt: float, n: int
+) -> np.ndarray:
+    """TrajectoryPlanner's rollouts: poses (n_samples, n, 3), the first the pose now; each step
+    moves the velocity towards its sample by at most acc x dt, then the pose with it."""
+    steps = np.arange(1, n)[None, :] * dt
+    vk = v0 + np.clip(v[:, None] - v0, -acc[0] * steps, acc[0] * steps)
+    wk = w0 + np.clip(w[:, None] - w0, -acc[1] * steps, acc[1] * steps)
+    th = np.empty((len(v), n))
+    th[:, 0] = pose[2]
+    np.cumsum(wk * dt, axis=1, out=th[:, 1:])
+    th[:, 1:] += pose[2]
+    sin_th, cos_th = sincos(th[:, :-1])  # the heading before each step, as there
+    xy = np.empty((len(v), n, 2))
+    xy[:, 0] = pose[:2]
+    np.cumsum(vk * cos_th * dt, axis=1, out=xy[:, 1:, 0])
+    np.cumsum(vk * sin_th * dt, axis=1, out=xy[:, 1:, 1])
+    xy[:, 1:] += pose[:2]
+    return np.concatenate([xy, th[..., None]], axis=-1)
+
+
+class TrajectoryPlanner(DWAPlanner):
+    """base_local_planner's TrajectoryPlanner (`dwa: true`) on `dwa`'s costmap and plan."""
+
+    name = "trajectory_planner"
+
+    def __init__(self, **config) -> None:
+        self.cfg = TrajectoryPlannerConfig.from_kwargs(**config)
+        self._steps = round(self.cfg.sim_time / self.cfg.sim_dt)
+        self._times = np.arange(1, self._steps + 1) * self.cfg.sim_dt
+        self._last_plan = np.zeros((0, 2))
+
+    def config(self) -> dict:
+        return asdict(self.cfg)
+
+    def reset(self, info: EpisodeInfo) -> None:
+        super().reset(info)
+        self._escaping_from: np.ndarray | None = None
+
+    # Over 80 lines on purpose: one control tick of TrajectoryPlanner::createTrajectories, in its order.
+    def act(self, obs: Observation) -> tuple[float, float]:
+        cfg, info = self.cfg, self.info
+        pose = obs.pose
+        self.costmap.update(pose, obs.scan, info.laser_angles, info.laser_offset, info.laser_range[1])
+        path = self.global_planner.plan_around(pose[0], pose[1], self.costmap, block_radius=cfg.collision_radius)
+        local_goal, path = self.global_planner.local_goal(pose[0], pose[1], cfg.lookahead, path)
+        self._global_plan = path
+        near = path[: max(2, int((cfg.lookahead + 1.0) / self.global_planner.resolution) + 2)]
+        goal_dist_now = float(np.hypot(*(pose[:2] - info.goal)))
+        goal_latched = goal_dist_now < cfg.lookahead
+
+        v_now, w_now = float(obs.velocity[0]), float(obs.velocity[1])
+        period = cfg.sim_period or self.period
+        dv, dw = cfg.acc_lim_x * period, cfg.acc_lim_theta * period
+        top = min(cfg.max_vel_x, goal_dist_now / cfg.sim_time) if cfg.slow_near_goal else cfg.max_vel_x
+        v_hi = max(min(top, v_now + dv), cfg.min_vel_x)
+        v_lo = max(cfg.min_vel_x, v_now - dv)
+        v_lo = min(v_lo, v_hi)
+        w_lo, w_hi = max(-cfg.max_vel_theta, w_now - dw), min(cfg.max_vel_theta, w_now + dw)
+        escaping = self._escaping_from is not None
+        forward_v = np.zeros(0) if (escaping and cfg.ros_escape) else np.linspace(v_lo, v_hi, cfg.vx_samples)
+        ws = np.unique(np.concatenate([np.linspace(w_lo, w_hi, cfg.vth_samples), [0.0] if w_lo <= 0 <= w_hi else []]))
+        v, w = np.meshgrid(forward_v, ws, indexing="ij")
+        v, w = v.ravel(), w.ravel()
+        n_forward = len(v)
+        if cfg.rotate_in_place:
+            turn = np.linspace(w_lo, w_hi, cfg.vth_samples)
+            dtheta = (w_hi - w_lo) / max(cfg.vth_samples - 1, 1)
+            turn = turn[np.abs(turn) > dtheta]
+            turn = np.sign(turn) * np.maximum(np.abs(turn), cfg.min_in_place_vel_theta)
+            v = np.concatenate([v, np.zeros(len(turn))])
+            w = np.concatenate([w, turn])
+
+        traj = self._rollouts(pose, v_now, w_now, v, w)
+        xy = traj[..., :2]
+        dist = self.costmap.lookup(xy, self.costmap.distance, outside=np.inf)
+        ok = dist.min(axis=1) >= cfg.collision_radius
+        res = self.costmap.cfg.resolution
+        end = xy[:, -1]
+        heading = traj[:, -1, 2]
+        sin_h, cos_h = sincos(heading)
+        front = end + cfg.forward_point_distance * np.column_stack([cos_h, sin_h])
+        path_cost = distance_to_polyline(end, near) / res
+        if goal_latched:
+            align_cost = 0.0
+            goal_cost = np.hypot(*(end - info.goal).T) / res
+        elif cfg.score_at_end:
+            align_cost = 0.0
+            goal_cost = np.hypot(*(end - local_goal).T) / res
+        else:
+            align_cost = distance_to_polyline(front, near) / res
+            goal_cost = np.hypot(*(front - local_goal).T) / res
+        occ_cost = self.costmap.lookup(xy).max(axis=1)
+        total = (
+            cfg.path_distance_bias * (path_cost + align_cost)
+            + cfg.goal_distance_bias * goal_cost
+            + cfg.occdist_scale * occ_cost
+        )
+        total[~ok] = np.inf
+        snap_array(total, SCORE_RESOLUTION, out=total)
+        best = int(np.argmin(total[:n_forward])) if n_forward else -1
+        best_cost = float(total[best]) if n_forward else math.inf
+        if cfg.rotate_in_place and len(v) > n_forward:
+            # A rotation replaces the best forward sample when it costs no more, the one whose
+            # point ahead ends nearest the goal (TrajectoryPlanner's heading_dist).
+            target = info.goal if goal_latched else local_goal
+            ahead = np.hypot(*(front[n_forward:] - target).T)
+            heading_dist = math.inf
+            for k in range(n_forward, len(v)):
+                if ok[k] and total[k] <= best_cost and ahead[k - n_forward] < heading_dist:
+                    best, best_cost, heading_dist = k, float(total[k]), float(ahead[k - n_forward])
+        if best >= 0 and math.isfinite(best_cost):
+            self._end_escape(pose)
+            self._last_plan = xy[best]
+            self._prev = np.array([v[best], w[best]])
+            return float(v[best]), float(w[best])
+        if not cfg.ros_escape:
+            return self._escape(obs)
+        return self._ros_escape(obs)
+
+    def _rollouts(self, pose: np.ndarray, v_now: float, w_now: float, v: np.ndarray, w: np.ndarray) -> np.ndarray:
+        cfg = self.cfg
+        if cfg.ramp:
+            return ramped_rollout(pose, v_now, w_now, v, w, (cfg.acc_lim_x, cfg.acc_lim_theta), cfg.sim_dt, self._steps)
+        from dynabarn.planners.dwa import rollout
+
+        return rollout(pose, v, w, self._times)
+
+    def _end_escape(self, pose: np.ndarray) -> None:
+        start = self._escaping_from
+        if start is None:
+            return
+        turned = abs(math.remainder(float(pose[2] - start[2]), math.tau))
+        if math.hypot(pose[0] - start[0], pose[1] - start[1]) > self.cfg.escape_reset_dist or (
+            turned > self.cfg.escape_reset_theta
+        ):
+            self._escaping_from = None
+
+    def _ros_escape(self, obs: Observation) -> tuple[float, float]:
+        """Back up straight at escape_vel; stop when the robot's own cell is blocked."""
+        cfg = self.cfg
+        here = float(self.costmap.lookup(obs.pose[None, :2], self.costmap.distance, outside=np.inf)[0])
+        self._last_plan = np.zeros((0, 2))
+        if here < cfg.collision_radius:
+            self._prev = np.zeros(2)
+            return 0.0, 0.0
+        if self._escaping_from is None:
+            self._escaping_from = np.array(obs.pose, dtype=float)
+        self._end_escape(obs.pose)
+        self._prev = np.array([cfg.escape_vel, 0.0])
+        return cfg.escape_vel, 0.0
