@@ -13,6 +13,7 @@ results/
   original60_barn/ the release's 60 worlds, imported with `dynabarn-worlds import`
   unseen_barn/     the 240 generated worlds the learned policies never trained on
   move_base_*/     real move_base beside our DWA with its configuration (ros_tables.py)
+  move_base_dwa_ablation/ the outcomes of each difference between the two (dwa_ablation.py)
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from dynabarn.bench.summary import FLOOR, plot_fig5
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from learning_tables import dagger_training, generalisation_table
-from ros_tables import MOVE_BASE_SETS, move_base_table
+from ros_tables import MOVE_BASE_SETS, ablation_table, move_base_table
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS_DIR = ROOT / "results"
@@ -302,6 +303,7 @@ BLOCKS = {
     "generalisation": lambda f, s: generalisation_table(s),
     "dagger-training": lambda f, s: dagger_training(),
     "move-base": lambda f, s: move_base_table(f),
+    "dwa-ablation": lambda f, s: ablation_table(f),
 }
 
 
@@ -309,7 +311,7 @@ PAGES = {
     README: ("headline", "ladder", "generalisation"),
     DOCS / "results.md": ("fig5", "skill", "floor", "ladder", "tracking", "other-worlds", "generalisation"),
     DOCS / "tutorials" / "training.md": ("td3-training", "dagger-training"),
-    DOCS / "tutorials" / "ros.md": ("move-base",),
+    DOCS / "tutorials" / "ros.md": ("move-base", "dwa-ablation"),
 }
 """Each page and the blocks it must hold (every block of BLOCKS is on some page)."""
 

@@ -11,8 +11,10 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass
 
+from dwa_ablation import VARIANTS, read_outcomes
+
 from dynabarn.bench import DIFFICULTIES
-from dynabarn.bench.summary import FLOOR
+from dynabarn.bench.summary import FLOOR, wilson_interval
 
 
 @dataclass(frozen=True)
@@ -23,38 +25,40 @@ class Comparison:
     folder: str
     title: str
     real: str  # how the real stack's rows (planner "ros") are named
-    ours: str  # our planner's name in the rows
-    ours_name: str
+    ours: tuple[tuple[str, str], ...]  # our planners: (name in the rows, how the table names it)
 
 
+DWA_OURS = (
+    ("dwa@dwa_dynabarn_authors", "our DWA, the same configuration (`dwa@dwa_dynabarn_authors`)"),
+    (
+        "trajectory_planner@dwa_dynabarn_authors",
+        "our TrajectoryPlanner, the same (`trajectory_planner@dwa_dynabarn_authors`)",
+    ),
+)
 COMPARISONS = (
     Comparison(
         "move_base_paper60",
         "paper60",
         "real move_base (`--stack move_base_dwa`, lockstep at its 20 Hz)",
-        "dwa@dwa_dynabarn_authors",
-        "our DWA, the same configuration (`dwa@dwa_dynabarn_authors`)",
+        DWA_OURS,
     ),
     Comparison(
         "move_base_original60",
         "release's 60",
         "real move_base (`--stack move_base_dwa`, lockstep at its 20 Hz)",
-        "dwa@dwa_dynabarn_authors",
-        "our DWA, the same configuration (`dwa@dwa_dynabarn_authors`)",
+        DWA_OURS,
     ),
     Comparison(
         "move_base_teb_paper60",
         "paper60",
         "real TEB under move_base (`--stack move_base_teb`, its ROS defaults)",
-        "teb@teb_ros_defaults",
-        "our TEB, ROS's defaults (`teb@teb_ros_defaults`)",
+        (("teb@teb_ros_defaults", "our TEB, ROS's defaults (`teb@teb_ros_defaults`)"),),
     ),
     Comparison(
         "move_base_teb_original60",
         "release's 60",
         "real TEB under move_base (`--stack move_base_teb`, its ROS defaults)",
-        "teb@teb_ros_defaults",
-        "our TEB, ROS's defaults (`teb@teb_ros_defaults`)",
+        (("teb@teb_ros_defaults", "our TEB, ROS's defaults (`teb@teb_ros_defaults`)"),),
     ),
 )
 MOVE_BASE_SETS = {c.folder: c.title for c in COMPARISONS}
@@ -88,7 +92,7 @@ def move_base_table(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
     for c in COMPARISONS:
         rows, summary = folders.get(c.folder, ([], []))
         by = {(s["planner"], s["difficulty"]): s for s in summary}
-        for planner, name in (("ros", c.real), (c.ours, c.ours_name), (FLOOR, "blind floor (`straight`)")):
+        for planner, name in (("ros", c.real), *c.ours, (FLOOR, "blind floor (`straight`)")):
             if (planner, "all") not in by:
                 continue
             trials = len({r["seed"] for r in rows if r["planner"] == planner})
@@ -96,7 +100,46 @@ def move_base_table(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
             s = by[(planner, "all")]
             skill = "-" if s.get("skill") is None else f"{s['skill']:+.2f} [{s['skill_lo']:+.2f}, {s['skill_hi']:+.2f}]"
             lines.append(f"| {c.title} | {name} | {trials} | {cells} | {skill} |")
-        if rows:
-            kind = c.ours.split("@")[0].upper()
-            notes.append(f"- {c.title}, {kind}: the same outcome in {_agreement(rows, c.ours)}.")
+        for ours, _ in c.ours if rows else ():
+            if any(r["planner"] == ours for r in rows):
+                notes.append(f"- {c.title}, `{ours.split('@')[0]}`: the same outcome in {_agreement(rows, ours)}.")
     return "\n".join(lines + (["", *notes] if notes else []))
+
+
+def ablation_table(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
+    """Each variant of `dwa_ablation.py` beside real move_base on paper60: success per
+    difficulty, and how often it ends a (world, trial) as the real stack did."""
+    real_rows = [r for r in folders.get("move_base_paper60", ([], []))[0] if r["planner"] == "ros"]
+    real = {(r["world"], r["seed"]): r["outcome"] for r in real_rows}
+    by_variant: dict[str, list[dict]] = {}
+    for row in read_outcomes():
+        by_variant.setdefault(row["variant"], []).append(row)
+    lines = [
+        "| variant | episodes | " + " | ".join(DIFFICULTIES) + " | all | same outcome as real move_base "
+        "| real succeeds, it does not | it succeeds, real does not |",
+        "|---|---|" + "---|" * (len(DIFFICULTIES) + 4),
+    ]
+    for name, rows in (("real", [dict(r, variant="real") for r in real_rows]), *by_variant.items()):
+        title = "real move_base (`results/move_base_paper60`)" if name == "real" else VARIANTS[name][2]
+        cells = []
+        for d in (*DIFFICULTIES, "all"):
+            group = [r for r in rows if d == "all" or r["difficulty"] == d]
+            if not group:
+                cells.append("-")
+                continue
+            k = sum(r["outcome"] == "success" for r in group)
+            lo, hi = wilson_interval(k, len(group))
+            cells.append(f"{k / len(group):.2f}" + (f" [{lo:.2f}, {hi:.2f}]" if d == "all" else ""))
+        paired = [(real[(r["world"], r["seed"])], r["outcome"]) for r in rows if (r["world"], r["seed"]) in real]
+        if name == "real" or not paired:
+            agree = ["-", "-", "-"]
+        else:
+            same = sum(a == b for a, b in paired)
+            lo, hi = wilson_interval(same, len(paired))
+            agree = [
+                f"{same / len(paired):.2f} [{lo:.2f}, {hi:.2f}] of {len(paired)}",
+                str(sum(a == "success" != b for a, b in paired)),
+                str(sum(b == "success" != a for a, b in paired)),
+            ]
+        lines.append(f"| {title} | {len(rows)} | " + " | ".join(cells + agree) + " |")
+    return "\n".join(lines)

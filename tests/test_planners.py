@@ -133,7 +133,13 @@ def test_authors_presets_carry_a_source_for_every_parameter():
     authors = read_planner_config("dwa_dynabarn_authors")
     barn = read_planner_config("dwa_barn_challenge")
     dyna_barn = {"max_vel_x": 2.0, "max_vel_theta": 3.14, "vx_samples": 12, "vth_samples": 40}  # the branch's
-    assert authors == barn | dyna_barn | {"costmap.size": 10.0, "costmap.resolution": 0.05}
+    window = {"costmap.size": 10.0, "costmap.resolution": 0.05, "lookahead": 5.0}  # the plan's end inside it
+    per_cell = {"path_distance_bias": 0.0375, "goal_distance_bias": 0.05}  # pdist_scale 0.75, gdist_scale 1.0 per metre
+    assert authors == barn | dyna_barn | window | per_cell
+    assert set(authors) - set(barn) - {"_extends"} <= set(
+        json.loads((PRESETS_DIR / "dwa_dynabarn_authors.json").read_text())["_sources"]
+    )
+    assert (barn["path_distance_bias"], barn["goal_distance_bias"]) == (0.075, 0.1)  # per its 0.1 m cells
     assert barn["max_vel_x"] == 0.5 and barn["vx_samples"] == 6  # the main branch's stay under their own name
     assert get_planner("dwa", **authors).cfg.costmap.resolution == 0.05
 

@@ -130,3 +130,24 @@ def test_escaping_lasts_until_the_robot_has_moved_away():
     moved = _observe(open_way, velocity=(-0.5, 0.0), pose=(-0.2, 0.0, 0.0))  # 0.2 m back: this tick ends it
     assert tp.act(moved)[0] == cfg["escape_vel"]
     assert tp.act(moved)[0] > 0.0
+
+
+def test_the_ablation_variants_are_valid_configurations():
+    """Each variant `benchmarks/dwa_ablation.py` sweeps builds its planner; each switch it
+    turns off is one of the planner's, so a renamed switch cannot drop out of the table."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from dwa_ablation import VARIANTS
+
+    base = read_planner_config("dwa_dynabarn_authors")
+    switches = {"ramp", "score_at_end", "rotate_in_place", "ros_escape", "slow_near_goal", "sim_period"}
+    off = set()
+    for planner, overrides, _ in VARIANTS.values():
+        if planner == "ros":
+            continue
+        built = get_planner(planner, **(base | overrides))
+        assert all(getattr(built.cfg, k) == v for k, v in overrides.items())
+        off |= set(overrides) & switches
+    assert off == switches

@@ -1,5 +1,6 @@
 """`dwa`: the Dynamic Window Approach (Fox, Burgard, Thrun 1997) as ROS's
-base_local_planner / dwa_local_planner do it, vectorised.
+dwa_local_planner scores it, vectorised (`trajectory_planner.py`: base_local_planner's
+TrajectoryPlanner, which BARN's move_base configuration runs, built on this).
 
 Per control tick:
 1. update the rolling local costmap from the scan (`costmap.py`);
