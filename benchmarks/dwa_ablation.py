@@ -56,7 +56,7 @@ VARIANTS: dict[str, tuple[str, dict, str]] = {
 
 def sweep(variant: str, work: Path) -> Path:
     """Run (or resume) one variant's sweep; its results.jsonl."""
-    from dynabarn.cli.bench import main as bench_main
+    from dynabarn.cli.bench import bench_main
 
     planner, overrides, _ = VARIANTS[variant]
     out = work / variant
@@ -74,6 +74,8 @@ def sweep(variant: str, work: Path) -> Path:
 
 def outcomes(variant: str, results: Path) -> list[dict]:
     rows = [json.loads(line) for line in results.read_text().splitlines() if line.strip()]
+    if len({(r["world"], r["seed"]) for r in rows}) != len(rows):
+        raise SystemExit(f"{results} holds an episode twice (two configurations in one folder?)")
     return [
         {
             "variant": variant,
