@@ -2,7 +2,8 @@
 
 Measures, on one core:
 1. the bare loop: mj_step + obstacle schedules + 720-ray scans at 10 Hz, nothing else;
-2. the runner with `straight` and `stop` on a hard world, without and with MCAP recording;
+2. the runner with `straight` and `stop` on a hard world, without and with MCAP recording,
+   and where a recorded episode spends its time (`recording_cost.py`);
 3. world generation (300 worlds) and MCAP recovery;
 4. DWA's and TEB's compute time per call over six worlds of all difficulties;
 5. converting a 60 s recording to a rerun .rrd (and its ratio to the recording's length);
@@ -29,6 +30,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 import mujoco
 import numpy as np
+from recording_cost import recording_breakdown
 
 from dynabarn.planners import get_planner, planner_spec
 from dynabarn.protocol import get_protocol
@@ -350,6 +352,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'measure':<66}{'x real time':>12}{'/ bare':>9}")
     for label, rtf, ratio in rows:
         print(f"{label:<66}{rtf:>12.0f}{ratio:>9.2f}")
+    print(f"{'where one recorded 100 s episode of `stop` spends its time [ms]':<66}{'ms':>12}{'/ alone':>9}")
+    parts = recording_breakdown(HARD_WORLD, args.repeat)
+    for label, ms in parts.items():
+        print(f"{'  ' + label:<66}{ms:>12.1f}{ms / parts['runner alone']:>9.2f}")
     print(f"{'generate 300 worlds [s]':<66}{world_generation():>12.2f}")
     with tempfile.TemporaryDirectory() as tmp:
         variants = variant_worlds(Path(tmp))
