@@ -172,17 +172,7 @@ class DWAPlanner(Planner):
     def act(self, obs: Observation) -> tuple[float, float]:
         cfg, info = self.cfg, self.info
         pose = obs.pose
-        scan = obs.scan
-        if self.tracker is not None:
-            # The moving obstacles are the tracker's: the costmap holds what stands still.
-            self._tracks, _, scan = track_moving(self.tracker, obs, info.laser_range[1])
-        self.costmap.update(pose, scan, info.laser_angles, info.laser_offset, info.laser_range[1])
-        path = self.global_planner.plan_around(pose[0], pose[1], self.costmap, block_radius=cfg.collision_radius)
-        local_goal, path = self.global_planner.local_goal(pose[0], pose[1], cfg.lookahead, path)
-        self._global_plan = path
-        # The part of the plan near the robot (scored against), at most `lookahead` + 1 m long.
-        near = path[: max(2, int((cfg.lookahead + 1.0) / self.global_planner.resolution) + 2)]
-
+        local_goal, near = self._perceive_and_plan(obs)
         v_now, w_now = float(obs.velocity[0]), float(obs.velocity[1])  # odometry, as in ROS
         dv, dw = cfg.acc_lim_x * self.period, cfg.acc_lim_theta * self.period
         v_lo, v_hi = max(cfg.min_vel_x, v_now - dv), min(cfg.max_vel_x, v_now + dv)
@@ -195,27 +185,66 @@ class DWAPlanner(Planner):
         v, w = v.ravel(), w.ravel()
 
         traj = rollout(pose, v, w, self._times)  # (N, K, 3)
-        xy = traj[..., :2]
-        dist = self.costmap.lookup(xy, self.costmap.distance, outside=np.inf)  # (N, K)
-        ok = dist.min(axis=1) >= cfg.collision_radius
-        if self._tracks is not None and len(self._tracks):
-            ok &= self._moving_clearance(xy, obs.time) >= cfg.collision_radius
+        ok = self._admissible(traj[..., :2], obs.time, self._times)
         if not ok.any():
             return self._escape(obs)
-        res = self.costmap.cfg.resolution
+        # The goal itself in reach: bring the robot's centre (not the point ahead of it) onto
+        # the goal, and stop scoring the heading (dwa_local_planner's goal latch).
+        latched = bool(np.hypot(*(pose[:2] - info.goal)) < cfg.lookahead)
+        total, _ = self._scores(traj, ok, near, local_goal, goal_latched=latched, at_end=False)
+        best = int(np.argmin(total))  # ties in exact arithmetic stay ties on every CPU; the first wins
+        self._last_plan = traj[best, :, :2]
+        self._prev = np.array([v[best], w[best]])
+        return float(v[best]), float(w[best])
+
+    def _perceive_and_plan(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
+        """Update the costmap from the scan (the tracker's moving obstacles taken out of it) and
+        plan around what it holds: (the local goal, the part of the plan near the robot, at
+        most `lookahead` + 1 m long, which rollouts are scored against)."""
+        cfg, info = self.cfg, self.info
+        pose = obs.pose
+        scan = obs.scan
+        if self.tracker is not None:
+            # The moving obstacles are the tracker's: the costmap holds what stands still.
+            self._tracks, _, scan = track_moving(self.tracker, obs, info.laser_range[1])
+        self.costmap.update(pose, scan, info.laser_angles, info.laser_offset, info.laser_range[1])
+        path = self.global_planner.plan_around(pose[0], pose[1], self.costmap, block_radius=cfg.collision_radius)
+        local_goal, path = self.global_planner.local_goal(pose[0], pose[1], cfg.lookahead, path)
+        self._global_plan = path
+        return local_goal, path[: max(2, int((cfg.lookahead + 1.0) / self.global_planner.resolution) + 2)]
+
+    def _admissible(self, xy: np.ndarray, now: float, times: np.ndarray) -> np.ndarray:
+        """Which rollouts (N, K, 2), their points at `times` from now, keep `collision_radius`
+        from every obstacle cell and from every track at constant velocity."""
+        r = self.cfg.collision_radius
+        ok = self.costmap.lookup(xy, self.costmap.distance, outside=np.inf).min(axis=1) >= r
+        if self._tracks is not None and len(self._tracks):
+            ok &= self._moving_clearance(xy, now, times) >= r
+        return ok
+
+    def _scores(
+        self, traj: np.ndarray, ok: np.ndarray, near: np.ndarray, goal: np.ndarray, *, goal_latched: bool, at_end: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Each rollout's cost against the local `goal` (inadmissible ones infinite), snapped to
+        SCORE_RESOLUTION, and its point `forward_point_distance` ahead of its end. dwa_local_planner scores the path at
+        the end and at that point and the goal at that point; `at_end`: path and goal both at
+        the end (base_local_planner's TrajectoryPlanner); `goal_latched`: the goal at the end.
+        Distances in costmap cells, as ROS counts them."""
+        cfg, res = self.cfg, self.costmap.cfg.resolution
+        xy = traj[..., :2]
         end = xy[:, -1]
-        heading = traj[:, -1, 2]
-        sin_h, cos_h = sincos(heading)
+        sin_h, cos_h = sincos(traj[:, -1, 2])
         front = end + cfg.forward_point_distance * np.column_stack([cos_h, sin_h])
         path_cost = distance_to_polyline(end, near) / res
-        if np.hypot(*(pose[:2] - info.goal)) < cfg.lookahead:
-            # The goal itself is in reach: bring the robot's centre (not the point ahead of
-            # it) onto the goal, and stop scoring the heading (dwa_local_planner's goal latch).
+        if goal_latched:
             align_cost = 0.0
-            goal_cost = np.hypot(*(end - info.goal).T) / res
+            goal_cost = np.hypot(*(end - self.info.goal).T) / res
+        elif at_end:
+            align_cost = 0.0
+            goal_cost = np.hypot(*(end - goal).T) / res
         else:
             align_cost = distance_to_polyline(front, near) / res
-            goal_cost = np.hypot(*(front - local_goal).T) / res
+            goal_cost = np.hypot(*(front - goal).T) / res
         occ_cost = self.costmap.lookup(xy).max(axis=1)
         total = (
             cfg.path_distance_bias * (path_cost + align_cost)
@@ -223,17 +252,13 @@ class DWAPlanner(Planner):
             + cfg.occdist_scale * occ_cost
         )
         total[~ok] = np.inf
-        # Ties in exact arithmetic stay ties on every CPU; the first candidate wins.
-        best = int(np.argmin(snap_array(total, SCORE_RESOLUTION, out=total)))
-        self._last_plan = xy[best]
-        self._prev = np.array([v[best], w[best]])
-        return float(v[best]), float(w[best])
+        return snap_array(total, SCORE_RESOLUTION, out=total), front
 
-    def _moving_clearance(self, xy: np.ndarray, now: float) -> np.ndarray:
+    def _moving_clearance(self, xy: np.ndarray, now: float, times: np.ndarray) -> np.ndarray:
         """Smallest distance (N,) of each rollout (N, K, 2) from the tracks' surfaces, each
-        track at constant velocity at the rollout point's time."""
+        track at constant velocity at the rollout point's time (`times` from now)."""
         tracks = self._tracks
-        future = tracks.predict(now + self._times)  # (K, n, 2)
+        future = tracks.predict(now + times)  # (K, n, 2)
         ex = xy[:, :, None, 0] - future[None, :, :, 0]
         ey = xy[:, :, None, 1] - future[None, :, :, 1]
         return (np.sqrt(ex * ex + ey * ey) - tracks.sizes).min(axis=(1, 2))

@@ -21,7 +21,8 @@ noetic-devel), each a switch of its own so that a comparison can take them one a
 - `sim_period`: the dynamic window is acc x sim_period wide (1 / controller_frequency, 0.05
   s at move_base's 20 Hz), not the control period.
 
-Not reproduced: the path and goal distances are Euclidean (there: 4-connected flood fills
+With `include_dynamic_obstacles` the tracker's tracks are checked as in `dwa`. Not
+reproduced: the path and goal distances are Euclidean (there: 4-connected flood fills
 over the local costmap), the footprint's edges are not checked against lethal cells
 separately (the circle of `collision_radius` is the padded footprint's inscribed one), and
 the oscillation flags (`stuck_left` / `stuck_right`) are left out.
@@ -35,10 +36,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
+from dynabarn.determinism import sincos
 from dynabarn.interfaces import EpisodeInfo, Observation, config_from_kwargs
 from dynabarn.planners.costmap import with_costmap
-from dynabarn.planners.dwa import DWAConfig, DWAPlanner, distance_to_polyline
+from dynabarn.planners.dwa import DWAConfig, DWAPlanner, rollout
 from dynabarn.planners.tracking import with_tracker
 
 
@@ -108,6 +109,8 @@ class TrajectoryPlanner(DWAPlanner):
         self.cfg = TrajectoryPlannerConfig.from_kwargs(**config)
         self._steps = round(self.cfg.sim_time / self.cfg.sim_dt)
         self._times = np.arange(1, self._steps + 1) * self.cfg.sim_dt
+        # When each rollout point is, from now: a ramped rollout starts at the pose now.
+        self._point_times = np.arange(self._steps) * self.cfg.sim_dt if self.cfg.ramp else self._times
         self._last_plan = np.zeros((0, 2))
 
     def config(self) -> dict:
@@ -117,28 +120,46 @@ class TrajectoryPlanner(DWAPlanner):
         super().reset(info)
         self._escaping_from: np.ndarray | None = None
 
-    # Over 80 lines on purpose: one control tick of TrajectoryPlanner::createTrajectories, in its order.
     def act(self, obs: Observation) -> tuple[float, float]:
+        """One control tick of TrajectoryPlanner::createTrajectories, in its order."""
         cfg, info = self.cfg, self.info
         pose = obs.pose
-        self.costmap.update(pose, obs.scan, info.laser_angles, info.laser_offset, info.laser_range[1])
-        path = self.global_planner.plan_around(pose[0], pose[1], self.costmap, block_radius=cfg.collision_radius)
-        local_goal, path = self.global_planner.local_goal(pose[0], pose[1], cfg.lookahead, path)
-        self._global_plan = path
-        near = path[: max(2, int((cfg.lookahead + 1.0) / self.global_planner.resolution) + 2)]
+        local_goal, near = self._perceive_and_plan(obs)
         goal_dist_now = float(np.hypot(*(pose[:2] - info.goal)))
-        goal_latched = goal_dist_now < cfg.lookahead
+        v, w, n_forward = self._samples(float(obs.velocity[0]), float(obs.velocity[1]), goal_dist_now)
+        traj = self._rollouts(pose, float(obs.velocity[0]), float(obs.velocity[1]), v, w)
+        ok = self._admissible(traj[..., :2], obs.time, self._point_times)
+        latched = goal_dist_now < cfg.lookahead
+        total, front = self._scores(traj, ok, near, local_goal, goal_latched=latched, at_end=cfg.score_at_end)
+        best = int(np.argmin(total[:n_forward])) if n_forward else -1
+        best_cost = float(total[best]) if n_forward else math.inf
+        if len(v) > n_forward:
+            # A rotation replaces the best forward sample when it costs no more: the one whose
+            # point ahead ends nearest the goal (TrajectoryPlanner's heading_dist).
+            ahead = np.hypot(*(front[n_forward:] - (info.goal if latched else local_goal)).T)
+            heading_dist = math.inf
+            for k in range(n_forward, len(v)):
+                if ok[k] and total[k] <= best_cost and ahead[k - n_forward] < heading_dist:
+                    best, best_cost, heading_dist = k, float(total[k]), float(ahead[k - n_forward])
+        if best >= 0 and math.isfinite(best_cost):
+            self._end_escape(pose)
+            self._last_plan = traj[best, :, :2]
+            self._prev = np.array([v[best], w[best]])
+            return float(v[best]), float(w[best])
+        return self._ros_escape(obs) if cfg.ros_escape else self._escape(obs)
 
-        v_now, w_now = float(obs.velocity[0]), float(obs.velocity[1])
+    def _samples(self, v_now: float, w_now: float, goal_dist: float) -> tuple[np.ndarray, np.ndarray, int]:
+        """The (v, w) samples: the forward ones first (none while escaping), then the in-place
+        rotations; and how many are forward."""
+        cfg = self.cfg
         period = cfg.sim_period or self.period
         dv, dw = cfg.acc_lim_x * period, cfg.acc_lim_theta * period
-        top = min(cfg.max_vel_x, goal_dist_now / cfg.sim_time) if cfg.slow_near_goal else cfg.max_vel_x
+        top = min(cfg.max_vel_x, goal_dist / cfg.sim_time) if cfg.slow_near_goal else cfg.max_vel_x
         v_hi = max(min(top, v_now + dv), cfg.min_vel_x)
-        v_lo = max(cfg.min_vel_x, v_now - dv)
-        v_lo = min(v_lo, v_hi)
+        v_lo = min(max(cfg.min_vel_x, v_now - dv), v_hi)
         w_lo, w_hi = max(-cfg.max_vel_theta, w_now - dw), min(cfg.max_vel_theta, w_now + dw)
-        escaping = self._escaping_from is not None
-        forward_v = np.zeros(0) if (escaping and cfg.ros_escape) else np.linspace(v_lo, v_hi, cfg.vx_samples)
+        escaping = self._escaping_from is not None and cfg.ros_escape
+        forward_v = np.zeros(0) if escaping else np.linspace(v_lo, v_hi, cfg.vx_samples)
         ws = np.unique(np.concatenate([np.linspace(w_lo, w_hi, cfg.vth_samples), [0.0] if w_lo <= 0 <= w_hi else []]))
         v, w = np.meshgrid(forward_v, ws, indexing="ij")
         v, w = v.ravel(), w.ravel()
@@ -150,60 +171,12 @@ class TrajectoryPlanner(DWAPlanner):
             turn = np.sign(turn) * np.maximum(np.abs(turn), cfg.min_in_place_vel_theta)
             v = np.concatenate([v, np.zeros(len(turn))])
             w = np.concatenate([w, turn])
-
-        traj = self._rollouts(pose, v_now, w_now, v, w)
-        xy = traj[..., :2]
-        dist = self.costmap.lookup(xy, self.costmap.distance, outside=np.inf)
-        ok = dist.min(axis=1) >= cfg.collision_radius
-        res = self.costmap.cfg.resolution
-        end = xy[:, -1]
-        heading = traj[:, -1, 2]
-        sin_h, cos_h = sincos(heading)
-        front = end + cfg.forward_point_distance * np.column_stack([cos_h, sin_h])
-        path_cost = distance_to_polyline(end, near) / res
-        if goal_latched:
-            align_cost = 0.0
-            goal_cost = np.hypot(*(end - info.goal).T) / res
-        elif cfg.score_at_end:
-            align_cost = 0.0
-            goal_cost = np.hypot(*(end - local_goal).T) / res
-        else:
-            align_cost = distance_to_polyline(front, near) / res
-            goal_cost = np.hypot(*(front - local_goal).T) / res
-        occ_cost = self.costmap.lookup(xy).max(axis=1)
-        total = (
-            cfg.path_distance_bias * (path_cost + align_cost)
-            + cfg.goal_distance_bias * goal_cost
-            + cfg.occdist_scale * occ_cost
-        )
-        total[~ok] = np.inf
-        snap_array(total, SCORE_RESOLUTION, out=total)
-        best = int(np.argmin(total[:n_forward])) if n_forward else -1
-        best_cost = float(total[best]) if n_forward else math.inf
-        if cfg.rotate_in_place and len(v) > n_forward:
-            # A rotation replaces the best forward sample when it costs no more, the one whose
-            # point ahead ends nearest the goal (TrajectoryPlanner's heading_dist).
-            target = info.goal if goal_latched else local_goal
-            ahead = np.hypot(*(front[n_forward:] - target).T)
-            heading_dist = math.inf
-            for k in range(n_forward, len(v)):
-                if ok[k] and total[k] <= best_cost and ahead[k - n_forward] < heading_dist:
-                    best, best_cost, heading_dist = k, float(total[k]), float(ahead[k - n_forward])
-        if best >= 0 and math.isfinite(best_cost):
-            self._end_escape(pose)
-            self._last_plan = xy[best]
-            self._prev = np.array([v[best], w[best]])
-            return float(v[best]), float(w[best])
-        if not cfg.ros_escape:
-            return self._escape(obs)
-        return self._ros_escape(obs)
+        return v, w, n_forward
 
     def _rollouts(self, pose: np.ndarray, v_now: float, w_now: float, v: np.ndarray, w: np.ndarray) -> np.ndarray:
         cfg = self.cfg
         if cfg.ramp:
             return ramped_rollout(pose, v_now, w_now, v, w, (cfg.acc_lim_x, cfg.acc_lim_theta), cfg.sim_dt, self._steps)
-        from dynabarn.planners.dwa import rollout
-
         return rollout(pose, v, w, self._times)
 
     def _end_escape(self, pose: np.ndarray) -> None:
