@@ -84,6 +84,9 @@ CASES: tuple[GoldenCase, ...] = (
     GoldenCase("dwa", "barn-static", 50, "barn-static", config="dwa_barn_challenge"),
     GoldenCase("dwa", "mixed", 60),
     GoldenCase("dwa", "avoid", 137),
+    # base_local_planner's TrajectoryPlanner with the DynaBARN authors' values (stop-and-turn, ramps).
+    GoldenCase("trajectory_planner", "generated", 105, seed=1, config="dwa_dynabarn_authors"),
+    GoldenCase("trajectory_planner", "generated", 215, config="dwa_dynabarn_authors"),
     # TEB: its optimiser is the most sensitive part, so the most cases.
     GoldenCase("teb", "generated", 10),
     GoldenCase("teb", "generated", 150, seed=1),
