@@ -13,8 +13,9 @@ noetic-devel), each a switch of its own so that a comparison can take them one a
 - `rotate_in_place`: when every forward sample is blocked, or a rotation costs no more than
   the best of them, the robot stops and turns (samples at v = 0, |w| at least
   `min_in_place_vel_theta`), towards the rotation whose heading point ends nearest the goal.
-  This is how move_base's DWA waits for an obstacle to pass; `dwa` can only back up.
-- `escape` as there: nothing admissible, back up straight at `escape_vel` (turning only by
+  This is how move_base's DWA waits for an obstacle to pass; `dwa` keeps driving forward
+  (at least `min_vel_x`) or backs up.
+- `ros_escape`, as there: nothing admissible, back up straight at `escape_vel` (turning only by
   rotations) until moved `escape_reset_dist` or turned `escape_reset_theta`; with the
   robot's own cell blocked, stop.
 - `slow_near_goal`: max_vel_x <= (distance to the goal) / sim_time.
