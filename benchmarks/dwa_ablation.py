@@ -85,7 +85,7 @@ def outcomes(variant: str, results: Path) -> list[dict]:
             "outcome": r["outcome"],
             "time": f"{r['time']:.3f}",
         }
-        for r in sorted(rows, key=lambda r: (r["world"], r["seed"]))
+        for r in rows
     ]
 
 

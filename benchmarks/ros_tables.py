@@ -119,7 +119,7 @@ def ablation_table(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
         "| real succeeds, it does not | it succeeds, real does not |",
         "|---|---|" + "---|" * (len(DIFFICULTIES) + 4),
     ]
-    for name, rows in (("real", [dict(r, variant="real") for r in real_rows]), *by_variant.items()):
+    for name, rows in (("real", real_rows), *by_variant.items()):
         title = "real move_base (`results/move_base_paper60`)" if name == "real" else VARIANTS[name][2]
         cells = []
         for d in (*DIFFICULTIES, "all"):

@@ -123,6 +123,14 @@ def rollout(pose: np.ndarray, v: np.ndarray, w: np.ndarray, times: np.ndarray) -
     return np.stack([x, y, np.broadcast_to(th, x.shape)], axis=-1)
 
 
+def sample_grid(vs: np.ndarray, w_lo: float, w_hi: float, n_w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every forward speed of `vs` with `n_w` yaw rates across [w_lo, w_hi], plus w = 0 when the
+    window holds it: (v, w), flat, speed-major."""
+    ws = np.unique(np.concatenate([np.linspace(w_lo, w_hi, n_w), [0.0] if w_lo <= 0 <= w_hi else []]))
+    v, w = np.meshgrid(vs, ws, indexing="ij")
+    return v.ravel(), w.ravel()
+
+
 def distance_to_polyline(points: np.ndarray, path: np.ndarray) -> np.ndarray:
     """Distance from each point (n, 2) to the polyline path (m, 2)."""
     if len(path) == 1:
@@ -140,9 +148,11 @@ class DWAPlanner(Planner):
     """Dynamic Window Approach local planner with a Dijkstra global plan."""
 
     name = "dwa"
+    config_class: ClassVar[type[DWAConfig]] = DWAConfig
+    """The configuration a subclass extends (`trajectory_planner`)."""
 
     def __init__(self, **config) -> None:
-        self.cfg = DWAConfig.from_kwargs(**config)
+        self.cfg = self.config_class.from_kwargs(**config)
         self._times = np.arange(1, round(self.cfg.sim_time / self.cfg.sim_dt) + 1) * self.cfg.sim_dt
         self._last_plan = np.zeros((0, 2))
 
@@ -179,10 +189,7 @@ class DWAPlanner(Planner):
         w_lo, w_hi = max(-cfg.max_vel_theta, w_now - dw), min(cfg.max_vel_theta, w_now + dw)
         if v_lo > v_hi:  # coming out of an escape: let the window reach min_vel_x
             v_lo = v_hi = min(max(cfg.min_vel_x, v_now + dv), cfg.max_vel_x)
-        vs = np.linspace(v_lo, v_hi, cfg.vx_samples)
-        ws = np.unique(np.concatenate([np.linspace(w_lo, w_hi, cfg.vth_samples), [0.0] if w_lo <= 0 <= w_hi else []]))
-        v, w = np.meshgrid(vs, ws, indexing="ij")
-        v, w = v.ravel(), w.ravel()
+        v, w = sample_grid(np.linspace(v_lo, v_hi, cfg.vx_samples), w_lo, w_hi, cfg.vth_samples)
 
         traj = rollout(pose, v, w, self._times)  # (N, K, 3)
         ok = self._admissible(traj[..., :2], obs.time, self._times)
@@ -226,10 +233,11 @@ class DWAPlanner(Planner):
         self, traj: np.ndarray, ok: np.ndarray, near: np.ndarray, goal: np.ndarray, *, goal_latched: bool, at_end: bool
     ) -> tuple[np.ndarray, np.ndarray]:
         """Each rollout's cost against the local `goal` (inadmissible ones infinite), snapped to
-        SCORE_RESOLUTION, and its point `forward_point_distance` ahead of its end. dwa_local_planner scores the path at
-        the end and at that point and the goal at that point; `at_end`: path and goal both at
-        the end (base_local_planner's TrajectoryPlanner); `goal_latched`: the goal at the end.
-        Distances in costmap cells, as ROS counts them."""
+        SCORE_RESOLUTION, and its point `forward_point_distance` ahead of its end.
+        dwa_local_planner scores the path at the end and at that point and the goal at that
+        point; `at_end`: path and goal both at the end (base_local_planner's
+        TrajectoryPlanner); `goal_latched`: the goal at the end. Distances in costmap cells,
+        as ROS counts them."""
         cfg, res = self.cfg, self.costmap.cfg.resolution
         xy = traj[..., :2]
         end = xy[:, -1]

@@ -32,7 +32,7 @@ the oscillation flags (`stuck_left` / `stuck_right`) are left out.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
@@ -40,7 +40,7 @@ import numpy as np
 from dynabarn.determinism import sincos
 from dynabarn.interfaces import EpisodeInfo, Observation, config_from_kwargs
 from dynabarn.planners.costmap import with_costmap
-from dynabarn.planners.dwa import DWAConfig, DWAPlanner, rollout
+from dynabarn.planners.dwa import DWAConfig, DWAPlanner, rollout, sample_grid
 from dynabarn.planners.tracking import with_tracker
 
 
@@ -105,17 +105,13 @@ class TrajectoryPlanner(DWAPlanner):
     """base_local_planner's TrajectoryPlanner (`dwa: true`) on `dwa`'s costmap and plan."""
 
     name = "trajectory_planner"
+    config_class = TrajectoryPlannerConfig
 
     def __init__(self, **config) -> None:
-        self.cfg = TrajectoryPlannerConfig.from_kwargs(**config)
-        self._steps = round(self.cfg.sim_time / self.cfg.sim_dt)
-        self._times = np.arange(1, self._steps + 1) * self.cfg.sim_dt
+        super().__init__(**config)
+        self._steps = len(self._times)
         # When each rollout point is, from now: a ramped rollout starts at the pose now.
         self._point_times = np.arange(self._steps) * self.cfg.sim_dt if self.cfg.ramp else self._times
-        self._last_plan = np.zeros((0, 2))
-
-    def config(self) -> dict:
-        return asdict(self.cfg)
 
     def reset(self, info: EpisodeInfo) -> None:
         super().reset(info)
@@ -127,8 +123,9 @@ class TrajectoryPlanner(DWAPlanner):
         pose = obs.pose
         local_goal, near = self._perceive_and_plan(obs)
         goal_dist_now = float(np.hypot(*(pose[:2] - info.goal)))
-        v, w, n_forward = self._samples(float(obs.velocity[0]), float(obs.velocity[1]), goal_dist_now)
-        traj = self._rollouts(pose, float(obs.velocity[0]), float(obs.velocity[1]), v, w)
+        v_now, w_now = float(obs.velocity[0]), float(obs.velocity[1])  # odometry, as in ROS
+        v, w, n_forward = self._samples(v_now, w_now, goal_dist_now)
+        traj = self._rollouts(pose, v_now, w_now, v, w)
         ok = self._admissible(traj[..., :2], obs.time, self._point_times)
         latched = goal_dist_now < cfg.lookahead
         total, front = self._scores(traj, ok, near, local_goal, goal_latched=latched, at_end=cfg.score_at_end)
@@ -161,9 +158,7 @@ class TrajectoryPlanner(DWAPlanner):
         w_lo, w_hi = max(-cfg.max_vel_theta, w_now - dw), min(cfg.max_vel_theta, w_now + dw)
         escaping = self._escaping_from is not None and cfg.ros_escape
         forward_v = np.zeros(0) if escaping else np.linspace(v_lo, v_hi, cfg.vx_samples)
-        ws = np.unique(np.concatenate([np.linspace(w_lo, w_hi, cfg.vth_samples), [0.0] if w_lo <= 0 <= w_hi else []]))
-        v, w = np.meshgrid(forward_v, ws, indexing="ij")
-        v, w = v.ravel(), w.ravel()
+        v, w = sample_grid(forward_v, w_lo, w_hi, cfg.vth_samples)
         n_forward = len(v)
         if cfg.rotate_in_place:
             turn = np.linspace(w_lo, w_hi, cfg.vth_samples)
