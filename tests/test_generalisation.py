@@ -13,8 +13,8 @@ torch = require("torch", "learn")
 
 from dynabarn.cli import train_main  # noqa: E402
 from dynabarn.errors import DynabarnError  # noqa: E402
-from dynabarn.learn.dagger import DaggerConfig, Dataset  # noqa: E402
-from dynabarn.learn.dagger_rollout import episode  # noqa: E402
+from dynabarn.learn.dagger import DaggerConfig, Dataset, fit, teacher_classes  # noqa: E402
+from dynabarn.learn.dagger_rollout import _job, episode  # noqa: E402
 from dynabarn.learn.env import DynaBARNEnv, shipped_fingerprints  # noqa: E402
 from dynabarn.learn.split import ProceduralWorlds, reserved_fingerprints  # noqa: E402
 from dynabarn.mjcf import read_world  # noqa: E402
@@ -184,3 +184,56 @@ def test_short_dagger_run_learns_saves_resumes_and_drives(tmp_path, capsys):
     capsys.readouterr()
     assert train_main([*args, "--iterations", "3"]) == 2
     assert "cannot resume from its checkpoint" in capsys.readouterr().err
+
+
+def test_classifier_student_classifies_the_teachers_grid_and_keeps_it_in_its_file(tmp_path):
+    cfg = DaggerConfig(head="classify", workers=1)
+    classes = teacher_classes(cfg)
+    oracle = get_planner(cfg.teacher).cfg
+    assert classes.shape == (len(oracle.v_samples) * len(oracle.w_samples), 2)
+    actor = StudentActor(cfg.features().size(), classes=classes)
+    # The teacher's own commands map onto their classes exactly; anything else is refused.
+    v, w = oracle.v_samples[2], oracle.w_samples[5]
+    label = actor.class_labels(command_to_action(np.array([v]), np.array([w])))
+    np.testing.assert_array_equal(classes[label[0]], command_to_action(v, w))
+    with pytest.raises(DynabarnError, match="grid"):
+        actor.class_labels(np.array([[0.33, -0.41]], np.float32))
+    # Acting drives the likeliest class's command, never an average of two.
+    x = torch.randn(16, cfg.features().size())
+    with torch.no_grad():
+        acts = actor.act(x).numpy()
+        likeliest = actor(x).argmax(dim=-1).numpy()
+    np.testing.assert_array_equal(acts, classes[likeliest])
+    # The file keeps the head and the classes; a student loaded from it acts the same.
+    path = save_student(actor, tmp_path / "c.pt", features=cfg.features(), trained_on={"fingerprints": []}, notes={})
+    again, _, header = load_student(path)
+    assert header["head"] == "classify" and again.head == "classify"
+    with torch.no_grad():
+        np.testing.assert_array_equal(again.act(x).numpy(), acts)
+    blob = torch.load(path, weights_only=True)
+    blob["classes"] = [[0.0, 0.0, 0.0]] * 42
+    torch.save(blob, tmp_path / "bad.pt")
+    with pytest.raises(DynabarnError, match="malformed student header"):
+        load_student(tmp_path / "bad.pt")
+    # A DAgger worker rebuilds the classifier from its weights alone, and it drives.
+    weights = {k: t.clone() for k, t in actor.state_dict().items()}
+    (data,) = _job(DaggerConfig(head="classify", max_steps=30), "train", [0], 0.0, weights, False)
+    assert data.steps > 0 and data.outcome in ("success", "collision", "timeout", "cut", "error")
+
+
+def test_classifier_fit_learns_a_rule_with_cross_entropy():
+    cfg = DaggerConfig(head="classify", updates=300, batch_size=128, lr=3e-3)
+    classes = teacher_classes(cfg)
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(2000, 20)).astype(np.float16)
+    # The teacher's class is a function of the state: left of zero one command, right another.
+    y = np.where(x[:, :1] > 0, classes[3], classes[40]).astype(np.float32)
+    torch.manual_seed(0)
+    actor = StudentActor(20, hidden=(32,), classes=classes)
+    opt = torch.optim.Adam(actor.parameters(), lr=cfg.lr)
+    loss = fit(actor, opt, x, y, cfg, seed=0)
+    # Untrained: about ln(42) = 3.7; a learned two-way rule: near 0.
+    assert loss < 0.3
+    with torch.no_grad():
+        acts = actor.act(torch.from_numpy(x[:200]).float()).numpy()
+    assert np.mean(np.all(acts == y[:200], axis=1)) > 0.95

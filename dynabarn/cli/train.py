@@ -26,6 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
     # After make_parser has chosen MuJoCo's OpenGL platform (Gymnasium's registration loads
     # MuJoCo); no PyTorch: --help works without the extra.
     from dynabarn.learn.configs import DaggerConfig, TD3Config
+    from dynabarn.planners.learned.spaces import HEADS
 
     sub = subcommands(parser)
     bc = sub.add_parser(
@@ -55,6 +56,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_protocol(dg)
     _add_options(dg, DaggerConfig)
+    dg.add_argument(
+        "--head",
+        choices=HEADS,
+        default=DaggerConfig.head,
+        help="the student's output: regress the teacher's action, or classify among its candidate commands",
+    )
     dg.add_argument(
         "--no-velocity", dest="velocity", action="store_false", help="leave the measured (v, w) out of the inputs"
     )
@@ -144,6 +151,7 @@ def _train_dagger(args: argparse.Namespace, tqdm) -> int:
         get_profile_set(name)  # one line for an unknown name, before any worker starts
     cfg = DaggerConfig(
         protocol=args.protocol,
+        head=args.head,
         velocity=args.velocity,
         profile_sets=profile_sets,
         **{name: getattr(args, name) for name, *_ in cli_options(DaggerConfig)},

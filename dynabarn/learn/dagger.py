@@ -6,8 +6,9 @@ command is executed instead with probability beta_i = `beta_decay` ** i (iterati
 the teacher alone, i.e. behaviour cloning's data); the teacher, which sees the obstacles'
 true present positions and velocities (`oracle_present`), labels every state the robot
 reaches, whoever drove. The labelled states join one dataset (aggregation), and the
-student is trained on all of it by regression onto the teacher's normalised actions
-(mean squared error, Adam), continuing from its last weights. After each iteration the
+student is trained on all of it (Adam), continuing from its last weights: by regression
+onto the teacher's normalised actions (mean squared error, `head="regress"`), or by
+classifying them among the teacher's candidate commands (cross-entropy, `head="classify"`). After each iteration the
 student alone drives a fixed set of validation worlds (another seed namespace): the
 learning curve.
 
@@ -35,7 +36,9 @@ from dynabarn.files import save_atomically, write_atomically
 from dynabarn.learn.configs import DaggerConfig
 from dynabarn.learn.dagger_rollout import EpisodeData, run_episodes
 from dynabarn.learn.split import describe_split
+from dynabarn.planners.learned.spaces import HEADS, command_to_action
 from dynabarn.planners.learned.student import StudentActor, save_student
+from dynabarn.planners.registry import get_planner
 
 STATE, LOG, DATA = "state.pt", "train.log", "data"
 
@@ -128,20 +131,37 @@ class Dataset:
         return np.concatenate(self.x), np.concatenate(self.y)
 
 
+def teacher_classes(cfg: DaggerConfig) -> np.ndarray | None:
+    """The classifier's classes: every (v, w) the teacher chooses among, as normalised
+    actions (None for the regression head)."""
+    if cfg.head == "regress":
+        return None
+    teacher = get_planner(cfg.teacher)
+    grid = getattr(teacher, "cfg", None)
+    if not (hasattr(grid, "v_samples") and hasattr(grid, "w_samples")):
+        raise DynabarnError(f"head 'classify' needs a teacher choosing among (v, w) samples; {cfg.teacher} does not")
+    v, w = np.meshgrid(np.asarray(grid.v_samples, float), np.asarray(grid.w_samples, float), indexing="ij")
+    return command_to_action(v.ravel(), w.ravel())
+
+
 def fit(actor, opt, x: np.ndarray, y: np.ndarray, cfg: DaggerConfig, seed: int, *, updates=None, decay=False):
-    """Adam steps (`cfg.updates`) of mean squared error on batches drawn from (x, y), the
-    learning rate falling linearly to 0 with `decay`; mean loss of the last tenth."""
+    """Adam steps (`cfg.updates`) on batches drawn from (x, y), the learning rate falling
+    linearly to 0 with `decay`; mean loss of the last tenth. The loss: mean squared error
+    of the action (regression head) or cross-entropy of the teacher's class (classifier)."""
     rng = np.random.default_rng(seed)
     actor.train()
     losses = []
-    xt, yt = torch.from_numpy(x), torch.from_numpy(y)
+    classify = actor.classes is not None
+    xt = torch.from_numpy(x)
+    yt = torch.from_numpy(actor.class_labels(y)) if classify else torch.from_numpy(y)
+    loss_of = torch.nn.functional.cross_entropy if classify else torch.nn.functional.mse_loss
     n = cfg.updates if updates is None else updates
     for k in range(n):
         if decay:
             for group in opt.param_groups:
                 group["lr"] = cfg.lr * (1.0 - k / n)
         idx = torch.from_numpy(rng.integers(0, len(x), cfg.batch_size))
-        loss = torch.nn.functional.mse_loss(actor(xt[idx].float()), yt[idx])
+        loss = loss_of(actor(xt[idx].float()), yt[idx])
         opt.zero_grad()
         loss.backward()
         opt.step()
@@ -159,7 +179,9 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
     torch.manual_seed(cfg.seed)
     features = cfg.features()
     n_inputs = features.size()
-    actor = StudentActor(n_inputs)
+    if cfg.head not in HEADS:
+        raise DynabarnError(f"head {cfg.head!r}: use one of {', '.join(HEADS)}")
+    actor = StudentActor(n_inputs, classes=teacher_classes(cfg))
     opt = torch.optim.Adam(actor.parameters(), lr=cfg.lr)
     report = DaggerReport()
     data = Dataset(out / DATA)

@@ -76,7 +76,7 @@ def episode(cfg, split: str, k: int, beta: float, actor: StudentActor | None, la
             action, teacher_steps = a_teacher, teacher_steps + 1
         else:
             with torch.no_grad():
-                action = actor(torch.from_numpy(x[None]).float()).numpy()[0]
+                action = actor.act(torch.from_numpy(x[None]).float()).numpy()[0]
         if label:
             xs.append(x.astype(np.float16))
             ys.append(a_teacher)
@@ -103,7 +103,8 @@ def episode(cfg, split: str, k: int, beta: float, actor: StudentActor | None, la
 def _job(cfg, split: str, ks: list[int], beta: float, weights: dict | None, label: bool) -> list[EpisodeData]:
     actor = None
     if weights is not None:
-        actor = StudentActor(cfg.features().size())
+        classes = weights.get("classes")
+        actor = StudentActor(cfg.features().size(), classes=None if classes is None else classes.numpy())
         actor.load_state_dict(weights)
         actor.eval()
     return [episode(cfg, split, k, beta, actor, label) for k in ks]

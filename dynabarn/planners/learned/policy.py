@@ -112,7 +112,12 @@ class DaggerPlanner(PolicyFilePlanner):
         self._identify(path)
 
     def config(self) -> dict:
-        return {**self.policy_identity(), "kind": "dagger", "features": self.features_config.names()}
+        return {
+            **self.policy_identity(),
+            "kind": "dagger",
+            "head": self.actor.head,
+            "features": self.features_config.names(),
+        }
 
     def reset(self, info: EpisodeInfo) -> None:
         check_unseen(self.seen, info.world_fingerprint, self.policy_path)
@@ -124,5 +129,5 @@ class DaggerPlanner(PolicyFilePlanner):
     def act(self, obs: Observation) -> tuple[float, float]:
         x = self.features(obs)[None]
         with self._torch.no_grad():
-            a = self.actor(self._torch.from_numpy(x)).numpy()[0]
+            a = self.actor.act(self._torch.from_numpy(x)).numpy()[0]
         return action_to_command(a)

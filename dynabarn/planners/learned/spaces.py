@@ -13,6 +13,9 @@ import numpy as np
 from dynabarn.robot import JACKAL
 
 V_MIN, V_MAX, W_MAX = JACKAL.v_min, JACKAL.v_max, JACKAL.w_max
+HEADS = ("regress", "classify")
+"""How a student turns its inputs into an action (`student.StudentActor`): the action
+itself, or the most likely of a teacher's candidate commands."""
 
 
 def policy_input(scan: np.ndarray, local_goal: np.ndarray, dtype=np.float64) -> np.ndarray:
