@@ -282,4 +282,6 @@ def mounted_pose(pose: np.ndarray, offset) -> np.ndarray:
     pose = np.asarray(pose, dtype=np.float64)
     c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
     ox, oy = float(offset[0]), float(offset[1])
+    if pose.ndim == 1:  # one pose (every control tick): the same products and sums, no stacking
+        return np.array([pose[0] + c * ox - s * oy, pose[1] + s * ox + c * oy, pose[2]])
     return np.stack([pose[..., 0] + c * ox - s * oy, pose[..., 1] + s * ox + c * oy, pose[..., 2]], axis=-1)

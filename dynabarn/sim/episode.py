@@ -230,15 +230,17 @@ class Episode:
         protocol, dt, limit = self.protocol, self.dt, self.protocol.time_limit
         goal = (float(self.sim.goal[0]), float(self.sim.goal[1]))
         last = self.poses[first + m - 1]
+        xy = self.poses[first : first + m, :2]
         if (
             not contact
-            and t_start is not None
-            and (first + m - 1) * dt - t_start < limit
+            and (first + m - 1) * dt - (0.0 if t_start is None else t_start) < limit
             and math.hypot(last[0] - goal[0], last[1] - goal[1])
             > math.sqrt(2) * protocol.goal_tolerance + FAR_FROM_GOAL
+            and (t_start is not None or not protocol.timer_started(xy[:, 0], xy[:, 1]).any())
         ):
-            return None, first + m - 1, t_start  # the common period: nothing can have happened
-        xy = self.poses[first : first + m, :2]
+            # The common period: nothing can have happened (the clock running, or not yet
+            # started by any of the period's poses, as while a robot waits at its spawn).
+            return None, first + m - 1, t_start
         ts = np.arange(first, first + m) * dt
         begun = np.zeros(0, dtype=np.int64)
         if t_start is None:

@@ -112,12 +112,10 @@ class DaggerPlanner(PolicyFilePlanner):
         self._identify(path)
 
     def config(self) -> dict:
-        return {
-            **self.policy_identity(),
-            "kind": "dagger",
-            "head": self.actor.head,
-            "features": self.features_config.names(),
-        }
+        # The head only where it is not the regression every earlier student had (their
+        # results and recordings keep the configuration they were made with).
+        head = {} if self.actor.head == "regress" else {"head": self.actor.head}
+        return {**self.policy_identity(), "kind": "dagger", **head, "features": self.features_config.names()}
 
     def reset(self, info: EpisodeInfo) -> None:
         check_unseen(self.seen, info.world_fingerprint, self.policy_path)
