@@ -5,8 +5,9 @@ Every command that runs an episode goes through here: `dynabarn-run`, `dynabarn-
 settings (`--dt`, `--control-rate`) travel with an episode into a sweep, a resumed sweep
 and the golden set, and a recording is made, finished and failed in one place:
 
-- the recording is written as `NAME.part` and renamed when whole (`McapRecorder`), so a
-  killed run never leaves a file that looks finished;
+- the recording is written as `NAME.part` and renamed when whole (`McapRecorder`, in a
+  writer process beside the episode: `BackgroundRecorder`), so a killed run never leaves a
+  file that looks finished;
 - a recording that cannot be started (a full disk, a missing folder) is one
   `DynabarnError` line; a planner that raises ends the episode as `error` (`run_episode`);
 - Ctrl-C (or SIGTERM) lets the recorder close the file whole and says where it is kept;
@@ -137,6 +138,7 @@ def run_spec(
     """
     from dynabarn.planners import get_planner
     from dynabarn.recording import McapRecorder
+    from dynabarn.recording.background import BackgroundRecorder
     from dynabarn.sim import run_episode
 
     if sim is None:
@@ -147,7 +149,9 @@ def run_spec(
         planner = get_planner(spec.planner, factory=factory, **dict(spec.planner_config))
     if recorder is None and (record_to is not None or live_contexts):
         try:
-            recorder = McapRecorder(record_to, live=live_contexts)
+            # A file alone is written by a writer process beside the episode (the same bytes,
+            # on the other core); a live view streams from this process.
+            recorder = McapRecorder(record_to, live=live_contexts) if live_contexts else BackgroundRecorder(record_to)
         except OSError as exc:  # a full disk, a missing or read-only folder
             raise RecordingFailed(f"cannot record to {record_to}: {exc.strerror or exc}") from None
     if recorder is not None and on_recorder is not None:

@@ -151,12 +151,17 @@ class McapRecorder:
     def _room(self) -> bool:
         return self.path is None or self._space_left() >= SPACE_RESERVE + 2 * self.chunk_size
 
-    def _open_file(self, start: EpisodeStart) -> foxglove.Context:
+    def check_can_open(self) -> None:
+        """The file's folder made; an OSError if the file cannot be written there (a folder
+        in its place, a nearly full disk)."""
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if self.path.is_dir():
             raise IsADirectoryError(errno.EISDIR, f"{self.path} is a folder, not a recording file")
         if not self._room():
             raise OSError(errno.ENOSPC, f"no space left for a recording in {self.path.parent}")
+
+    def _open_file(self, start: EpisodeStart) -> foxglove.Context:
+        self.check_can_open()
         ctx = foxglove.Context()
         self._writer = foxglove.open_mcap(
             self.staging,

@@ -1,0 +1,304 @@
+"""`BackgroundRecorder`: the MCAP recorder in a writer process beside the episode.
+
+Encoding an episode's messages (protobuf and JSON) and compressing them cost the runner
+about as much as the episode itself (docs/speed.md). Here the episode's process only
+copies each tick's numbers into a buffer, and a writer process started once per process
+(spawned, so it shares nothing it could break) runs the same `McapRecorder` on them: the
+file is the one the recorder in the episode's process writes, byte for byte (the golden
+set and a test compare them), written on the other core.
+
+What crosses: the episode's start (pickled once), then per tick one row of float64
+numbers (time, scan, poses, commands, obstacles, clearance, distance, planner time) and
+the robot's poses, sent in batches of `BATCH` ticks; a tick's debug dictionary or tracks,
+rare and of any shape, are pickled beside the row when there are any. `on_end` sends the
+result and waits until the writer has closed and renamed the file, so the recording is
+whole when the episode returns, as with `McapRecorder`. A recording that cannot start
+fails in `on_start` with the writer's error; a writer that dies mid-episode stops the
+recording (`stopped` says why) and the episode goes on. The writer exits when its parent
+does (its pipe closes).
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import struct
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
+from dynabarn.metrics import EpisodeResult
+
+BATCH = 16
+"""Ticks per message to the writer: one pipe write per 1.6 s of simulated time."""
+
+
+class _Layout:
+    """Where each of a tick's numbers sits in its row (the scan's and obstacles' lengths
+    are the episode's), and room for the poses of one period."""
+
+    def __init__(self, n_beams: int, n_obstacles: int, max_poses: int) -> None:
+        self.n, self.m, self.k = n_beams, n_obstacles, max_poses
+        self.obstacles = 16 + n_beams
+        self.poses = self.obstacles + 2 * n_obstacles
+        self.width = self.poses + 4 * max_poses + 1  # the last: how many poses the row holds
+
+    def pack(self, row: np.ndarray, tick: Tick) -> None:
+        n = self.n
+        row[0] = tick.time
+        row[1:4] = tick.laser_pose
+        row[4:7] = tick.pose
+        row[7:9] = tick.velocity
+        row[9:11] = tick.command
+        row[11:13] = tick.raw_command
+        row[13] = tick.clearance
+        row[14] = tick.distance_to_goal
+        row[15] = tick.planner_ms
+        row[16 : 16 + n] = tick.scan
+        row[self.obstacles : self.poses] = tick.obstacles.ravel()
+        row[-1] = 0.0  # no poses yet
+
+    def unpack(self, row: np.ndarray, extra: tuple | None) -> Tick:
+        debug, tracks = extra if extra is not None else ({}, None)
+        return Tick(
+            time=float(row[0]),
+            scan=row[16 : 16 + self.n].copy(),
+            laser_pose=row[1:4].copy(),
+            pose=row[4:7].copy(),
+            velocity=row[7:9].copy(),
+            command=row[9:11].copy(),
+            raw_command=row[11:13].copy(),
+            obstacles=row[self.obstacles : self.poses].reshape(self.m, 2).copy(),
+            clearance=float(row[13]),
+            distance_to_goal=float(row[14]),
+            planner_ms=float(row[15]),
+            debug=debug,
+            tracks=tracks,
+        )
+
+    def pack_poses(self, row: np.ndarray, times: np.ndarray, poses: np.ndarray) -> bool:
+        """The period's poses into the tick's row; False when they do not fit (sent alone)."""
+        c = len(times)
+        if c > self.k or row[-1] != 0.0:
+            return False
+        p = self.poses
+        row[p : p + c] = times
+        row[p + self.k : p + self.k + 3 * c] = poses.ravel()
+        row[-1] = c
+        return True
+
+    def unpack_poses(self, row: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        c = int(row[-1])
+        if c == 0:
+            return None
+        p = self.poses
+        return row[p : p + c].copy(), row[p + self.k : p + self.k + 3 * c].reshape(c, 3).copy()
+
+
+# -- the pipe: length-prefixed pickles ------------------------------------------------------
+_HEADER = struct.Struct("<Q")
+
+
+def _send(stream, message) -> None:
+    data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+    stream.write(_HEADER.pack(len(data)))
+    stream.write(data)
+
+
+def _receive(stream):
+    head = stream.read(_HEADER.size)
+    if len(head) < _HEADER.size:
+        raise EOFError
+    data = stream.read(_HEADER.unpack(head)[0])
+    return pickle.loads(data)
+
+
+class _Writer:
+    """One writer process (`python -m dynabarn.recording.background`), reused episode after
+    episode: a fresh interpreter, so a script without a `__main__` guard is never re-run."""
+
+    def __init__(self) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "dynabarn.recording.background"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            start_new_session=False,
+        )
+        _send(self.process.stdin, ("path", list(sys.path)))  # installed topics import as they do here
+
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
+    def send(self, message) -> None:
+        _send(self.process.stdin, message)
+        self.process.stdin.flush()
+
+    def ask(self, message):
+        _send(self.process.stdin, message)
+        self.process.stdin.flush()
+        return _receive(self.process.stdout)
+
+
+_IDLE: list[_Writer] = []
+_LOCK = threading.Lock()
+
+
+def _take_writer() -> _Writer:
+    with _LOCK:
+        while _IDLE:
+            w = _IDLE.pop()
+            if w.alive():
+                return w
+    return _Writer()
+
+
+def _give_back(w: _Writer) -> None:
+    with _LOCK:
+        _IDLE.append(w)
+
+
+class BackgroundRecorder(EpisodeObserver):
+    """`McapRecorder`'s file, written by a writer process (see the module docstring).
+
+    Args: as `McapRecorder` (`path`, `chunk_size`, `extra_channels`, `extra_metadata`),
+    without live contexts (a live view streams from the episode's process)."""
+
+    def __init__(self, path: Path | str, **recorder_options) -> None:
+        from dynabarn.recording.writer import McapRecorder, staging_path
+
+        if "live" in recorder_options:
+            raise TypeError("BackgroundRecorder has no live contexts; use McapRecorder")
+        self.path = Path(path)
+        self.staging = staging_path(self.path)
+        self._options = recorder_options
+        self._check = McapRecorder(self.path, **recorder_options)  # its checks before a file is opened
+        self.stopped: str | None = None
+        self._writer: _Writer | None = None
+
+    def on_start(self, start: EpisodeStart) -> None:
+        self._check.check_can_open()
+        cfg = start.config
+        self._layout = _Layout(
+            len(start.info.laser_angles), len(start.world.obstacles), cfg.steps_per_tick // cfg.pose_every + 2
+        )
+        self._rows = np.zeros((BATCH, self._layout.width))
+        self._count = 0
+        self._extras: dict[int, tuple] = {}
+        self._writer = _take_writer()
+        self._writer.send(("start", str(self.path), self._options, start))
+
+    def on_tick(self, tick: Tick) -> None:
+        if self._writer is None:
+            return
+        if self._count == BATCH:
+            self._flush()
+        self._layout.pack(self._rows[self._count], tick)
+        if tick.debug or tick.tracks is not None:
+            self._extras[self._count] = (tick.debug, tick.tracks)
+        self._count += 1
+
+    def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
+        if self._writer is None:
+            return
+        if not (self._count and self._layout.pack_poses(self._rows[self._count - 1], times, poses)):
+            self._flush()
+            self._send(("poses", times, poses))
+        elif self._count == BATCH:
+            self._flush()
+
+    def on_end(self, result: EpisodeResult) -> None:
+        if self._writer is None:
+            return
+        self._flush()
+        writer, self._writer = self._writer, None
+        try:
+            reply = writer.ask(("end", result))
+        except (OSError, EOFError):
+            self.stopped = "the recording's writer process ended; the recording ends there"
+            return
+        _give_back(writer)
+        kind, *rest = reply
+        if kind == "error":
+            code, text = rest
+            raise OSError(code, text)
+        self.stopped = rest[0]
+
+    def _flush(self) -> None:
+        if self._count:
+            rows = self._rows[: self._count].tobytes()
+            self._send(("ticks", self._count, rows, self._extras))
+            self._count, self._extras = 0, {}
+            self._rows[:, -1] = 0.0
+
+    def _send(self, message) -> None:
+        try:
+            self._writer.send(message)
+        except OSError:  # the writer died: the episode goes on without its recording
+            self.stopped = "the recording's writer process ended; the recording ends there"
+            self._writer = None
+
+
+def _serve(stdin, stdout) -> None:
+    """The writer process: recorder hooks from the pipe until it closes."""
+    from dynabarn.recording.writer import McapRecorder
+
+    recorder: McapRecorder | None = None
+    layout: _Layout | None = None
+    failed: OSError | None = None
+    while True:
+        try:
+            kind, *args = _receive(stdin)
+        except EOFError:  # the episode's process is gone: the file stays NAME.part, readable up to here
+            if recorder is not None:
+                recorder._writer = None
+            return
+        try:
+            if kind == "path":
+                sys.path[:] = args[0]
+            elif kind == "start":
+                path, options, start = args
+                recorder, failed = McapRecorder(path, **options), None
+                cfg = start.config
+                layout = _Layout(
+                    len(start.info.laser_angles), len(start.world.obstacles), cfg.steps_per_tick // cfg.pose_every + 2
+                )
+                recorder.on_start(start)
+            elif failed is not None:
+                pass
+            elif kind == "ticks":
+                count, raw, extras = args
+                rows = np.frombuffer(raw, dtype=np.float64).reshape(count, layout.width)
+                for i in range(count):
+                    recorder.on_tick(layout.unpack(rows[i], extras.get(i)))
+                    poses = layout.unpack_poses(rows[i])
+                    if poses is not None:
+                        recorder.on_poses(*poses)
+            elif kind == "poses":
+                recorder.on_poses(*args)
+        except OSError as exc:
+            failed = exc
+        if kind == "end":
+            if failed is None:
+                try:
+                    recorder.on_end(args[0])
+                except OSError as exc:
+                    failed = exc
+            reply = (
+                ("done", recorder.stopped)
+                if failed is None
+                else ("error", failed.errno, failed.strerror or str(failed))
+            )
+            _send(stdout, reply)
+            stdout.flush()
+            recorder = None
+
+
+if __name__ == "__main__":
+    # Replies on a copy of stdout; anything printed (a library's warning) goes to stderr.
+    replies = os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)
+    _serve(sys.stdin.buffer, replies)
