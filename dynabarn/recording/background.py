@@ -252,9 +252,9 @@ def _serve(stdin, stdout) -> None:
     while True:
         try:
             kind, *args = _receive(stdin)
-        except EOFError:  # the episode's process is gone: the file stays NAME.part, readable up to here
-            if recorder is not None:
-                recorder._writer = None
+        except EOFError:  # the episode's process is gone: what came is closed into NAME.part, not renamed
+            if recorder is not None and recorder._writer is not None:
+                recorder._writer.close()
             return
         try:
             if kind == "path":

@@ -1,0 +1,155 @@
+"""The writer-process recorder (issue 32, item 4): the same file as the recorder in the
+episode's process, byte for byte; a writer that dies or an episode process that is killed
+loses nothing finished and leaves no process behind."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+from dynabarn.errors import EndEpisode
+from dynabarn.interfaces import Planner
+from dynabarn.metrics import Outcome
+from dynabarn.planners import get_planner
+from dynabarn.protocol import get_protocol
+from dynabarn.recording import McapRecorder, read_recording
+from dynabarn.recording.background import BackgroundRecorder
+from dynabarn.runner import EpisodeSpec, RecordingFailed, run_spec
+from dynabarn.sim import run_episode
+from dynabarn.worldset import resolve_world
+
+BARN = get_protocol("barn")
+
+
+def _both(tmp_path, world: int, make_planner, seconds: float | None = None):
+    """The same episode recorded both ways: (in-process bytes, writer-process bytes, result)."""
+    files = []
+    for name, recorder in (("a", McapRecorder), ("b", BackgroundRecorder)):
+        path = tmp_path / f"{name}.mcap"
+        result = run_episode(resolve_world(world), make_planner(), BARN, seed=3, observers=[recorder(path)])
+        files.append(path.read_bytes())
+    return files[0], files[1], result
+
+
+@pytest.mark.parametrize("planner", ["dwa", "predictive", "straight"])
+def test_writer_process_writes_the_same_bytes(tmp_path, planner):
+    # dwa sends its plans each tick (debug), predictive its tracks; straight neither.
+    a, b, result = _both(tmp_path, 210, lambda: get_planner(planner))
+    assert result.outcome is not None
+    assert a == b
+    rec = read_recording(tmp_path / "b.mcap")
+    assert not rec.truncated and rec.counts()["/scan"] >= 10 * int(result.sim_time)
+
+
+class _EndsEarly(Planner):
+    name = "ends_early"
+
+    def __init__(self, how: str) -> None:
+        self.how = how
+
+    def act(self, obs):
+        if obs.time >= 2.0:
+            if self.how == "error":
+                raise ValueError("bad")
+            raise EndEpisode("stopped by the operator")
+        return 0.8, 0.1
+
+
+@pytest.mark.parametrize("how", ["error", "end"])
+def test_an_episode_ended_early_is_recorded_the_same_way(tmp_path, how):
+    a, b, result = _both(tmp_path, 5, lambda: _EndsEarly(how))
+    assert result.outcome is Outcome.ERROR and a == b
+
+
+def test_ctrl_c_leaves_a_whole_recording(tmp_path):
+    class Interrupts(Planner):
+        name = "interrupts"
+
+        def act(self, obs):
+            if obs.time >= 1.0:
+                raise KeyboardInterrupt
+            return 1.0, 0.0
+
+    path = tmp_path / "i.mcap"
+    with pytest.raises(KeyboardInterrupt):
+        run_episode(resolve_world(0), Interrupts(), BARN, observers=[BackgroundRecorder(path)])
+    rec = read_recording(path)
+    assert not rec.truncated and rec.result["reason"] == "interrupted" and rec.counts()["/scan"] == 10
+
+
+def test_a_writer_that_dies_stops_the_recording_not_the_episode(tmp_path):
+    recorder = BackgroundRecorder(tmp_path / "w.mcap")
+
+    class KillsTheWriter(Planner):
+        name = "kills_the_writer"
+
+        def act(self, obs):
+            if abs(obs.time - 3.0) < 1e-9:
+                recorder._writer.process.kill()
+                recorder._writer.process.wait()
+            return 0.5, 0.0
+
+    result = run_episode(resolve_world(0), KillsTheWriter(), BARN, observers=[recorder])
+    assert result.outcome is not None and result.sim_time > 3.0
+    assert recorder.stopped and "writer process ended" in recorder.stopped
+    assert not (tmp_path / "w.mcap").exists()  # never renamed: what it wrote stays NAME.part
+    assert read_recording(tmp_path / "w.mcap.part").truncated
+
+
+def test_a_recording_that_cannot_start_is_one_error(tmp_path):
+    (tmp_path / "taken.mcap").mkdir()
+    spec = EpisodeSpec.make(resolve_world(0), "stop", BARN)
+    with pytest.raises(RecordingFailed, match="is a folder"):
+        run_spec(spec, record_to=tmp_path / "taken.mcap")
+
+
+def test_a_killed_episode_process_leaves_its_start_and_no_writer(tmp_path):
+    """SIGKILL the episode's process: its writer sees the pipe close, closes what it was
+    sent into NAME.part (never renamed: there is no result) and exits; an earlier finished
+    recording at the target is untouched."""
+    path = tmp_path / "killed.mcap"
+    path.write_bytes(b"an earlier, finished recording")
+    script = textwrap.dedent(
+        f"""
+        import time
+        from dynabarn.interfaces import Planner
+        from dynabarn.protocol import get_protocol
+        from dynabarn.recording.background import BackgroundRecorder
+        from dynabarn.sim import run_episode
+        from dynabarn.worldset import resolve_world
+
+        class Slow(Planner):
+            name = "slow"
+            def act(self, obs):
+                time.sleep(0.004)
+                if abs(obs.time - 40.0) < 1e-9:
+                    print(recorder._writer.process.pid, flush=True)
+                return 0.0, 0.0
+
+        recorder = BackgroundRecorder({str(path)!r})
+        run_episode(resolve_world(0), Slow(), get_protocol("barn"), observers=[recorder])
+        """
+    )
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    writer_pid = int(proc.stdout.readline())
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    deadline = time.monotonic() + 30
+    while _alive(writer_pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _alive(writer_pid)
+    assert path.read_bytes() == b"an earlier, finished recording"
+    rec = read_recording(tmp_path / "killed.mcap.part")
+    assert rec.counts()["/scan"] > 100 and rec.result is None
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"  # a zombie has exited
+    except FileNotFoundError:
+        return False
