@@ -81,9 +81,10 @@ class DaggerConfig:
     student that stalls early in training would otherwise fill the dataset with waiting."""
     beta_decay: float = option(0.5, 0.0, 1.0, "the teacher drives with probability beta_decay ** iteration")
     teacher: str = "oracle_present"
-    head: str = "regress"
-    """The student's output (`student.HEADS`): `regress` the teacher's action (mean squared
-    error), or `classify` among the teacher's candidate commands (cross-entropy)."""
+    head: str = "classify"
+    """The student's output (`spaces.HEADS`): `classify` among the teacher's candidate
+    commands (cross-entropy; the shipped student), or `regress` the teacher's action (mean
+    squared error; the first shipped student)."""
     updates: int = option(4000, 1, 100_000_000, "gradient steps per iteration over the whole aggregated dataset")
     final_updates: int = option(0, 0, 100_000_000, "updates after the last iteration, the learning rate falling to 0")
     """After the last iteration, this many more updates on the whole dataset with the

@@ -60,10 +60,15 @@ RUN_LENGTH = ("threads", "workers", "iterations", "final_updates")
 """Settings a run may change when resumed: where it ends and how it runs, not what it did."""
 
 
+BEFORE_THE_FIELD = {"head": "regress"}
+"""What a run written before a field existed did, where that is not the field's default
+(every student before the classifier regressed)."""
+
+
 def _identity(cfg: dict | None) -> dict | None:
     if cfg is None:
         return None
-    full = {**asdict(DaggerConfig()), **cfg}  # a field newer than the file: its default
+    full = {**asdict(DaggerConfig()), **BEFORE_THE_FIELD, **cfg}  # a field newer than the file: what it did
     return {k: v for k, v in full.items() if k not in RUN_LENGTH}
 
 
