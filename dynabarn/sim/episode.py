@@ -310,7 +310,7 @@ class Episode:
         idx = np.arange(first_idx, self.step + 1, every)
         if self.step % every and self.outcome is not None:
             idx = np.append(idx, self.step)
-        return idx * self.dt, self.poses[idx].copy()
+        return idx * self.dt, self.poses[idx]  # fancy indexing: a fresh array already
 
 
 def _predictor(player: SchedulePlayer):
