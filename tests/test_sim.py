@@ -178,3 +178,29 @@ def test_single_pose_clearance_matches_batched():
     assert footprint_clearance_at(0, 0, 0, np.array([[1.754, 0.0]]), np.array([0.5]), (0.254, 0.215)) == pytest.approx(
         1.0
     )
+
+
+def test_single_pose_clearance_has_the_array_forms_bits():
+    """The per-tick clearance on Python floats equals numpy's elementwise form bit for bit
+    (recordings carry it): random poses, obstacles touching the footprint's sides, ties."""
+    from dynabarn.metrics import footprint_clearance_at
+
+    def array_form(x, y, yaw, xy, radii, half):
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy = xy[:, 0] - x, xy[:, 1] - y
+        ox = np.maximum(np.abs(c * dx + s * dy) - half[0], 0.0)
+        oy = np.maximum(np.abs(c * dy - s * dx) - half[1], 0.0)
+        return float((np.hypot(ox, oy) - radii).min())
+
+    rng = np.random.default_rng(7)
+    for i in range(20_000):
+        n = int(rng.integers(1, 20))
+        pose = rng.uniform([-10, -10, -4], [10, 10, 4])
+        xy = rng.uniform(-10, 10, (n, 2))
+        if i % 3 == 0:  # beside the footprint: one of the two offsets is 0
+            xy[:, 0] = pose[0] + rng.uniform(-0.4, 0.4, n)
+        if i % 5 == 0 and n > 1:  # two obstacles at the same distance
+            xy[1] = xy[0]
+        radii = rng.uniform(0.05, 0.8, n)
+        expected = array_form(*pose, xy, radii, (0.254, 0.215))
+        assert footprint_clearance_at(*pose, xy, radii, (0.254, 0.215)) == expected
