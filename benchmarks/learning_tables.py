@@ -14,6 +14,7 @@ from dynabarn.bench.summary import FLOOR
 
 ROOT = Path(__file__).resolve().parents[1]
 DAGGER_TRAINING = ROOT / "results" / "dagger_training" / "training.json"
+REGRESS_TRAINING = ROOT / "results" / "dagger_training_regress" / "training.json"
 GENERALISATION_SETS = {
     "original60_barn": "release's 60",
     "unseen_barn": "unseen 240",
@@ -26,7 +27,8 @@ LEARNED = (
     (
         "dagger",
         "procedural worlds only",
-        "DAgger student (`dagger`; departures: history, velocity and tracker inputs, a ReLU network, not Fig. 4's)",
+        "DAgger student (`dagger`; departures: history, velocity and tracker inputs, a ReLU network classifying "
+        "among the teacher's 42 commands, not Fig. 4's)",
     ),
     ("oracle_present", "- (privileged)", "its teacher (`oracle_present`)"),
 )
@@ -70,26 +72,46 @@ def generalisation_table(summaries: dict[str, list[dict]]) -> str:
     return "\n\n".join(out)
 
 
+def _curve(t: dict) -> str:
+    return ", ".join(f"{e['validation']['success']:.2f}" for e in t["iterations"])
+
+
+def _final(t: dict) -> float:
+    return (t.get("final") or t["iterations"][-1])["validation"]["success"]
+
+
 def dagger_training() -> str:
-    """The shipped student's run: time, data, worlds, and its validation curve."""
+    """The shipped student's run: time, data, worlds, its validation curve, and the first
+    shipped student's (the regression head) beside it."""
     if not DAGGER_TRAINING.is_file():
         return "(no training record)"
     t = json.loads(DAGGER_TRAINING.read_text())
     its = t["iterations"]
     last = its[-1]
-    curve = ", ".join(f"{e['validation']['success']:.2f}" for e in its)
+    head = t["config"].get("head", "regress")
+    loss = "mean squared, normalised actions"
+    if head == "classify":
+        loss = "cross-entropy of the teacher's command among its 42"
     final = t.get("final")
     tail = (
         f" The shipped weights: a final fit of {final['updates']:,} updates on all of it (learning rate falling to "
-        f"0), imitation error {final['loss']:.4f}, validation success {final['validation']['success']:.2f}."
+        f"0), imitation loss {final['loss']:.4f}, validation success {final['validation']['success']:.2f}."
         if final
         else ""
     )
-    return (
-        f"{len(its)} iterations in {t['seconds'] / 60:.0f} min on this machine's 2 cores; "
+    text = (
+        f"Head `{head}`. {len(its)} iterations in {t['seconds'] / 60:.0f} min on this machine's 2 cores; "
         f"{last['dataset']:,} states labelled by the teacher, from {len(set(t['fingerprints'])):,} procedural "
         f"training worlds (none of them a shipped or imported one); the teacher's share of control "
-        f"{its[0]['beta']:.2f} -> {last['beta']:.4f}; imitation error (mean squared, normalised actions, on the "
+        f"{its[0]['beta']:.2f} -> {last['beta']:.4f}; imitation loss ({loss}, on the "
         f"growing dataset of the student's own states) {its[0]['loss']:.4f} -> {last['loss']:.4f}; the student "
-        f"alone on {last['validation']['episodes']} validation worlds, success per iteration: {curve}.{tail}"
+        f"alone on {last['validation']['episodes']} validation worlds, success per iteration: {_curve(t)}.{tail}"
     )
+    if REGRESS_TRAINING.is_file():
+        r = json.loads(REGRESS_TRAINING.read_text())
+        text += (
+            f" The first shipped student (head `regress`, otherwise the same configuration and the same training "
+            f"worlds; `{REGRESS_TRAINING.parent.relative_to(ROOT)}`): {_curve(r)}, and {_final(r):.2f} after its "
+            f"final fit, against {_final(t):.2f}."
+        )
+    return text

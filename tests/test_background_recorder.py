@@ -88,13 +88,17 @@ def test_a_writer_that_dies_stops_the_recording_not_the_episode(tmp_path):
         name = "kills_the_writer"
 
         def act(self, obs):
-            if abs(obs.time - 3.0) < 1e-9:
+            if abs(obs.time - 10.0) < 1e-9:
+                # Once the writer has put some chunks on disk (it runs behind the episode).
+                deadline = time.monotonic() + 30
+                while recorder.staging.stat().st_size < 200_000 and time.monotonic() < deadline:
+                    time.sleep(0.01)
                 recorder._writer.process.kill()
                 recorder._writer.process.wait()
             return 0.5, 0.0
 
-    result = run_episode(resolve_world(0), KillsTheWriter(), BARN, observers=[recorder])
-    assert result.outcome is not None and result.sim_time > 3.0
+    result = run_episode(resolve_world(0), KillsTheWriter(), BARN, seed=1, observers=[recorder])
+    assert result.outcome is not None and result.sim_time > 10.0
     assert recorder.stopped and "writer process ended" in recorder.stopped
     assert not (tmp_path / "w.mcap").exists()  # never renamed: what it wrote stays NAME.part
     assert read_recording(tmp_path / "w.mcap.part").truncated

@@ -20,6 +20,8 @@ does (its pipe closes).
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import os
 import pickle
 import struct
@@ -32,9 +34,18 @@ import numpy as np
 
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
 from dynabarn.metrics import EpisodeResult
+from dynabarn.sim.period_record import PeriodRecord, tick_from
 
-BATCH = 16
-"""Ticks per message to the writer: one pipe write per 1.6 s of simulated time."""
+HOLDS_TICK, DERIVE_ALL, CLEARANCE_GIVEN = 1.0, 2.0, 3.0
+"""What a row holds: a whole Tick, or a period's numbers from which the writer makes it
+(`tick_from`), with the clearance computed in the episode's process or not."""
+BATCH = 32
+"""Ticks per message to the writer: one pipe write per 3.2 s of simulated time (each write
+wakes the writer; fewer, larger ones cost the episode less)."""
+PIPE_BYTES = 1 << 20
+"""The pipe's buffer (Linux's unprivileged maximum): several batches, so that a writer
+still encoding the last one never holds the episode up."""
+F_SETPIPE_SZ = getattr(fcntl, "F_SETPIPE_SZ", 1031)
 
 
 class _Layout:
@@ -45,7 +56,9 @@ class _Layout:
         self.n, self.m, self.k = n_beams, n_obstacles, max_poses
         self.obstacles = 16 + n_beams
         self.poses = self.obstacles + 2 * n_obstacles
-        self.width = self.poses + 4 * max_poses + 1  # the last: how many poses the row holds
+        # Then: how the row was filled (HOLDS_TICK, or the period's numbers with the clearance
+        # given or not), and how many poses it holds.
+        self.width = self.poses + 4 * max_poses + 2
 
     def pack(self, row: np.ndarray, tick: Tick) -> None:
         n = self.n
@@ -60,10 +73,42 @@ class _Layout:
         row[15] = tick.planner_ms
         row[16 : 16 + n] = tick.scan
         row[self.obstacles : self.poses] = tick.obstacles.ravel()
-        row[-1] = 0.0  # no poses yet
+        row[-2], row[-1] = HOLDS_TICK, 0.0  # no poses yet
 
-    def unpack(self, row: np.ndarray, extra: tuple | None) -> Tick:
+    def pack_numbers(self, row: np.ndarray, numbers: tuple) -> None:
+        """A period's own numbers (`PeriodRecord.numbers`): the writer makes the Tick."""
+        t, scan, pose, velocity, command, raw, obstacles, planner_ms, clearance = numbers
+        row[0] = t
+        row[4:7] = pose
+        row[7:9] = velocity
+        row[9:11] = command
+        row[11:13] = raw
+        row[15] = planner_ms
+        row[16 : 16 + self.n] = scan
+        row[self.obstacles : self.poses] = obstacles.ravel()
+        if clearance is None:
+            row[-2] = DERIVE_ALL
+        else:
+            row[13], row[-2] = clearance, CLEARANCE_GIVEN
+        row[-1] = 0.0
+
+    def unpack(self, row: np.ndarray, extra: tuple | None, facts) -> Tick:
         debug, tracks = extra if extra is not None else ({}, None)
+        if row[-2] != HOLDS_TICK:
+            return tick_from(
+                float(row[0]),
+                row[16 : 16 + self.n].copy(),
+                row[4:7].copy(),
+                row[7:9].copy(),
+                row[9:11].copy(),
+                row[11:13].copy(),
+                row[self.obstacles : self.poses].reshape(self.m, 2).copy(),
+                float(row[15]),
+                debug,
+                tracks,
+                facts,
+                None if row[-2] == DERIVE_ALL else float(row[13]),
+            )
         return Tick(
             time=float(row[0]),
             scan=row[16 : 16 + self.n].copy(),
@@ -128,6 +173,8 @@ class _Writer:
             stdout=subprocess.PIPE,
             start_new_session=False,
         )
+        with contextlib.suppress(OSError):  # room for many batches: the episode never waits on a busy writer
+            fcntl.fcntl(self.process.stdin.fileno(), F_SETPIPE_SZ, PIPE_BYTES)
         _send(self.process.stdin, ("path", list(sys.path)))  # installed topics import as they do here
 
     def alive(self) -> bool:
@@ -188,6 +235,7 @@ class BackgroundRecorder(EpisodeObserver):
         self._rows = np.zeros((BATCH, self._layout.width))
         self._count = 0
         self._extras: dict[int, tuple] = {}
+        self._facts_sent = False
         self._writer = _take_writer()
         self._writer.send(("start", str(self.path), self._options, start))
 
@@ -200,6 +248,26 @@ class BackgroundRecorder(EpisodeObserver):
         if tick.debug or tick.tracks is not None:
             self._extras[self._count] = (tick.debug, tick.tracks)
         self._count += 1
+
+    def on_tick_period(self, period: PeriodRecord) -> None:
+        """The period's own numbers, not its Tick: the writer makes the Tick (the same bits),
+        so the episode's process never does."""
+        if self._writer is None:
+            return
+        if not self._facts_sent:
+            self._send(("facts", period.episode.tick_facts))
+            self._facts_sent = True
+        if self._count == BATCH:
+            self._flush()
+        self._layout.pack_numbers(self._rows[self._count], period.numbers())
+        if period.debug or period.tracks is not None:
+            self._extras[self._count] = (period.debug, period.tracks)
+        self._count += 1
+
+    def on_poses_period(self, period: PeriodRecord) -> None:
+        times, poses = period.poses
+        if len(times):
+            self.on_poses(times, poses)
 
     def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
         if self._writer is None:
@@ -248,6 +316,7 @@ def _serve(stdin, stdout) -> None:
 
     recorder: McapRecorder | None = None
     layout: _Layout | None = None
+    facts = None
     failed: OSError | None = None
     while True:
         try:
@@ -267,13 +336,15 @@ def _serve(stdin, stdout) -> None:
                     len(start.info.laser_angles), len(start.world.obstacles), cfg.steps_per_tick // cfg.pose_every + 2
                 )
                 recorder.on_start(start)
+            elif kind == "facts":
+                facts = args[0]
             elif failed is not None:
                 pass
             elif kind == "ticks":
                 count, raw, extras = args
                 rows = np.frombuffer(raw, dtype=np.float64).reshape(count, layout.width)
                 for i in range(count):
-                    recorder.on_tick(layout.unpack(rows[i], extras.get(i)))
+                    recorder.on_tick(layout.unpack(rows[i], extras.get(i), facts))
                     poses = layout.unpack_poses(rows[i])
                     if poses is not None:
                         recorder.on_poses(*poses)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import time
+from functools import cached_property
 
 import mujoco
 import numpy as np
@@ -16,14 +17,12 @@ from dynabarn.determinism import (
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces.events import Tick
 from dynabarn.interfaces.observation import Observation, ObstacleState
-from dynabarn.metrics import (
-    Outcome,
-    footprint_clearance_at,
-)
+from dynabarn.metrics import Outcome
 from dynabarn.protocol import EvalProtocol
-from dynabarn.robot import JACKAL, mounted_pose, to_robot_frame
+from dynabarn.robot import JACKAL, to_robot_frame
 from dynabarn.sim.behaviors import ReactiveObstacles
 from dynabarn.sim.config import MAX_CLOCK_OFFSET
+from dynabarn.sim.period_record import TickFacts, tick_from
 from dynabarn.sim.simulation import Simulation
 from dynabarn.sim.track_scoring import MIN_BEAMS, TrackScorer, beams_per_obstacle
 from dynabarn.worlds.schedule import SchedulePlayer
@@ -276,31 +275,47 @@ class Episode:
 
     def tick_record(self, debug: dict, tracks=None) -> Tick:
         """The last observation and command (as received, on its grid), for observers."""
-        obs, sim = self._obs, self.sim
-        pose = obs.pose
-        return Tick(
-            time=obs.time,
-            scan=obs.scan,
-            # Where the laser was when the scan was cast, not where the physics since carried it.
-            laser_pose=mounted_pose(pose, self.info.laser_offset),
-            pose=pose,
-            velocity=obs.velocity,
-            command=self.prev_cmd.copy(),
-            raw_command=np.array(self.raw_command, dtype=np.float64),
-            obstacles=self._batch_xy[0].copy(),
-            clearance=snap(
-                float(sim.clearance(pose[None], self._batch_xy[:1])[0])
-                if sim.shaped
-                else footprint_clearance_at(
-                    pose[0], pose[1], pose[2], self._batch_xy[0], sim.radii, (JACKAL.length / 2, JACKAL.width / 2)
-                ),
-                RECORD_RESOLUTION,
-            ),
-            distance_to_goal=math.hypot(sim.goal[0] - pose[0], sim.goal[1] - pose[1]),
-            planner_ms=float(self.planner_ms[self.n_ticks - 1]) if self.n_ticks else 0.0,
-            debug=debug,
-            tracks=tracks,
+        t, scan, pose, velocity, command, raw, obstacles, planner_ms, clearance = self.period_numbers()
+        return tick_from(
+            t,
+            scan,
+            pose,
+            velocity,
+            command.copy(),
+            np.array(raw, dtype=np.float64),
+            obstacles.copy(),
+            planner_ms,
+            debug,
+            tracks,
+            self.tick_facts,
+            clearance,
         )
+
+    def period_numbers(self) -> tuple:
+        """This period's numbers a Tick is made of (`period_record.tick_from`), as
+        references: time, scan, pose, velocity, command, raw command, obstacles, planner
+        ms, and the clearance where the world's shapes need the simulation for it."""
+        obs, sim = self._obs, self.sim
+        clearance = None
+        if sim.shaped:
+            clearance = snap(float(sim.clearance(obs.pose[None], self._batch_xy[:1])[0]), RECORD_RESOLUTION)
+        planner_ms = float(self.planner_ms[self.n_ticks - 1]) if self.n_ticks else 0.0
+        return (
+            obs.time,
+            obs.scan,
+            obs.pose,
+            obs.velocity,
+            self.prev_cmd,
+            self.raw_command,
+            self._batch_xy[0],
+            planner_ms,
+            clearance,
+        )
+
+    @cached_property
+    def tick_facts(self) -> TickFacts:
+        sim = self.sim
+        return TickFacts(laser_offset=self.info.laser_offset, radii=sim.radii, goal=sim.goal)
 
     def poses_between(self, first: int) -> tuple[np.ndarray, np.ndarray]:
         """Times and poses at the pose rate after physics step `first` up to now (the last

@@ -34,6 +34,7 @@ from dynabarn.protocol import EvalProtocol
 from dynabarn.provenance import versions
 from dynabarn.sim.config import SimConfig
 from dynabarn.sim.episode import Episode
+from dynabarn.sim.period_record import PeriodRecord, observer_hooks
 from dynabarn.sim.result import episode_result
 from dynabarn.sim.simulation import Simulation
 
@@ -89,6 +90,7 @@ def run_episode(
     )
     for obs_ in observers:
         obs_.on_start(start)
+    tick_hooks, pose_hooks = observer_hooks(observers)
     tracks_of = getattr(planner, "tracks", None)  # planners that predate the hook have none
     try:
         planner.reset(episode.info)
@@ -112,17 +114,16 @@ def run_episode(
             if episode.apply(raw_v, raw_w) is Outcome.ERROR:
                 break
             if observers:
-                tick = episode.tick_record(planner.debug(), tracks)
+                # The Tick and the poses are made when an observer first asks for them.
+                period = PeriodRecord(episode, planner.debug(), tracks, first)
                 try:
-                    for obs_ in observers:
-                        obs_.on_tick(tick)
+                    for on_tick in tick_hooks:
+                        on_tick(period)
                 except EndEpisode as exc:  # a person watching ended it (closed the viewer)
                     if episode.outcome is None:
                         episode.end(Outcome.ERROR, str(exc) or "ended by an observer")
-                times, poses = episode.poses_between(first)
-                if len(times):
-                    for obs_ in observers:
-                        obs_.on_poses(times, poses)
+                for on_poses in pose_hooks:
+                    on_poses(period)
     except KeyboardInterrupt:
         episode.end(Outcome.ERROR, "interrupted")
         result = episode_result(episode, start)
