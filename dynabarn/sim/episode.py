@@ -313,6 +313,10 @@ class Episode:
         )
 
     @cached_property
+    def _pose_every(self) -> int:
+        return self.sim.config.pose_every
+
+    @cached_property
     def tick_facts(self) -> TickFacts:
         sim = self.sim
         return TickFacts(laser_offset=self.info.laser_offset, radii=sim.radii, goal=sim.goal)
@@ -320,12 +324,13 @@ class Episode:
     def poses_between(self, first: int) -> tuple[np.ndarray, np.ndarray]:
         """Times and poses at the pose rate after physics step `first` up to now (the last
         pose always included once the episode has ended)."""
-        every = self.sim.config.pose_every
+        every = self._pose_every
         first_idx = 0 if first == 0 else first + every - first % every
         idx = np.arange(first_idx, self.step + 1, every)
         if self.step % every and self.outcome is not None:
             idx = np.append(idx, self.step)
-        return idx * self.dt, self.poses[idx]  # fancy indexing: a fresh array already
+            return idx * self.dt, self.poses[idx]  # fancy indexing: a fresh array already
+        return idx * self.dt, self.poses[first_idx : self.step + 1 : every].copy()  # the same rows, sliced
 
 
 def _predictor(player: SchedulePlayer):
