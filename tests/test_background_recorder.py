@@ -157,3 +157,14 @@ def _alive(pid: int) -> bool:
             return f.read().split(")")[-1].split()[0] != "Z"  # a zombie has exited
     except FileNotFoundError:
         return False
+
+
+def test_without_a_writer_process_the_episode_records_in_its_own(tmp_path, monkeypatch):
+    import dynabarn.recording.background as background
+
+    def cannot_start():
+        raise OSError(2, "no interpreter to start")
+
+    monkeypatch.setattr(background, "_take_writer", cannot_start)
+    a, b, result = _both(tmp_path, 5, lambda: get_planner("dwa"))
+    assert a == b and result.outcome is not None

@@ -20,6 +20,7 @@ does (its pipe closes).
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import fcntl
 import os
@@ -34,6 +35,7 @@ import numpy as np
 
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
 from dynabarn.metrics import EpisodeResult
+from dynabarn.recording.writer import McapRecorder, staging_path
 from dynabarn.sim.period_record import PeriodRecord, tick_from
 
 HOLDS_TICK, DERIVE_ALL, CLEARANCE_GIVEN = 1.0, 2.0, 3.0
@@ -167,12 +169,11 @@ class _Writer:
     episode: a fresh interpreter, so a script without a `__main__` guard is never re-run."""
 
     def __init__(self) -> None:
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "dynabarn.recording.background"],
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            start_new_session=False,
-        )
+        # The writer imports this package from where this process found it (a source tree on
+        # sys.path, a test's installed topics), and any module a pickled value names.
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+        command = [sys.executable, "-m", "dynabarn.recording.background"]
+        self.process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
         with contextlib.suppress(OSError):  # room for many batches: the episode never waits on a busy writer
             fcntl.fcntl(self.process.stdin.fileno(), F_SETPIPE_SZ, PIPE_BYTES)
         _send(self.process.stdin, ("path", list(sys.path)))  # installed topics import as they do here
@@ -189,9 +190,28 @@ class _Writer:
         self.process.stdin.flush()
         return _receive(self.process.stdout)
 
+    def close(self) -> None:
+        """End the writer (its pipe closed: it exits), waiting briefly."""
+        with contextlib.suppress(OSError):
+            self.process.stdin.close()
+        try:
+            self.process.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+
 
 _IDLE: list[_Writer] = []
 _LOCK = threading.Lock()
+
+
+@atexit.register
+def _close_idle() -> None:
+    """At exit the idle writers end with this process (a busy one ends when its pipe closes)."""
+    with _LOCK:
+        writers, _IDLE[:] = list(_IDLE), []
+    for w in writers:
+        w.close()
 
 
 def _take_writer() -> _Writer:
@@ -215,7 +235,6 @@ class BackgroundRecorder(EpisodeObserver):
     without live contexts (a live view streams from the episode's process)."""
 
     def __init__(self, path: Path | str, **recorder_options) -> None:
-        from dynabarn.recording.writer import McapRecorder, staging_path
 
         if "live" in recorder_options:
             raise TypeError("BackgroundRecorder has no live contexts; use McapRecorder")
@@ -225,6 +244,8 @@ class BackgroundRecorder(EpisodeObserver):
         self._check = McapRecorder(self.path, **recorder_options)  # its checks before a file is opened
         self.stopped: str | None = None
         self._writer: _Writer | None = None
+        self._inline: McapRecorder | None = None
+        """The recorder in this process, where no writer process could be started."""
 
     def on_start(self, start: EpisodeStart) -> None:
         self._check.check_can_open()
@@ -236,11 +257,17 @@ class BackgroundRecorder(EpisodeObserver):
         self._count = 0
         self._extras: dict[int, tuple] = {}
         self._facts_sent = False
-        self._writer = _take_writer()
-        self._writer.send(("start", str(self.path), self._options, start))
+        try:
+            self._writer = _take_writer()
+            self._writer.send(("start", str(self.path), self._options, start))
+        except OSError:  # no writer process here (an interpreter that cannot start one): this one records
+            self._writer, self._inline = None, self._check
+            self._inline.on_start(start)
 
     def on_tick(self, tick: Tick) -> None:
         if self._writer is None:
+            if self._inline is not None:
+                self._inline.on_tick(tick)
             return
         if self._count == BATCH:
             self._flush()
@@ -253,6 +280,8 @@ class BackgroundRecorder(EpisodeObserver):
         """The period's own numbers, not its Tick: the writer makes the Tick (the same bits),
         so the episode's process never does."""
         if self._writer is None:
+            if self._inline is not None:
+                self._inline.on_tick(period.tick)
             return
         if not self._facts_sent:
             self._send(("facts", period.episode.tick_facts))
@@ -271,6 +300,8 @@ class BackgroundRecorder(EpisodeObserver):
 
     def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
         if self._writer is None:
+            if self._inline is not None:
+                self._inline.on_poses(times, poses)
             return
         if not (self._count and self._layout.pack_poses(self._rows[self._count - 1], times, poses)):
             self._flush()
@@ -280,6 +311,9 @@ class BackgroundRecorder(EpisodeObserver):
 
     def on_end(self, result: EpisodeResult) -> None:
         if self._writer is None:
+            if self._inline is not None:
+                self._inline.on_end(result)
+                self.stopped = self._inline.stopped
             return
         self._flush()
         writer, self._writer = self._writer, None
@@ -312,8 +346,6 @@ class BackgroundRecorder(EpisodeObserver):
 
 def _serve(stdin, stdout) -> None:
     """The writer process: recorder hooks from the pipe until it closes."""
-    from dynabarn.recording.writer import McapRecorder
-
     recorder: McapRecorder | None = None
     layout: _Layout | None = None
     facts = None
