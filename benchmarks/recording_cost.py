@@ -88,3 +88,50 @@ def recording_breakdown(world_id: int, repeat: int = 3) -> dict[str, float]:
     ms["BackgroundRecorder on_start + on_end (the wait for the file)"] = bg_spent["on_start"] + bg_spent["on_end"]
     ms["total, writer process (the default)"] = bg_total
     return {k: 1000.0 * v for k, v in ms.items()}
+
+
+class _EndsAtOnce:
+    """A planner that ends its episode at the first tick: what remains is the fixed cost."""
+
+    name = "ends_at_once"
+    privileged = False
+
+    def reset(self, info) -> None: ...
+
+    def act(self, obs):
+        from dynabarn.errors import EndEpisode
+
+        raise EndEpisode("done")
+
+    def debug(self) -> dict:
+        return {}
+
+    def config(self) -> dict:
+        return {}
+
+    def versions(self) -> dict[str, str]:
+        return {}
+
+
+def fixed_costs(world_id: int, repeat: int = 20) -> dict[str, float]:
+    """Milliseconds an episode's recording costs whatever its length (one that ends at its
+    first tick): none, the writer process (the default; started once before), in this process."""
+    sim = Simulation(resolve_world(world_id))
+
+    def once(make) -> float:
+        best = float("inf")
+        with tempfile.TemporaryDirectory() as tmp:
+            for i in range(repeat):
+                t0 = time.perf_counter()
+                observers = [make(Path(tmp) / f"{i}.mcap")] if make else []
+                run_episode(sim, _EndsAtOnce(), get_protocol("barn"), seed=0, observers=observers)
+                best = min(best, time.perf_counter() - t0)
+        return 1000.0 * best
+
+    none = once(None)
+    once(BackgroundRecorder)  # the writer process started before the clock runs
+    return {
+        "an episode's fixed cost, not recorded": none,
+        "  recording it, writer process (the default)": once(BackgroundRecorder),
+        "  recording it in this process": once(McapRecorder),
+    }

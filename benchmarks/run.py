@@ -30,7 +30,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 import mujoco
 import numpy as np
-from recording_cost import recording_breakdown
+from recording_cost import fixed_costs, recording_breakdown
 
 from dynabarn.planners import get_planner, planner_spec
 from dynabarn.protocol import get_protocol
@@ -362,6 +362,8 @@ def main(argv: list[str] | None = None) -> int:
     parts = recording_breakdown(HARD_WORLD, args.repeat)
     for label, ms in parts.items():
         print(f"{'  ' + label:<66}{ms:>12.1f}{ms / parts['runner alone']:>9.2f}")
+    for label, ms in fixed_costs(HARD_WORLD).items():
+        print(f"{label:<66}{ms:>12.2f}")
     print(f"{'generate 300 worlds [s]':<66}{world_generation():>12.2f}")
     with tempfile.TemporaryDirectory() as tmp:
         variants = variant_worlds(Path(tmp))
