@@ -156,6 +156,13 @@ def _send(stream, message) -> None:
     stream.write(data)
 
 
+def _read_exactly(stream, n: int) -> bytes:
+    data = stream.read(n)
+    if len(data) < n:
+        raise EOFError
+    return data
+
+
 def _receive(stream):
     head = stream.read(_HEADER.size)
     if len(head) < _HEADER.size:
@@ -181,8 +188,10 @@ class _Writer:
     def alive(self) -> bool:
         return self.process.poll() is None
 
-    def send(self, message) -> None:
+    def send(self, message, raw: memoryview | None = None) -> None:
         _send(self.process.stdin, message)
+        if raw is not None:
+            self.process.stdin.write(raw)
         self.process.stdin.flush()
 
     def ask(self, message):
@@ -331,14 +340,14 @@ class BackgroundRecorder(EpisodeObserver):
 
     def _flush(self) -> None:
         if self._count:
-            rows = self._rows[: self._count].tobytes()
-            self._send(("ticks", self._count, rows, self._extras))
+            # The rows follow their header as they are in memory (no copy into the pickle).
+            self._send(("ticks", self._count, self._extras), memoryview(self._rows[: self._count]).cast("B"))
             self._count, self._extras = 0, {}
             self._rows[:, -1] = 0.0
 
-    def _send(self, message) -> None:
+    def _send(self, message, raw: memoryview | None = None) -> None:
         try:
-            self._writer.send(message)
+            self._writer.send(message, raw)
         except OSError:  # the writer died: the episode goes on without its recording
             self.stopped = "the recording's writer process ended; the recording ends there"
             self._writer = None
@@ -353,6 +362,8 @@ def _serve(stdin, stdout) -> None:
     while True:
         try:
             kind, *args = _receive(stdin)
+            # A batch's rows follow its header, raw: read them whatever happens to them.
+            raw = _read_exactly(stdin, args[0] * layout.width * 8) if kind == "ticks" else b""
         except EOFError:  # the episode's process is gone: what came is closed into NAME.part, not renamed
             if recorder is not None and recorder._writer is not None:
                 recorder._writer.close()
@@ -373,7 +384,7 @@ def _serve(stdin, stdout) -> None:
             elif failed is not None:
                 pass
             elif kind == "ticks":
-                count, raw, extras = args
+                count, extras = args
                 rows = np.frombuffer(raw, dtype=np.float64).reshape(count, layout.width)
                 for i in range(count):
                     recorder.on_tick(layout.unpack(rows[i], extras.get(i), facts))

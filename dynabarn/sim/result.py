@@ -32,6 +32,32 @@ def _optimal_length(protocol: EvalProtocol, world: WorldSpec, goal: tuple[float,
     return protocol.optimal_path_length(goal)
 
 
+RESULT_CHUNK = 1000
+"""Physics steps per batch of the clearance metric: the schedules' and the clearance's
+temporaries stay in cache (a 100 s episode's metric: 22 ms at once, 18 in chunks)."""
+
+
+def _min_clearance(episode: Episode, traj: np.ndarray, step: int) -> float:
+    """The least clearance over every physics step 0..step, against where the obstacles
+    were (scripted ones evaluated from their schedules, every step's time alone, so chunks
+    give the whole evaluation's bits)."""
+    sim, dt = episode.sim, episode.sim.config.dt
+    if episode.reactive is not None:
+        log = episode.reactive.log
+        log[step] = log[max(step - 1, 0)] if step else log[0]
+    best = math.inf
+    for i in range(0, step + 1, RESULT_CHUNK):
+        j = min(step + 1, i + RESULT_CHUNK)
+        if episode.reactive is not None:
+            xy = episode.reactive.log[i:j]
+        else:
+            xy, _ = episode.player.positions_at(np.arange(i, j) * dt)
+        c = sim.clearance(traj[i:j], xy, static=True)
+        if c.size:
+            best = min(best, float(c.min()))
+    return best
+
+
 def episode_result(episode: Episode, start: EpisodeStart) -> EpisodeResult:
     """The metrics of an ended episode (DESIGN.md "Episode, protocols and metrics")."""
     sim = episode.sim
@@ -45,14 +71,7 @@ def episode_result(episode: Episode, start: EpisodeStart) -> EpisodeResult:
     ep_time = sim_time - t_start if t_start is not None else sim_time
     success = outcome is Outcome.SUCCESS
     length = path_length(traj[:, :2])
-    # Clearance at every physics step, from one batched schedule evaluation.
-    if episode.reactive is not None:
-        log = episode.reactive.log
-        obstacle_xy = log[: step + 1]
-        obstacle_xy[step] = log[max(step - 1, 0)] if step else obstacle_xy[0]
-    else:
-        obstacle_xy, _ = episode.player.positions_at(np.arange(step + 1) * cfg.dt)
-    clearance = sim.clearance(traj, obstacle_xy, static=True)
+    clearance = _min_clearance(episode, traj, step)
     mean_ms, p95_ms = compute_percentiles(episode.planner_ms[:n_ticks])
     wall = time.perf_counter() - episode.wall_t0
     goal = (float(sim.goal[0]), float(sim.goal[1]))
@@ -73,7 +92,7 @@ def episode_result(episode: Episode, start: EpisodeStart) -> EpisodeResult:
             sim.world.provenance.get("reference_path_length") if protocol.reference_from_world else None,
         ),
         spl=spl(success, _optimal_length(protocol, sim.world, goal), length),
-        min_clearance=float(clearance.min()) if clearance.size else math.inf,
+        min_clearance=clearance,
         mean_abs_jerk=mean_abs_jerk(tick_v[:n_ticks], cfg.control_period),
         sum_abs_dw=sum_abs_change(tick_w_cmd[:n_ticks]),
         time_stalled=stalled_time(tick_v[:n_ticks], tick_w[:n_ticks], cfg.control_period),
