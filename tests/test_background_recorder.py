@@ -1,12 +1,11 @@
 """The writer-process recorder (issue 32, item 4): the same file as the recorder in the
 episode's process, byte for byte; a writer that dies or an episode process that is killed
-loses nothing finished and leaves no process behind."""
+loses nothing finished and leaves no process behind (Ctrl-C: test_recording, for both)."""
 
 import os
 import signal
 import subprocess
 import sys
-import textwrap
 import time
 
 import pytest
@@ -21,6 +20,7 @@ from dynabarn.recording.background import BackgroundRecorder
 from dynabarn.runner import EpisodeSpec, RecordingFailed, run_spec
 from dynabarn.sim import run_episode
 from dynabarn.worldset import resolve_world
+from tests.helpers import slow_recorded_episode
 
 BARN = get_protocol("barn")
 
@@ -65,22 +65,6 @@ def test_an_episode_ended_early_is_recorded_the_same_way(tmp_path, how):
     assert result.outcome is Outcome.ERROR and a == b
 
 
-def test_ctrl_c_leaves_a_whole_recording(tmp_path):
-    class Interrupts(Planner):
-        name = "interrupts"
-
-        def act(self, obs):
-            if obs.time >= 1.0:
-                raise KeyboardInterrupt
-            return 1.0, 0.0
-
-    path = tmp_path / "i.mcap"
-    with pytest.raises(KeyboardInterrupt):
-        run_episode(resolve_world(0), Interrupts(), BARN, observers=[BackgroundRecorder(path)])
-    rec = read_recording(path)
-    assert not rec.truncated and rec.result["reason"] == "interrupted" and rec.counts()["/scan"] == 10
-
-
 def test_a_writer_that_dies_stops_the_recording_not_the_episode(tmp_path):
     recorder = BackgroundRecorder(tmp_path / "w.mcap")
 
@@ -117,28 +101,9 @@ def test_a_killed_episode_process_leaves_its_start_and_no_writer(tmp_path):
     recording at the target is untouched."""
     path = tmp_path / "killed.mcap"
     path.write_bytes(b"an earlier, finished recording")
-    script = textwrap.dedent(
-        f"""
-        import time
-        from dynabarn.interfaces import Planner
-        from dynabarn.protocol import get_protocol
-        from dynabarn.recording.background import BackgroundRecorder
-        from dynabarn.sim import run_episode
-        from dynabarn.worldset import resolve_world
-
-        class Slow(Planner):
-            name = "slow"
-            def act(self, obs):
-                time.sleep(0.004)
-                if abs(obs.time - 40.0) < 1e-9:
-                    print(recorder._writer.process.pid, flush=True)
-                return 0.0, 0.0
-
-        recorder = BackgroundRecorder({str(path)!r})
-        run_episode(resolve_world(0), Slow(), get_protocol("barn"), observers=[recorder])
-        """
-    )
+    script = slow_recorded_episode(path, "BackgroundRecorder(path)", say="recorder._writer.process.pid")
     proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "running"
     writer_pid = int(proc.stdout.readline())
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()

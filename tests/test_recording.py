@@ -4,7 +4,6 @@ import os
 import signal
 import subprocess
 import sys
-import textwrap
 
 import pytest
 from mcap.reader import make_reader
@@ -15,8 +14,10 @@ from dynabarn.metrics import Outcome
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, RecordingError, read_recording
+from dynabarn.recording.background import BackgroundRecorder
 from dynabarn.sim import run_episode
 from dynabarn.worldset import resolve_world
+from tests.helpers import slow_recorded_episode
 
 BARN = get_protocol("barn")
 
@@ -126,10 +127,11 @@ class Interrupts(Planner):
         return 1.0, 0.0
 
 
-def test_ctrl_c_leaves_a_complete_recording(tmp_path):
+@pytest.mark.parametrize("recorder", [McapRecorder, BackgroundRecorder])
+def test_ctrl_c_leaves_a_complete_recording(tmp_path, recorder):
     path = tmp_path / "i.mcap"
     with pytest.raises(KeyboardInterrupt):
-        run_episode(resolve_world(0), Interrupts(), BARN, observers=[McapRecorder(path)])
+        run_episode(resolve_world(0), Interrupts(), BARN, observers=[recorder(path)])
     rec = read_recording(path)
     assert not rec.truncated
     assert rec.result["outcome"] == "error" and rec.result["reason"] == "interrupted"
@@ -158,28 +160,7 @@ def test_killed_process_keeps_what_it_wrote(tmp_path):
     (an earlier run's) is untouched: nothing finished is overwritten by a cut file."""
     path = tmp_path / "killed.mcap"
     path.write_bytes(b"an earlier, finished recording")
-    script = textwrap.dedent(
-        f"""
-        import time
-        from dynabarn.worldset import resolve_world
-        from dynabarn.interfaces import Planner
-        from dynabarn.protocol import get_protocol
-        from dynabarn.recording import McapRecorder
-        from dynabarn.sim import run_episode
-
-        class Slow(Planner):
-            name = "slow"
-            def act(self, obs):
-                time.sleep(0.004)
-                if obs.time == 1.0:
-                    print("running", flush=True)
-                if abs(obs.time - 40.0) < 1e-9:
-                    print("halfway", flush=True)
-                return 0.0, 0.0
-
-        run_episode(resolve_world(0), Slow(), get_protocol("barn"), observers=[McapRecorder({str(path)!r})])
-        """
-    )
+    script = slow_recorded_episode(path, "McapRecorder(path)", say='"halfway"')
     proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
     assert proc.stdout.readline().strip() == "running"
     assert proc.stdout.readline().strip() == "halfway"  # 400 ticks of 1000 written: kill it now
