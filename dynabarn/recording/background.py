@@ -47,7 +47,7 @@ wakes the writer; fewer, larger ones cost the episode less)."""
 PIPE_BYTES = 1 << 20
 """The pipe's buffer (Linux's unprivileged maximum): several batches, so that a writer
 still encoding the last one never holds the episode up."""
-F_SETPIPE_SZ = getattr(fcntl, "F_SETPIPE_SZ", 1031)
+F_SETPIPE_SZ = getattr(fcntl, "F_SETPIPE_SZ", 1031)  # Linux's; elsewhere the call fails and the default stays
 
 
 class _Layout:
