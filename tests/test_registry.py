@@ -3,6 +3,7 @@ profile sets (and shape mixes, static fields) are found the same way: built in,
 registered at run time, or installed by another package under an entry-point group. The
 installed package here is a real distribution on sys.path, outside this package."""
 
+import sys
 import textwrap
 
 import pytest
@@ -107,13 +108,18 @@ def test_registering_at_run_time_is_seen_by_the_registry_only_here():
         del PROFILE_SETS["run_time_set"]
 
 
-def test_an_installed_package_adds_a_recording_topic_and_a_command(installed, tmp_path, capsys):
+def test_an_installed_package_adds_a_recording_topic_and_a_command(installed, tmp_path, capsys, monkeypatch):
     from dynabarn.cli.dispatch import main
     from dynabarn.recording import read_recording
     from dynabarn.recording.topics import plotted
     from dynabarn.runner import EpisodeSpec, run_spec
     from dynabarn.worldset import resolve_world
 
+    # A writer process started before the package was on the path (and kept for the next
+    # recording) records its topic too.
+    with monkeypatch.context() as m:
+        m.setattr(sys, "path", [p for p in sys.path if p != str(installed)])
+        run_spec(EpisodeSpec.make(resolve_world(5), "stop", get_protocol("barn")), record_to=tmp_path / "first.mcap")
     rec = tmp_path / "ep.mcap"
     run_spec(EpisodeSpec.make(resolve_world(5), "straight", get_protocol("barn")), record_to=rec)
     speeds = read_recording(rec).topic("/robot/speed")

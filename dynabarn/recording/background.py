@@ -23,6 +23,7 @@ from __future__ import annotations
 import atexit
 import contextlib
 import fcntl
+import importlib
 import os
 import pickle
 import struct
@@ -35,12 +36,10 @@ import numpy as np
 
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
 from dynabarn.metrics import EpisodeResult
+from dynabarn.recording.tick_rows import TickRows
 from dynabarn.recording.writer import McapRecorder, staging_path
-from dynabarn.sim.period_record import PeriodRecord, tick_from
+from dynabarn.sim.period_record import PeriodRecord
 
-HOLDS_TICK, DERIVE_ALL, CLEARANCE_GIVEN = 1.0, 2.0, 3.0
-"""What a row holds: a whole Tick, or a period's numbers from which the writer makes it
-(`tick_from`), with the clearance computed in the episode's process or not."""
 BATCH = 32
 """Ticks per message to the writer: one pipe write per 3.2 s of simulated time (each write
 wakes the writer; fewer, larger ones cost the episode less)."""
@@ -48,102 +47,6 @@ PIPE_BYTES = 1 << 20
 """The pipe's buffer (Linux's unprivileged maximum): several batches, so that a writer
 still encoding the last one never holds the episode up."""
 F_SETPIPE_SZ = getattr(fcntl, "F_SETPIPE_SZ", 1031)  # Linux's; elsewhere the call fails and the default stays
-
-
-class _Layout:
-    """Where each of a tick's numbers sits in its row (the scan's and obstacles' lengths
-    are the episode's), and room for the poses of one period."""
-
-    def __init__(self, n_beams: int, n_obstacles: int, max_poses: int) -> None:
-        self.n, self.m, self.k = n_beams, n_obstacles, max_poses
-        self.obstacles = 16 + n_beams
-        self.poses = self.obstacles + 2 * n_obstacles
-        # Then: how the row was filled (HOLDS_TICK, or the period's numbers with the clearance
-        # given or not), and how many poses it holds.
-        self.width = self.poses + 4 * max_poses + 2
-
-    def pack(self, row: np.ndarray, tick: Tick) -> None:
-        n = self.n
-        row[0] = tick.time
-        row[1:4] = tick.laser_pose
-        row[4:7] = tick.pose
-        row[7:9] = tick.velocity
-        row[9:11] = tick.command
-        row[11:13] = tick.raw_command
-        row[13] = tick.clearance
-        row[14] = tick.distance_to_goal
-        row[15] = tick.planner_ms
-        row[16 : 16 + n] = tick.scan
-        row[self.obstacles : self.poses] = tick.obstacles.ravel()
-        row[-2], row[-1] = HOLDS_TICK, 0.0  # no poses yet
-
-    def pack_numbers(self, row: np.ndarray, numbers: tuple) -> None:
-        """A period's own numbers (`PeriodRecord.numbers`): the writer makes the Tick."""
-        t, scan, pose, velocity, command, raw, obstacles, planner_ms, clearance = numbers
-        row[0] = t
-        row[4:7] = pose
-        row[7:9] = velocity
-        row[9:11] = command
-        row[11:13] = raw
-        row[15] = planner_ms
-        row[16 : 16 + self.n] = scan
-        row[self.obstacles : self.poses] = obstacles.ravel()
-        if clearance is None:
-            row[-2] = DERIVE_ALL
-        else:
-            row[13], row[-2] = clearance, CLEARANCE_GIVEN
-        row[-1] = 0.0
-
-    def unpack(self, row: np.ndarray, extra: tuple | None, facts) -> Tick:
-        debug, tracks = extra if extra is not None else ({}, None)
-        if row[-2] != HOLDS_TICK:
-            return tick_from(
-                float(row[0]),
-                row[16 : 16 + self.n].copy(),
-                row[4:7].copy(),
-                row[7:9].copy(),
-                row[9:11].copy(),
-                row[11:13].copy(),
-                row[self.obstacles : self.poses].reshape(self.m, 2).copy(),
-                float(row[15]),
-                debug,
-                tracks,
-                facts,
-                None if row[-2] == DERIVE_ALL else float(row[13]),
-            )
-        return Tick(
-            time=float(row[0]),
-            scan=row[16 : 16 + self.n].copy(),
-            laser_pose=row[1:4].copy(),
-            pose=row[4:7].copy(),
-            velocity=row[7:9].copy(),
-            command=row[9:11].copy(),
-            raw_command=row[11:13].copy(),
-            obstacles=row[self.obstacles : self.poses].reshape(self.m, 2).copy(),
-            clearance=float(row[13]),
-            distance_to_goal=float(row[14]),
-            planner_ms=float(row[15]),
-            debug=debug,
-            tracks=tracks,
-        )
-
-    def pack_poses(self, row: np.ndarray, times: np.ndarray, poses: np.ndarray) -> bool:
-        """The period's poses into the tick's row; False when they do not fit (sent alone)."""
-        c = len(times)
-        if c > self.k or row[-1] != 0.0:
-            return False
-        p = self.poses
-        row[p : p + c] = times
-        row[p + self.k : p + self.k + 3 * c] = poses.ravel()
-        row[-1] = c
-        return True
-
-    def unpack_poses(self, row: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        c = int(row[-1])
-        if c == 0:
-            return None
-        p = self.poses
-        return row[p : p + c].copy(), row[p + self.k : p + self.k + 3 * c].reshape(c, 3).copy()
 
 
 # -- the pipe: length-prefixed pickles ------------------------------------------------------
@@ -183,7 +86,6 @@ class _Writer:
         self.process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
         with contextlib.suppress(OSError):  # room for many batches: the episode never waits on a busy writer
             fcntl.fcntl(self.process.stdin.fileno(), F_SETPIPE_SZ, PIPE_BYTES)
-        _send(self.process.stdin, ("path", list(sys.path)))  # installed topics import as they do here
 
     def alive(self) -> bool:
         return self.process.poll() is None
@@ -259,7 +161,7 @@ class BackgroundRecorder(EpisodeObserver):
     def on_start(self, start: EpisodeStart) -> None:
         self._check.check_can_open()
         cfg = start.config
-        self._layout = _Layout(
+        self._layout = TickRows(
             len(start.info.laser_angles), len(start.world.obstacles), cfg.steps_per_tick // cfg.pose_every + 2
         )
         self._rows = np.zeros((BATCH, self._layout.width))
@@ -268,7 +170,9 @@ class BackgroundRecorder(EpisodeObserver):
         self._facts_sent = False
         try:
             self._writer = _take_writer()
-            self._writer.send(("start", str(self.path), self._options, start))
+            # This process's sys.path now: the topics installed by packages added since the
+            # writer started are recorded too (the table is read per sys.path).
+            self._writer.send(("start", str(self.path), self._options, start, list(sys.path)))
         except OSError:  # no writer process here (an interpreter that cannot start one): this one records
             self._writer, self._inline = None, self._check
             self._inline.on_start(start)
@@ -356,7 +260,7 @@ class BackgroundRecorder(EpisodeObserver):
 def _serve(stdin, stdout) -> None:
     """The writer process: recorder hooks from the pipe until it closes."""
     recorder: McapRecorder | None = None
-    layout: _Layout | None = None
+    layout: TickRows | None = None
     facts = None
     failed: OSError | None = None
     while True:
@@ -369,13 +273,14 @@ def _serve(stdin, stdout) -> None:
                 recorder._writer.close()
             return
         try:
-            if kind == "path":
-                sys.path[:] = args[0]
-            elif kind == "start":
-                path, options, start = args
+            if kind == "start":
+                path, options, start, search_path = args
+                if sys.path != search_path:
+                    sys.path[:] = search_path
+                    importlib.invalidate_caches()
                 recorder, failed = McapRecorder(path, **options), None
                 cfg = start.config
-                layout = _Layout(
+                layout = TickRows(
                     len(start.info.laser_angles), len(start.world.obstacles), cfg.steps_per_tick // cfg.pose_every + 2
                 )
                 recorder.on_start(start)

@@ -1,0 +1,116 @@
+"""A control period's numbers as one row of float64 (`TickRows`): what the episode's process
+sends the writer process (`recording.background`) and the writer turns back into a Tick.
+
+A row holds the period's time, pose, velocity, commands, planner time, scan and obstacle
+centres, then the robot's poses since the last period, then two flags: how the row was
+filled (a whole Tick, or the period's own numbers from which the writer makes the Tick
+with `tick_from`, the clearance given or not) and how many poses it holds. Every number is
+float64 as it was, so the Tick the writer makes has the same bits.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dynabarn.interfaces.events import Tick
+from dynabarn.sim.period_record import tick_from
+
+HOLDS_TICK, DERIVE_ALL, CLEARANCE_GIVEN = 1.0, 2.0, 3.0
+"""What a row holds: a whole Tick, or a period's numbers from which the writer makes it
+(`tick_from`), with the clearance computed in the episode's process or not."""
+
+
+class TickRows:
+    """Where each of a tick's numbers sits in its row (the scan's and obstacles' lengths
+    are the episode's), and room for the poses of one period."""
+
+    def __init__(self, n_beams: int, n_obstacles: int, max_poses: int) -> None:
+        self.n, self.m, self.k = n_beams, n_obstacles, max_poses
+        self.obstacles = 16 + n_beams
+        self.poses = self.obstacles + 2 * n_obstacles
+        # Then: how the row was filled (HOLDS_TICK, or the period's numbers with the clearance
+        # given or not), and how many poses it holds.
+        self.width = self.poses + 4 * max_poses + 2
+
+    def pack(self, row: np.ndarray, tick: Tick) -> None:
+        n = self.n
+        row[0] = tick.time
+        row[1:4] = tick.laser_pose
+        row[4:7] = tick.pose
+        row[7:9] = tick.velocity
+        row[9:11] = tick.command
+        row[11:13] = tick.raw_command
+        row[13] = tick.clearance
+        row[14] = tick.distance_to_goal
+        row[15] = tick.planner_ms
+        row[16 : 16 + n] = tick.scan
+        row[self.obstacles : self.poses] = tick.obstacles.ravel()
+        row[-2], row[-1] = HOLDS_TICK, 0.0  # no poses yet
+
+    def pack_numbers(self, row: np.ndarray, numbers: tuple) -> None:
+        """A period's own numbers (`PeriodRecord.numbers`): the writer makes the Tick."""
+        t, scan, pose, velocity, command, raw, obstacles, planner_ms, clearance = numbers
+        row[0] = t
+        row[4:7] = pose
+        row[7:9] = velocity
+        row[9:11] = command
+        row[11:13] = raw
+        row[15] = planner_ms
+        row[16 : 16 + self.n] = scan
+        row[self.obstacles : self.poses] = obstacles.ravel()
+        if clearance is None:
+            row[-2] = DERIVE_ALL
+        else:
+            row[13], row[-2] = clearance, CLEARANCE_GIVEN
+        row[-1] = 0.0
+
+    def unpack(self, row: np.ndarray, extra: tuple | None, facts) -> Tick:
+        debug, tracks = extra if extra is not None else ({}, None)
+        if row[-2] != HOLDS_TICK:
+            return tick_from(
+                float(row[0]),
+                row[16 : 16 + self.n].copy(),
+                row[4:7].copy(),
+                row[7:9].copy(),
+                row[9:11].copy(),
+                row[11:13].copy(),
+                row[self.obstacles : self.poses].reshape(self.m, 2).copy(),
+                float(row[15]),
+                debug,
+                tracks,
+                facts,
+                None if row[-2] == DERIVE_ALL else float(row[13]),
+            )
+        return Tick(
+            time=float(row[0]),
+            scan=row[16 : 16 + self.n].copy(),
+            laser_pose=row[1:4].copy(),
+            pose=row[4:7].copy(),
+            velocity=row[7:9].copy(),
+            command=row[9:11].copy(),
+            raw_command=row[11:13].copy(),
+            obstacles=row[self.obstacles : self.poses].reshape(self.m, 2).copy(),
+            clearance=float(row[13]),
+            distance_to_goal=float(row[14]),
+            planner_ms=float(row[15]),
+            debug=debug,
+            tracks=tracks,
+        )
+
+    def pack_poses(self, row: np.ndarray, times: np.ndarray, poses: np.ndarray) -> bool:
+        """The period's poses into the tick's row; False when they do not fit (sent alone)."""
+        c = len(times)
+        if c > self.k or row[-1] != 0.0:
+            return False
+        p = self.poses
+        row[p : p + c] = times
+        row[p + self.k : p + self.k + 3 * c] = poses.ravel()
+        row[-1] = c
+        return True
+
+    def unpack_poses(self, row: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        c = int(row[-1])
+        if c == 0:
+            return None
+        p = self.poses
+        return row[p : p + c].copy(), row[p + self.k : p + self.k + 3 * c].reshape(c, 3).copy()
