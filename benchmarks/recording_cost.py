@@ -14,7 +14,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from dynabarn.interfaces import EpisodeObserver
+from dynabarn.errors import EndEpisode
+from dynabarn.interfaces import EpisodeObserver, Planner
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder
@@ -90,27 +91,13 @@ def recording_breakdown(world_id: int, repeat: int = 3) -> dict[str, float]:
     return {k: 1000.0 * v for k, v in ms.items()}
 
 
-class _EndsAtOnce:
+class _EndsAtOnce(Planner):
     """A planner that ends its episode at the first tick: what remains is the fixed cost."""
 
     name = "ends_at_once"
-    privileged = False
-
-    def reset(self, info) -> None: ...
 
     def act(self, obs):
-        from dynabarn.errors import EndEpisode
-
         raise EndEpisode("done")
-
-    def debug(self) -> dict:
-        return {}
-
-    def config(self) -> dict:
-        return {}
-
-    def versions(self) -> dict[str, str]:
-        return {}
 
 
 def fixed_costs(world_id: int, repeat: int = 20) -> dict[str, float]:

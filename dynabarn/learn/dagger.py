@@ -6,11 +6,11 @@ command is executed instead with probability beta_i = `beta_decay` ** i (iterati
 the teacher alone, i.e. behaviour cloning's data); the teacher, which sees the obstacles'
 true present positions and velocities (`oracle_present`), labels every state the robot
 reaches, whoever drove. The labelled states join one dataset (aggregation), and the
-student is trained on all of it (Adam), continuing from its last weights: by regression
-onto the teacher's normalised actions (mean squared error, `head="regress"`), or by
-classifying them among the teacher's candidate commands (cross-entropy, `head="classify"`). After each iteration the
-student alone drives a fixed set of validation worlds (another seed namespace): the
-learning curve.
+student is trained on all of it (Adam), continuing from its last weights: by classifying
+the teacher's commands among its candidates (cross-entropy, `head="classify"`), or by
+regression onto its normalised actions (mean squared error, `head="regress"`). After each
+iteration the student alone drives a fixed set of validation worlds (another seed
+namespace): the learning curve.
 
 Collection runs in `workers` processes (the teacher's search is most of the time); an
 episode's data depends only on the weights, the seed and the world, so results do not

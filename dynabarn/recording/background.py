@@ -2,20 +2,20 @@
 
 Encoding an episode's messages (protobuf and JSON) and compressing them cost the runner
 about as much as the episode itself (docs/speed.md). Here the episode's process only
-copies each tick's numbers into a buffer, and a writer process started once per process
-(spawned, so it shares nothing it could break) runs the same `McapRecorder` on them: the
-file is the one the recorder in the episode's process writes, byte for byte (the golden
-set and a test compare them), written on the other core.
+copies each period's numbers into a buffer, and a writer process (a fresh interpreter,
+started once per process and reused) makes the Ticks from them and runs the same
+`McapRecorder`: the file is the one the recorder in the episode's process writes, byte
+for byte (the golden set and a test compare them), written on the other core.
 
 What crosses: the episode's start (pickled once), then per tick one row of float64
-numbers (time, scan, poses, commands, obstacles, clearance, distance, planner time) and
-the robot's poses, sent in batches of `BATCH` ticks; a tick's debug dictionary or tracks,
-rare and of any shape, are pickled beside the row when there are any. `on_end` sends the
-result and waits until the writer has closed and renamed the file, so the recording is
-whole when the episode returns, as with `McapRecorder`. A recording that cannot start
-fails in `on_start` with the writer's error; a writer that dies mid-episode stops the
-recording (`stopped` says why) and the episode goes on. The writer exits when its parent
-does (its pipe closes).
+numbers and the robot's poses (`tick_rows.TickRows`), sent in batches of `BATCH` ticks; a
+tick's debug dictionary or tracks, of any shape, are pickled beside the rows when there
+are any. `on_end` sends the result and waits until the writer has closed and renamed the
+file, so the recording is whole when the episode returns, as with `McapRecorder`. A file
+that cannot be opened fails in `on_start` (`McapRecorder`'s checks, made here); an error
+of the writer's while writing is raised by `on_end`; a writer that dies mid-episode stops
+the recording (`stopped` says why) and the episode goes on. The writer exits when its
+parent does (its pipe closes).
 """
 
 from __future__ import annotations
@@ -67,11 +67,8 @@ def _read_exactly(stream, n: int) -> bytes:
 
 
 def _receive(stream):
-    head = stream.read(_HEADER.size)
-    if len(head) < _HEADER.size:
-        raise EOFError
-    data = stream.read(_HEADER.unpack(head)[0])
-    return pickle.loads(data)
+    (size,) = _HEADER.unpack(_read_exactly(stream, _HEADER.size))
+    return pickle.loads(_read_exactly(stream, size))
 
 
 class _Writer:
@@ -97,8 +94,7 @@ class _Writer:
         self.process.stdin.flush()
 
     def ask(self, message):
-        _send(self.process.stdin, message)
-        self.process.stdin.flush()
+        self.send(message)
         return _receive(self.process.stdout)
 
     def close(self) -> None:
@@ -146,7 +142,6 @@ class BackgroundRecorder(EpisodeObserver):
     without live contexts (a live view streams from the episode's process)."""
 
     def __init__(self, path: Path | str, **recorder_options) -> None:
-
         if "live" in recorder_options:
             raise TypeError("BackgroundRecorder has no live contexts; use McapRecorder")
         self.path = Path(path)
@@ -160,10 +155,7 @@ class BackgroundRecorder(EpisodeObserver):
 
     def on_start(self, start: EpisodeStart) -> None:
         self._check.check_can_open()
-        cfg = start.config
-        self._layout = TickRows(
-            len(start.info.laser_angles), len(start.world.obstacles), cfg.steps_per_tick // cfg.pose_every + 2
-        )
+        self._layout = TickRows.for_episode(start)
         self._rows = np.zeros((BATCH, self._layout.width))
         self._count = 0
         self._extras: dict[int, tuple] = {}
@@ -205,11 +197,6 @@ class BackgroundRecorder(EpisodeObserver):
         if period.debug or period.tracks is not None:
             self._extras[self._count] = (period.debug, period.tracks)
         self._count += 1
-
-    def on_poses_period(self, period: PeriodRecord) -> None:
-        times, poses = period.poses
-        if len(times):
-            self.on_poses(times, poses)
 
     def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
         if self._writer is None:
@@ -279,10 +266,7 @@ def _serve(stdin, stdout) -> None:
                     sys.path[:] = search_path
                     importlib.invalidate_caches()
                 recorder, failed = McapRecorder(path, **options), None
-                cfg = start.config
-                layout = TickRows(
-                    len(start.info.laser_angles), len(start.world.obstacles), cfg.steps_per_tick // cfg.pose_every + 2
-                )
+                layout = TickRows.for_episode(start)
                 recorder.on_start(start)
             elif kind == "facts":
                 facts = args[0]

@@ -24,6 +24,13 @@ class TickRows:
     """Where each of a tick's numbers sits in its row (the scan's and obstacles' lengths
     are the episode's), and room for the poses of one period."""
 
+    @classmethod
+    def for_episode(cls, start) -> TickRows:
+        """The rows of an episode (`EpisodeStart`): its beams, its obstacles, and every pose
+        of one control period at the pose rate (the first period's and the last's included)."""
+        cfg = start.config
+        return cls(len(start.info.laser_angles), len(start.world.obstacles), cfg.steps_per_tick // cfg.pose_every + 2)
+
     def __init__(self, n_beams: int, n_obstacles: int, max_poses: int) -> None:
         self.n, self.m, self.k = n_beams, n_obstacles, max_poses
         self.obstacles = 16 + n_beams
@@ -65,34 +72,28 @@ class TickRows:
         row[-1] = 0.0
 
     def unpack(self, row: np.ndarray, extra: tuple | None, facts) -> Tick:
+        """The row's Tick: as packed, or made by `tick_from` from the period's numbers."""
         debug, tracks = extra if extra is not None else ({}, None)
+        time, scan, pose = float(row[0]), row[16 : 16 + self.n].copy(), row[4:7].copy()
+        velocity, command, raw_command = row[7:9].copy(), row[9:11].copy(), row[11:13].copy()
+        obstacles = row[self.obstacles : self.poses].reshape(self.m, 2).copy()
+        planner_ms = float(row[15])
         if row[-2] != HOLDS_TICK:
-            return tick_from(
-                float(row[0]),
-                row[16 : 16 + self.n].copy(),
-                row[4:7].copy(),
-                row[7:9].copy(),
-                row[9:11].copy(),
-                row[11:13].copy(),
-                row[self.obstacles : self.poses].reshape(self.m, 2).copy(),
-                float(row[15]),
-                debug,
-                tracks,
-                facts,
-                None if row[-2] == DERIVE_ALL else float(row[13]),
-            )
+            clearance = None if row[-2] == DERIVE_ALL else float(row[13])
+            numbers = (time, scan, pose, velocity, command, raw_command, obstacles, planner_ms)
+            return tick_from(*numbers, debug, tracks, facts, clearance)
         return Tick(
-            time=float(row[0]),
-            scan=row[16 : 16 + self.n].copy(),
+            time=time,
+            scan=scan,
             laser_pose=row[1:4].copy(),
-            pose=row[4:7].copy(),
-            velocity=row[7:9].copy(),
-            command=row[9:11].copy(),
-            raw_command=row[11:13].copy(),
-            obstacles=row[self.obstacles : self.poses].reshape(self.m, 2).copy(),
+            pose=pose,
+            velocity=velocity,
+            command=command,
+            raw_command=raw_command,
+            obstacles=obstacles,
             clearance=float(row[13]),
             distance_to_goal=float(row[14]),
-            planner_ms=float(row[15]),
+            planner_ms=planner_ms,
             debug=debug,
             tracks=tracks,
         )

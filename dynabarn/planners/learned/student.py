@@ -76,11 +76,14 @@ class StudentActor(nn.Module):
         """The class index of each of the teacher's actions (N, 2); an action off the grid is
         refused (a teacher that does not choose among `classes` cannot be imitated this way)."""
         grid = self.classes.numpy().astype(np.float64)
-        d = ((np.asarray(actions, dtype=np.float64)[:, None, :] - grid[None]) ** 2).sum(-1)
+        # The teacher's actions take a few distinct values: each is matched once (a dataset
+        # of 280,000 rows against 42 classes at once would need several 190 MB temporaries).
+        distinct, which = np.unique(np.asarray(actions, dtype=np.float64).reshape(-1, 2), axis=0, return_inverse=True)
+        d = ((distinct[:, None, :] - grid[None]) ** 2).sum(-1)
         idx = d.argmin(axis=1)
         if len(idx) and float(np.sqrt(d[np.arange(len(idx)), idx]).max()) > 1e-4:
             raise DynabarnError("the teacher's actions are not on the classifier's command grid")
-        return idx
+        return idx[which.reshape(-1)]
 
 
 def save_student(actor: StudentActor, path: Path, *, features: FeatureConfig, trained_on: dict, notes: dict) -> Path:
