@@ -117,9 +117,13 @@ class Laser:
         Many worlds' at once: ranges (W, n) and one generator per row (each draws its own)."""
         # Each generator's standard normals, then scaled: the bits of g.normal(0, std, n)
         # (which draws the same normals and computes 0 + std * z), without its temporaries.
-        noise = self._noise if ranges.ndim == 1 else np.empty(ranges.shape)
-        for row, g in zip(noise.reshape(-1, self.n), [rng] if ranges.ndim == 1 else rng, strict=True):
-            g.standard_normal(out=row)
+        if ranges.ndim == 1:  # one episode's scan, every tick: no rows to pair with generators
+            noise = self._noise
+            rng.standard_normal(out=noise)
+        else:
+            noise = np.empty(ranges.shape)
+            for row, g in zip(noise, rng, strict=True):
+                g.standard_normal(out=row)
         noise *= self.params.laser_noise_std
         ranges += noise
         # np.clip's bits without its Python wrapper (a per-tick cost of the runner's)

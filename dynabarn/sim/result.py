@@ -21,6 +21,7 @@ from dynabarn.metrics import (
 from dynabarn.protocol import EvalProtocol
 from dynabarn.provenance import machine, portable_path
 from dynabarn.sim.episode import Episode
+from dynabarn.sim.least_clearance import full_clearance, least_clearance
 from dynabarn.worlds.spec import WorldSpec
 
 
@@ -32,30 +33,15 @@ def _optimal_length(protocol: EvalProtocol, world: WorldSpec, goal: tuple[float,
     return protocol.optimal_path_length(goal)
 
 
-RESULT_CHUNK = 1000
-"""Physics steps per batch of the clearance metric: the schedules' and the clearance's
-temporaries stay in cache (a 100 s episode's metric: 22 ms at once, 18 in chunks)."""
-
-
 def _min_clearance(episode: Episode, traj: np.ndarray, step: int) -> float:
     """The least clearance over every physics step 0..step, against where the obstacles
-    were (scripted ones evaluated from their schedules, every step's time alone, so chunks
-    give the whole evaluation's bits)."""
+    were (scripted ones: their schedules; reactive ones: what they logged)."""
     sim, dt = episode.sim, episode.sim.config.dt
-    if episode.reactive is not None:
-        log = episode.reactive.log
-        log[step] = log[max(step - 1, 0)] if step else log[0]
-    best = math.inf
-    for i in range(0, step + 1, RESULT_CHUNK):
-        j = min(step + 1, i + RESULT_CHUNK)
-        if episode.reactive is not None:
-            xy = episode.reactive.log[i:j]
-        else:
-            xy, _ = episode.player.positions_at(np.arange(i, j) * dt)
-        c = sim.clearance(traj[i:j], xy, static=True)
-        if c.size:
-            best = min(best, float(c.min()))
-    return best
+    if episode.reactive is None:
+        return least_clearance(sim, episode.player, traj, dt)
+    log = episode.reactive.log
+    log[step] = log[max(step - 1, 0)] if step else log[0]
+    return full_clearance(sim, None, traj, dt, log=log)
 
 
 def episode_result(episode: Episode, start: EpisodeStart) -> EpisodeResult:

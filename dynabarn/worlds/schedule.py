@@ -126,6 +126,38 @@ class SchedulePlayer:
         tl = np.mod(tl, self.durations) if self.end_behavior is EndBehavior.LOOP else np.minimum(tl, self.durations)
         return self._evaluate(tl)
 
+    def max_speed(self) -> float:
+        """A bound [m/s] on every obstacle's speed between the jumps of `clock_wraps`: each
+        segment's largest |d position / d t| (linear: its speed; spline: the Hermite
+        derivative's |h00'| <= 1.5, |h10'|, |h11'| <= 1 on [0, 1]). inf for a segment without
+        duration; 0 without segments."""
+        if self.n_obstacles == 0:
+            return 0.0
+        t, p, m = self._flat_t, self._flat_p, self._flat_m
+        within = np.ones(len(t) - 1, dtype=bool)  # consecutive keyframes of one obstacle
+        between = self._seg_lo[1:] - 1
+        within[between[(between >= 0) & (between < len(within))]] = False
+        if not within.any():
+            return 0.0
+        lo = np.flatnonzero(within)
+        reach = np.hypot(*(p[lo + 1] - p[lo]).T)
+        if self.interpolation is Interpolation.SPLINE:
+            reach = 1.5 * reach + np.hypot(*m[lo].T) + np.hypot(*m[lo + 1].T)
+        span = t[lo + 1] - t[lo]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            speed = np.where(span > 0.0, reach / np.where(span > 0.0, span, 1.0), np.inf)
+        return float(speed.max())
+
+    def clock_wraps(self, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
+        """(W,) whether some obstacle's clock wraps in [t0, t1] (W,) [s]: where a looping
+        path that does not close jumps back to its first keyframe (`max_speed` does not
+        hold across). Never with `hold`."""
+        t0, t1 = np.asarray(t0, dtype=np.float64), np.asarray(t1, dtype=np.float64)
+        if self.end_behavior is not EndBehavior.LOOP or self.n_obstacles == 0:
+            return np.zeros(t0.shape, dtype=bool)
+        shortest = float(self.durations.min())
+        return (self.local_time(t1) < self.local_time(t0)).any(axis=-1) | (t1 - t0 >= shortest)
+
     def positions_into(self, t: float, pos: np.ndarray, vel: np.ndarray | None = None) -> None:
         """Write positions (and velocities) at time t into preallocated (n, 2) arrays."""
         p, v = self.state(t)
