@@ -8,9 +8,10 @@ started once per process and reused) makes the Ticks from them and runs the same
 for byte (the golden set and a test compare them), written on the other core.
 
 What crosses: the episode's start (pickled once), then per tick one row of float64
-numbers and the robot's poses (`tick_rows.TickRows`), sent in batches of `BATCH` ticks; a
-tick's debug dictionary or tracks, of any shape, are pickled beside the rows when there
-are any. `on_end` sends the result and waits until the writer has closed and renamed the
+numbers (`tick_rows.TickRows`), sent in batches of `BATCH` ticks with the robot's poses of
+those ticks' periods (taken from the episode's pose buffer once per batch, and how many
+each tick has); a tick's debug dictionary or tracks, of any shape, are pickled beside the
+rows when there are any. `on_end` sends the result and waits until the writer has closed and renamed the
 file, so the recording is whole when the episode returns, as with `McapRecorder`. A file
 that cannot be opened fails in `on_start` (`McapRecorder`'s checks, made here); an error
 of the writer's while writing is raised by `on_end`; a writer that dies mid-episode stops
@@ -40,6 +41,7 @@ from dynabarn.recording.tick_rows import TickRows
 from dynabarn.recording.writer import McapRecorder, staging_path
 from dynabarn.sim.period_record import PeriodRecord
 
+_NO_STEPS = np.zeros(0, dtype=np.int64)
 BATCH = 32
 """Ticks per message to the writer: one pipe write per 3.2 s of simulated time (each write
 wakes the writer; fewer, larger ones cost the episode less)."""
@@ -87,10 +89,10 @@ class _Writer:
     def alive(self) -> bool:
         return self.process.poll() is None
 
-    def send(self, message, raw: memoryview | None = None) -> None:
+    def send(self, message, *raw: memoryview) -> None:
         _send(self.process.stdin, message)
-        if raw is not None:
-            self.process.stdin.write(raw)
+        for block in raw:
+            self.process.stdin.write(block)
         self.process.stdin.flush()
 
     def ask(self, message):
@@ -159,6 +161,9 @@ class BackgroundRecorder(EpisodeObserver):
         self._rows = np.zeros((BATCH, self._layout.width))
         self._count = 0
         self._extras: dict[int, tuple] = {}
+        self._spans: dict[int, tuple[int, int, bool]] = {}
+        """Row -> its period's `PeriodRecord.pose_span` (the poses are taken at the flush)."""
+        self._episode = None
         self._facts_sent = False
         try:
             self._writer = _take_writer()
@@ -198,16 +203,24 @@ class BackgroundRecorder(EpisodeObserver):
             self._extras[self._count] = (period.debug, period.tracks)
         self._count += 1
 
+    def on_poses_period(self, period: PeriodRecord) -> None:
+        """The period's poses, taken from the episode's pose buffer with the batch's others
+        when it is sent (the same rows `period.poses` would copy now)."""
+        if self._writer is None or not self._count or (self._count - 1) in self._spans:
+            times, poses = period.poses  # no tick row of its own to go with (not the loop's order)
+            if len(times):
+                self.on_poses(times, poses)
+            return
+        self._spans[self._count - 1] = period.pose_span()
+        self._episode = period.episode
+
     def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
         if self._writer is None:
             if self._inline is not None:
                 self._inline.on_poses(times, poses)
             return
-        if not (self._count and self._layout.pack_poses(self._rows[self._count - 1], times, poses)):
-            self._flush()
-            self._send(("poses", times, poses))
-        elif self._count == BATCH:
-            self._flush()
+        self._flush()
+        self._send(("poses", times, poses))
 
     def on_end(self, result: EpisodeResult) -> None:
         if self._writer is None:
@@ -230,15 +243,25 @@ class BackgroundRecorder(EpisodeObserver):
         self.stopped = rest[0]
 
     def _flush(self) -> None:
-        if self._count:
-            # The rows follow their header as they are in memory (no copy into the pickle).
-            self._send(("ticks", self._count, self._extras), memoryview(self._rows[: self._count]).cast("B"))
-            self._count, self._extras = 0, {}
-            self._rows[:, -1] = 0.0
+        if not self._count:
+            return
+        # The rows follow their header as they are in memory (no copy into the pickle), then
+        # the batch's pose times and poses (as `Episode.poses_between` makes them).
+        rows = memoryview(self._rows[: self._count]).cast("B")
+        counts = [0] * self._count
+        raw = [rows]
+        if self._spans:
+            episode = self._episode
+            steps = [episode.pose_steps(*self._spans[i]) if i in self._spans else _NO_STEPS for i in range(self._count)]
+            counts = [len(s) for s in steps]
+            idx = np.concatenate(steps)
+            raw += [memoryview(idx * episode.dt).cast("B"), memoryview(episode.poses[idx]).cast("B")]
+        self._send(("ticks", self._count, self._extras, counts), *raw)
+        self._count, self._extras, self._spans = 0, {}, {}
 
-    def _send(self, message, raw: memoryview | None = None) -> None:
+    def _send(self, message, *raw: memoryview) -> None:
         try:
-            self._writer.send(message, raw)
+            self._writer.send(message, *raw)
         except OSError:  # the writer died: the episode goes on without its recording
             self.stopped = "the recording's writer process ended; the recording ends there"
             self._writer = None
@@ -253,8 +276,8 @@ def _serve(stdin, stdout) -> None:
     while True:
         try:
             kind, *args = _receive(stdin)
-            # A batch's rows follow its header, raw: read them whatever happens to them.
-            raw = _read_exactly(stdin, args[0] * layout.width * 8) if kind == "ticks" else b""
+            # A batch's rows and poses follow its header, raw: read them whatever happens to them.
+            raw = _read_exactly(stdin, (args[0] * layout.width + 4 * sum(args[2])) * 8) if kind == "ticks" else b""
         except EOFError:  # the episode's process is gone: what came is closed into NAME.part, not renamed
             if recorder is not None and recorder._writer is not None:
                 recorder._writer.close()
@@ -273,13 +296,18 @@ def _serve(stdin, stdout) -> None:
             elif failed is not None:
                 pass
             elif kind == "ticks":
-                count, extras = args
-                rows = np.frombuffer(raw, dtype=np.float64).reshape(count, layout.width)
+                count, extras, counts = args
+                numbers = np.frombuffer(raw, dtype=np.float64)
+                rows = numbers[: count * layout.width].reshape(count, layout.width)
+                n_poses = sum(counts)
+                times = numbers[count * layout.width :][:n_poses]
+                poses = numbers[count * layout.width + n_poses :].reshape(n_poses, 3)
+                at = 0
                 for i in range(count):
                     recorder.on_tick(layout.unpack(rows[i], extras.get(i), facts))
-                    poses = layout.unpack_poses(rows[i])
-                    if poses is not None:
-                        recorder.on_poses(*poses)
+                    if counts[i]:
+                        recorder.on_poses(times[at : at + counts[i]], poses[at : at + counts[i]])
+                        at += counts[i]
             elif kind == "poses":
                 recorder.on_poses(*args)
         except OSError as exc:

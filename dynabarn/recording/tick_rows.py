@@ -2,10 +2,10 @@
 sends the writer process (`recording.background`) and the writer turns back into a Tick.
 
 A row holds the period's time, pose, velocity, commands, planner time, scan and obstacle
-centres, then the robot's poses since the last period, then two flags: how the row was
-filled (a whole Tick, or the period's own numbers from which the writer makes the Tick
-with `tick_from`, the clearance given or not) and how many poses it holds. Every number is
-float64 as it was, so the Tick the writer makes has the same bits.
+centres, then a flag: how the row was filled (a whole Tick, or the period's own numbers
+from which the writer makes the Tick with `tick_from`, the clearance given or not). Every
+number is float64 as it was, so the Tick the writer makes has the same bits. The robot's
+poses travel beside the rows, a batch's at once (`recording.background`).
 """
 
 from __future__ import annotations
@@ -22,22 +22,18 @@ HOLDS_TICK, DERIVE_ALL, CLEARANCE_GIVEN = 1.0, 2.0, 3.0
 
 class TickRows:
     """Where each of a tick's numbers sits in its row (the scan's and obstacles' lengths
-    are the episode's), and room for the poses of one period."""
+    are the episode's)."""
 
     @classmethod
     def for_episode(cls, start) -> TickRows:
-        """The rows of an episode (`EpisodeStart`): its beams, its obstacles, and every pose
-        of one control period at the pose rate (the first period's and the last's included)."""
-        cfg = start.config
-        return cls(len(start.info.laser_angles), len(start.world.obstacles), cfg.steps_per_tick // cfg.pose_every + 2)
+        """The rows of an episode (`EpisodeStart`): its beams and its obstacles."""
+        return cls(len(start.info.laser_angles), len(start.world.obstacles))
 
-    def __init__(self, n_beams: int, n_obstacles: int, max_poses: int) -> None:
-        self.n, self.m, self.k = n_beams, n_obstacles, max_poses
+    def __init__(self, n_beams: int, n_obstacles: int) -> None:
+        self.n, self.m = n_beams, n_obstacles
         self.obstacles = 16 + n_beams
-        self.poses = self.obstacles + 2 * n_obstacles
-        # Then: how the row was filled (HOLDS_TICK, or the period's numbers with the clearance
-        # given or not), and how many poses it holds.
-        self.width = self.poses + 4 * max_poses + 2
+        self.end = self.obstacles + 2 * n_obstacles
+        self.width = self.end + 1  # then how the row was filled
 
     def pack(self, row: np.ndarray, tick: Tick) -> None:
         n = self.n
@@ -51,8 +47,8 @@ class TickRows:
         row[14] = tick.distance_to_goal
         row[15] = tick.planner_ms
         row[16 : 16 + n] = tick.scan
-        row[self.obstacles : self.poses] = tick.obstacles.ravel()
-        row[-2], row[-1] = HOLDS_TICK, 0.0  # no poses yet
+        row[self.obstacles : self.end] = tick.obstacles.ravel()
+        row[-1] = HOLDS_TICK
 
     def pack_numbers(self, row: np.ndarray, numbers: tuple) -> None:
         """A period's own numbers (`PeriodRecord.numbers`): the writer makes the Tick."""
@@ -64,22 +60,21 @@ class TickRows:
         row[11:13] = raw
         row[15] = planner_ms
         row[16 : 16 + self.n] = scan
-        row[self.obstacles : self.poses] = obstacles.ravel()
+        row[self.obstacles : self.end] = obstacles.ravel()
         if clearance is None:
-            row[-2] = DERIVE_ALL
+            row[-1] = DERIVE_ALL
         else:
-            row[13], row[-2] = clearance, CLEARANCE_GIVEN
-        row[-1] = 0.0
+            row[13], row[-1] = clearance, CLEARANCE_GIVEN
 
     def unpack(self, row: np.ndarray, extra: tuple | None, facts) -> Tick:
         """The row's Tick: as packed, or made by `tick_from` from the period's numbers."""
         debug, tracks = extra if extra is not None else ({}, None)
         time, scan, pose = float(row[0]), row[16 : 16 + self.n].copy(), row[4:7].copy()
         velocity, command, raw_command = row[7:9].copy(), row[9:11].copy(), row[11:13].copy()
-        obstacles = row[self.obstacles : self.poses].reshape(self.m, 2).copy()
+        obstacles = row[self.obstacles : self.end].reshape(self.m, 2).copy()
         planner_ms = float(row[15])
-        if row[-2] != HOLDS_TICK:
-            clearance = None if row[-2] == DERIVE_ALL else float(row[13])
+        if row[-1] != HOLDS_TICK:
+            clearance = None if row[-1] == DERIVE_ALL else float(row[13])
             numbers = (time, scan, pose, velocity, command, raw_command, obstacles, planner_ms)
             return tick_from(*numbers, debug, tracks, facts, clearance)
         return Tick(
@@ -97,21 +92,3 @@ class TickRows:
             debug=debug,
             tracks=tracks,
         )
-
-    def pack_poses(self, row: np.ndarray, times: np.ndarray, poses: np.ndarray) -> bool:
-        """The period's poses into the tick's row; False when they do not fit (sent alone)."""
-        c = len(times)
-        if c > self.k or row[-1] != 0.0:
-            return False
-        p = self.poses
-        row[p : p + c] = times
-        row[p + self.k : p + self.k + 3 * c] = poses.ravel()
-        row[-1] = c
-        return True
-
-    def unpack_poses(self, row: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        c = int(row[-1])
-        if c == 0:
-            return None
-        p = self.poses
-        return row[p : p + c].copy(), row[p + self.k : p + self.k + 3 * c].reshape(c, 3).copy()

@@ -324,13 +324,19 @@ class Episode:
     def poses_between(self, first: int) -> tuple[np.ndarray, np.ndarray]:
         """Times and poses at the pose rate after physics step `first` up to now (the last
         pose always included once the episode has ended)."""
+        idx = self.pose_steps(first, self.step, self.outcome is not None)
+        return idx * self.dt, self.poses[idx]
+
+    def pose_steps(self, first: int, last: int, ended: bool) -> np.ndarray:
+        """The physics steps (int64) whose poses are recorded for the period from step `first`
+        to `last`: the multiples of the pose interval after `first` (from 0 for the first
+        period), and `last` itself when the episode ended there off the grid."""
         every = self._pose_every
         first_idx = 0 if first == 0 else first + every - first % every
-        idx = np.arange(first_idx, self.step + 1, every)
-        if self.step % every and self.outcome is not None:
-            idx = np.append(idx, self.step)
-            return idx * self.dt, self.poses[idx]  # fancy indexing: a fresh array already
-        return idx * self.dt, self.poses[first_idx : self.step + 1 : every].copy()  # the same rows, sliced
+        idx = np.arange(first_idx, last + 1, every)
+        if last % every and ended:
+            idx = np.append(idx, last)
+        return idx
 
 
 def _predictor(player: SchedulePlayer):

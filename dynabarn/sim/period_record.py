@@ -5,9 +5,10 @@ A `Tick` carries fresh copies and derived numbers (the laser's pose, the clearan
 distance to the goal); making one costs the episode's process about 30 us a period, most
 of it where caches are cold. The loop makes it, and the poses since the last period, only
 when an observer asks (`PeriodRecord.tick`, `.poses`, made once for all observers). An
-observer that takes the period's own numbers instead (`on_tick_period`: the
-writer-process recorder) makes the Tick elsewhere with `tick_from` and `TickFacts`: the
-same function on the same numbers, so the same bits.
+observer that takes the period's own numbers instead (`on_tick_period`,
+`on_poses_period`: the writer-process recorder) makes the Tick elsewhere with `tick_from`
+and `TickFacts`, and takes the poses of many periods at once (`pose_span`,
+`Episode.pose_steps`): the same functions on the same numbers, so the same bits.
 """
 
 from __future__ import annotations
@@ -101,6 +102,12 @@ class PeriodRecord:
             self._poses = self.episode.poses_between(self.first)
         return self._poses
 
+    def pose_span(self) -> tuple[int, int, bool]:
+        """(first step, last step, ended): what `Episode.pose_steps` makes this period's
+        pose steps of, later (the poses of steps already run never change)."""
+        episode = self.episode
+        return self.first, episode.step, episode.outcome is not None
+
     def numbers(self) -> tuple:
         """The period's own numbers for `tick_from`, as references (copy what you keep):
         (time, scan, pose, velocity, command, raw command (v, w), obstacles, planner ms,
@@ -110,14 +117,18 @@ class PeriodRecord:
 
 def observer_hooks(observers) -> tuple[list, list]:
     """Each observer's tick and pose hooks, taking a `PeriodRecord`: its `on_tick_period`
-    where it has one, else its `on_tick` given the record's Tick; its `on_poses` given the
-    record's poses, when there are any."""
+    where it has one, else its `on_tick` given the record's Tick; its `on_poses_period`
+    where it has one, else its `on_poses` given the record's poses, when there are any."""
 
     def tick_hook(obs):
         own = getattr(obs, "on_tick_period", None)
         return own if own is not None else (lambda period, on_tick=obs.on_tick: on_tick(period.tick))
 
     def pose_hook(obs):
+        own = getattr(obs, "on_poses_period", None)
+        if own is not None:
+            return own
+
         def on_poses(period, on_poses=obs.on_poses):
             times, poses = period.poses
             if len(times):
