@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import BinaryIO
@@ -61,3 +62,47 @@ def save_atomically(path: Path | str, save: Callable[[BinaryIO], object]) -> Non
     """For writers that take a file object (matplotlib's savefig, torch.save, numpy.savez)."""
     with atomic_file(path) as f:
         save(f)
+
+
+_datasync = getattr(os, "fdatasync", os.fsync)  # macOS has no fdatasync
+
+
+class SyncAhead:
+    """Writes a growing file's pages to disk from a thread while it is written (`poke` after
+    each piece), so the fsync that finishes it has little left to write: that one is waited
+    for (3.5 ms for a 100 s episode's recording written at once, under 1 ms after this).
+    Syncing early changes nothing of what the file holds or when it is whole.
+
+    Args:
+        path: the file (already created).
+    """
+
+    def __init__(self, path: Path | str) -> None:
+        self._fd: int | None = os.open(path, os.O_RDONLY)
+        self._wanted = threading.Event()
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._run, name="sync-ahead", daemon=True)
+        self._thread.start()
+
+    def poke(self) -> None:
+        """More was written: sync it when the thread is free (pokes meanwhile coalesce)."""
+        self._wanted.set()
+
+    def _run(self) -> None:
+        while True:
+            self._wanted.wait()
+            with self._lock:
+                if self._fd is None:
+                    return
+                self._wanted.clear()
+                with contextlib.suppress(OSError):  # a failed early sync: the final fsync reports it
+                    _datasync(self._fd)
+
+    def close(self) -> None:
+        """Stop (after a sync under way) and let go of the file."""
+        with self._lock:
+            if self._fd is not None:
+                os.close(self._fd)
+                self._fd = None
+        self._wanted.set()
+        self._thread.join()

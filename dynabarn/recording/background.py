@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dynabarn.files import SyncAhead
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
 from dynabarn.metrics import EpisodeResult
 from dynabarn.recording.tick_rows import TickRows
@@ -273,12 +274,15 @@ def _serve(stdin, stdout) -> None:
     layout: TickRows | None = None
     facts = None
     failed: OSError | None = None
+    ahead: SyncAhead | None = None
     while True:
         try:
             kind, *args = _receive(stdin)
             # A batch's rows and poses follow its header, raw: read them whatever happens to them.
             raw = _read_exactly(stdin, (args[0] * layout.width + 4 * sum(args[2])) * 8) if kind == "ticks" else b""
         except EOFError:  # the episode's process is gone: what came is closed into NAME.part, not renamed
+            if ahead is not None:
+                ahead.close()
             if recorder is not None and recorder._writer is not None:
                 recorder._writer.close()
             return
@@ -288,9 +292,13 @@ def _serve(stdin, stdout) -> None:
                 if sys.path != search_path:
                     sys.path[:] = search_path
                     importlib.invalidate_caches()
+                if ahead is not None:  # an episode that never ended (its process raised)
+                    ahead.close()
+                    ahead = None
                 recorder, failed = McapRecorder(path, **options), None
                 layout = TickRows.for_episode(start)
                 recorder.on_start(start)
+                ahead = SyncAhead(recorder.staging)
             elif kind == "facts":
                 facts = args[0]
             elif failed is not None:
@@ -308,11 +316,15 @@ def _serve(stdin, stdout) -> None:
                     if counts[i]:
                         recorder.on_poses(times[at : at + counts[i]], poses[at : at + counts[i]])
                         at += counts[i]
+                ahead.poke()
             elif kind == "poses":
                 recorder.on_poses(*args)
         except OSError as exc:
             failed = exc
         if kind == "end":
+            if ahead is not None:
+                ahead.close()
+                ahead = None
             if failed is None:
                 try:
                     recorder.on_end(args[0])
