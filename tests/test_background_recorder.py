@@ -48,11 +48,11 @@ def test_writer_process_writes_the_same_bytes(tmp_path, planner):
 class _EndsEarly(Planner):
     name = "ends_early"
 
-    def __init__(self, how: str) -> None:
-        self.how = how
+    def __init__(self, how: str, at: float = 2.0) -> None:
+        self.how, self.at = how, at
 
     def act(self, obs):
-        if obs.time >= 2.0:
+        if obs.time >= self.at - 1e-9:
             if self.how == "error":
                 raise ValueError("bad")
             raise EndEpisode("stopped by the operator")
@@ -63,6 +63,13 @@ class _EndsEarly(Planner):
 def test_an_episode_ended_early_is_recorded_the_same_way(tmp_path, how):
     a, b, result = _both(tmp_path, 5, lambda: _EndsEarly(how))
     assert result.outcome is Outcome.ERROR and a == b
+
+
+@pytest.mark.parametrize("ticks", [0, 1, 4, 5, 12, 28, 29, 60])
+def test_every_episode_length_is_recorded_the_same_way(tmp_path, ticks):
+    """Ended after as many ticks as the first batches hold (4, 8, 16, then 32), or one more."""
+    a, b, result = _both(tmp_path, 5, lambda: _EndsEarly("end", at=ticks * 0.1))
+    assert a == b and round(result.sim_time / 0.1) == ticks
 
 
 def test_a_writer_that_dies_stops_the_recording_not_the_episode(tmp_path):
