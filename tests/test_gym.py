@@ -131,7 +131,7 @@ def test_sb3_ppo_trains_on_subprocess_envs_and_evaluates():
 
 @pytest.mark.slow
 def test_human_mode_opens_the_viewer_on_a_display(tmp_path, display):
-    from tests.xwindow import find_window
+    from tests.xwindow import find_window, no_window
 
     env = {**os.environ, "DISPLAY": display}
     env.pop("MUJOCO_GL", None)  # the viewer uses GLFW on the X display
@@ -145,10 +145,13 @@ def test_human_mode_opens_the_viewer_on_a_display(tmp_path, display):
         "time.sleep(3)\n"
         "env.close()\n"
     )
-    proc = subprocess.Popen([sys.executable, "-c", script], env=env, stdout=subprocess.PIPE, text=True)
-    window = find_window(env)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    window = find_window(env, process=proc)
+    if not window:
+        pytest.fail(no_window(proc))
     out, _ = proc.communicate(timeout=120)
-    assert window, "no MuJoCo viewer window appeared"
     assert proc.returncode == 0
     # 30 control steps of 0.1 s shown at real time.
     assert 2.5 <= float(out.split()[-1]) <= 6.0

@@ -199,15 +199,16 @@ def test_bad_live_options_are_one_line(tmp_path):
 
 @pytest.mark.slow
 def test_viewer_shows_the_robot_and_obstacles_and_closing_ends_cleanly(display, tmp_path):
-    from tests.xwindow import close_window, find_window, screenshot, xdotool
+    from tests.xwindow import close_window, find_window, no_window, screenshot, xdotool
 
     env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
     env["DISPLAY"] = display
     log = tmp_path / "viewer.mcap"
     proc = _run("--world 0 --planner dwa --viewer --rate 1 --log", log, env=env)
     try:
-        window = find_window(env)
-        assert window, "the viewer window never appeared"
+        window = find_window(env, process=proc)
+        if not window:
+            pytest.fail(no_window(proc))
         time.sleep(4.0)  # a few seconds of the episode, at real time
         shot = screenshot(display).astype(int)
         r, g, b = shot[..., 0], shot[..., 1], shot[..., 2]

@@ -9,7 +9,7 @@ import time
 import pytest
 
 from dynabarn.recording import read_recording
-from tests.xwindow import find_window, xdotool
+from tests.xwindow import find_window, no_window, xdotool
 
 
 @pytest.mark.slow
@@ -36,8 +36,9 @@ def test_keyboard_drives_the_robot_and_escape_ends_cleanly(display, tmp_path):
         text=True,
     )
     try:
-        wid = find_window(env)
-        assert wid, "the viewer window never appeared"
+        wid = find_window(env, process=proc)
+        if not wid:
+            pytest.fail(no_window(proc))
         wid = str(wid)
         time.sleep(1.5)
         for _ in range(6):  # slow mode: 6 x 0.1 m/s

@@ -15,15 +15,29 @@ def xdotool(env: dict, *args: str, check: bool = True) -> str:
     return subprocess.run(["xdotool", *args], env=env, capture_output=True, text=True, timeout=30, check=check).stdout
 
 
-def find_window(env: dict, name: str = "MuJoCo", timeout: float = 30.0) -> int | None:
-    """The id of the first window whose name has `name`, waiting up to `timeout` seconds."""
+def find_window(env: dict, name: str = "MuJoCo", timeout: float = 120.0, process=None) -> int | None:
+    """The id of the first window whose name has `name`, waiting up to `timeout` seconds
+    (a loaded machine starts a software-rendered viewer slowly: 30 s was once too short),
+    and no longer once `process` (the program opening it) has exited."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         found = xdotool(env, "search", "--name", name, check=False).split()  # exit 1: none yet
         if found:
             return int(found[0])
+        if process is not None and process.poll() is not None:
+            return None
         time.sleep(0.25)
     return None
+
+
+def no_window(process) -> str:
+    """Why a program's window never appeared: its exit and the end of its stderr (it is killed
+    if it still runs)."""
+    if process.poll() is None:
+        process.kill()
+    _, err = process.communicate(timeout=30)
+    err = err.decode(errors="replace") if isinstance(err, bytes) else err or ""
+    return f"the window never appeared (exit {process.returncode}): {err[-3000:]}"
 
 
 class _ClientMessage(ctypes.Structure):
