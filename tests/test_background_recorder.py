@@ -67,7 +67,7 @@ def test_an_episode_ended_early_is_recorded_the_same_way(tmp_path, how):
 
 @pytest.mark.parametrize("ticks", [0, 1, 4, 5, 12, 28, 29, 60])
 def test_every_episode_length_is_recorded_the_same_way(tmp_path, ticks):
-    """Ended after as many ticks as the first batches hold (4, 8, 16, then 32), or one more."""
+    """Ended after as many ticks as the first batches hold (4, 8, 16, 32, then 64), or one more."""
     a, b, result = _both(tmp_path, 5, lambda: _EndsEarly("end", at=ticks * 0.1))
     assert a == b and round(result.sim_time / 0.1) == ticks
 
