@@ -277,13 +277,29 @@ class BackgroundRecorder(EpisodeObserver):
             self._writer = None
 
 
+class _NoSync:
+    def poke(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
+def _sync_ahead(recorder: McapRecorder) -> SyncAhead | _NoSync:
+    """The recording's file synced as it grows, or not at all (a file the recorder already
+    closed, as on a nearly full disk; one that cannot be opened again): syncing ahead only
+    shortens the final fsync, which says what went wrong."""
+    try:
+        return SyncAhead(recorder.staging)
+    except OSError:
+        return _NoSync()
+
+
 def _serve(stdin, stdout) -> None:
     """The writer process: recorder hooks from the pipe until it closes."""
     recorder: McapRecorder | None = None
     layout: TickRows | None = None
     facts = None
     failed: OSError | None = None
-    ahead: SyncAhead | None = None
+    ahead: SyncAhead | _NoSync | None = None
     while True:
         try:
             kind, *args = _receive(stdin)
@@ -307,7 +323,6 @@ def _serve(stdin, stdout) -> None:
                 recorder, failed = McapRecorder(path, **options), None
                 layout = TickRows.for_episode(start)
                 recorder.on_start(start)
-                ahead = SyncAhead(recorder.staging)
             elif kind == "facts":
                 facts = args[0]
             elif failed is not None:
@@ -325,6 +340,8 @@ def _serve(stdin, stdout) -> None:
                     if counts[i]:
                         recorder.on_poses(times[at : at + counts[i]], poses[at : at + counts[i]])
                         at += counts[i]
+                if ahead is None:  # from the first batch on (an episode of one tick never needs it)
+                    ahead = _sync_ahead(recorder)
                 ahead.poke()
             elif kind == "poses":
                 recorder.on_poses(*args)
