@@ -8,6 +8,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 from dynabarn.errors import EndEpisode
@@ -140,3 +141,32 @@ def test_without_a_writer_process_the_episode_records_in_its_own(tmp_path, monke
     monkeypatch.setattr(background, "_take_writer", cannot_start)
     a, b, result = _both(tmp_path, 5, lambda: get_planner("dwa"))
     assert a == b and result.outcome is not None
+
+
+def test_a_batch_of_following_periods_takes_its_poses_at_once(tmp_path):
+    """The poses of periods that follow each other, taken in one go, are each period's own
+    (`Episode.pose_steps` per period), the off-grid end of an ended episode included."""
+    from dynabarn.sim import Simulation
+    from dynabarn.sim.episode import Episode
+
+    episode = Episode(Simulation(resolve_world(5)), BARN, seed=0)
+    every = episode.sim.config.pose_every
+    recorder = BackgroundRecorder(tmp_path / "x.mcap")
+    recorder._episode = episode
+    for spans in (
+        [(0, 20, False), (20, 40, False), (40, 53, True)],  # the first period, and an end off the grid
+        [(60, 80, False), (80, 100, False)],
+        [(100, 120, False), (120, 120 + every, True)],
+    ):
+        recorder._spans, recorder._count = dict(enumerate(spans)), len(spans)
+        idx, counts = recorder._pose_steps()
+        each = [episode.pose_steps(*span) for span in spans]
+        assert counts == [len(s) for s in each] and idx.tolist() == np.concatenate(each).tolist()
+    # Periods that do not follow each other (or a row without its poses): each its own.
+    recorder._spans, recorder._count = {0: (0, 20, False), 2: (40, 60, False)}, 3
+    idx, counts = recorder._pose_steps()
+    assert (
+        counts[1] == 0
+        and idx.tolist()
+        == np.concatenate([episode.pose_steps(0, 20, False), episode.pose_steps(40, 60, False)]).tolist()
+    )

@@ -260,14 +260,24 @@ class BackgroundRecorder(EpisodeObserver):
         counts = [0] * self._count
         raw = [rows]
         if self._spans:
+            idx, counts = self._pose_steps()
             episode = self._episode
-            steps = [episode.pose_steps(*self._spans[i]) if i in self._spans else _NO_STEPS for i in range(self._count)]
-            counts = [len(s) for s in steps]
-            idx = np.concatenate(steps)
             raw += [memoryview(idx * episode.dt).cast("B"), memoryview(episode.poses[idx]).cast("B")]
         self._send(("ticks", self._count, self._extras, counts), *raw)
         self._count, self._extras, self._spans = 0, {}, {}
         self._limit = min(2 * self._limit, BATCH)
+
+    def _pose_steps(self) -> tuple[np.ndarray, list[int]]:
+        """The batch's pose steps and how many are each row's: what `Episode.pose_steps` gives
+        each row's period, taken at once where the periods follow each other (the loop's
+        case: one period ends where the next begins, and only the last can have ended it)."""
+        episode, spans, count = self._episode, self._spans, self._count
+        if len(spans) == count and all(spans[i][0] == spans[i - 1][1] and not spans[i - 1][2] for i in range(1, count)):
+            idx = episode.pose_steps(spans[0][0], spans[count - 1][1], spans[count - 1][2])
+            ends = np.searchsorted(idx, [spans[i][1] for i in range(count)], side="right")
+            return idx, np.diff(ends, prepend=0).tolist()
+        steps = [episode.pose_steps(*spans[i]) if i in spans else _NO_STEPS for i in range(count)]
+        return np.concatenate(steps), [len(s) for s in steps]
 
     def _send(self, message, *raw: memoryview) -> None:
         try:
