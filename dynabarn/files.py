@@ -71,16 +71,23 @@ class SyncAhead:
     """Writes a growing file's pages to disk from a thread while it is written (`poke` after
     each piece), so the fsync that finishes it has little left to write: that one is waited
     for (3.5 ms for a 100 s episode's recording written at once, under 1 ms after this).
-    Syncing early changes nothing of what the file holds or when it is whole.
+    Syncing early changes nothing of what the file holds or when it is whole, so a file that
+    cannot be opened again (gone, renamed) is simply not synced ahead: the final fsync is
+    what reports a problem.
 
     Args:
         path: the file (already created).
     """
 
     def __init__(self, path: Path | str) -> None:
-        self._fd: int | None = os.open(path, os.O_RDONLY)
         self._wanted = threading.Event()
         self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+        try:
+            self._fd: int | None = os.open(path, os.O_RDONLY)
+        except OSError:
+            self._fd = None
+            return
         self._thread = threading.Thread(target=self._run, name="sync-ahead", daemon=True)
         self._thread.start()
 
@@ -105,4 +112,5 @@ class SyncAhead:
                 os.close(self._fd)
                 self._fd = None
         self._wanted.set()
-        self._thread.join()
+        if self._thread is not None:
+            self._thread.join()

@@ -39,3 +39,10 @@ def test_write_atomically_replaces_whole_and_leaves_no_staging(tmp_path):
     write_atomically(path, b"new")
     assert path.read_bytes() == b"new"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.json"]
+
+
+def test_sync_ahead_of_a_file_that_is_gone_does_nothing(tmp_path):
+    ahead = SyncAhead(tmp_path / "renamed-away.part")
+    ahead.poke()
+    ahead.close()
+    assert not any(t.name == "sync-ahead" and t.is_alive() for t in threading.enumerate())

@@ -287,29 +287,13 @@ class BackgroundRecorder(EpisodeObserver):
             self._writer = None
 
 
-class _NoSync:
-    def poke(self) -> None: ...
-
-    def close(self) -> None: ...
-
-
-def _sync_ahead(recorder: McapRecorder) -> SyncAhead | _NoSync:
-    """The recording's file synced as it grows, or not at all (a file the recorder already
-    closed, as on a nearly full disk; one that cannot be opened again): syncing ahead only
-    shortens the final fsync, which says what went wrong."""
-    try:
-        return SyncAhead(recorder.staging)
-    except OSError:
-        return _NoSync()
-
-
 def _serve(stdin, stdout) -> None:
     """The writer process: recorder hooks from the pipe until it closes."""
     recorder: McapRecorder | None = None
     layout: TickRows | None = None
     facts = None
     failed: OSError | None = None
-    ahead: SyncAhead | _NoSync | None = None
+    ahead: SyncAhead | None = None
     while True:
         try:
             kind, *args = _receive(stdin)
@@ -351,7 +335,7 @@ def _serve(stdin, stdout) -> None:
                         recorder.on_poses(times[at : at + counts[i]], poses[at : at + counts[i]])
                         at += counts[i]
                 if ahead is None:  # from the first batch on (an episode of one tick never needs it)
-                    ahead = _sync_ahead(recorder)
+                    ahead = SyncAhead(recorder.staging)
                 ahead.poke()
             elif kind == "poses":
                 recorder.on_poses(*args)

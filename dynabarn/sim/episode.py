@@ -325,6 +325,9 @@ class Episode:
         """Times and poses at the pose rate after physics step `first` up to now (the last
         pose always included once the episode has ended)."""
         idx = self.pose_steps(first, self.step, self.outcome is not None)
+        every = self._pose_every
+        if len(idx) and idx[-1] % every == 0:  # all on the grid: the same rows sliced, not gathered
+            return idx * self.dt, self.poses[idx[0] : idx[-1] + 1 : every].copy()
         return idx * self.dt, self.poses[idx]
 
     def pose_steps(self, first: int, last: int, ended: bool) -> np.ndarray:
