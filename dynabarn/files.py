@@ -4,11 +4,45 @@ disk at any moment leaves the old file or the new one, never a cut one."""
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import re
+import secrets
+import stat
 import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import BinaryIO
+
+PLAIN_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,127}")
+"""A name that may become part of a file name as it is: letters, digits and `._+-`, not
+starting with a dot or dash (no hidden file, no option), at most 128 characters; never a
+separator, a `..`, a control character or a NUL."""
+
+
+def plain_name_problem(text: object) -> str | None:
+    """Why `text` is not a plain name (`PLAIN_NAME`), or None when it is one. The one test
+    for every name that data or an option gives and that may reach a path (a world's or a
+    protocol's `name`, an operator, an imported set's name)."""
+    if not isinstance(text, str) or not text:
+        return "must be a non-empty string"
+    if not PLAIN_NAME.fullmatch(text):
+        return (
+            "must be a plain name: letters, digits and ._+- (no separators, spaces or control characters),"
+            " starting with a letter or digit, at most 128 characters"
+        )
+    return None
+
+
+def file_name_part(text: object, fallback: str = "unnamed") -> str:
+    """`text` made safe as part of a file name: a plain name is kept as it is; anything else
+    (a world name written by an older or a foreign tool) has every run of other characters
+    replaced by `_`, leading dots and dashes dropped and its length bounded."""
+    text = str(text)
+    if PLAIN_NAME.fullmatch(text):
+        return text
+    safe = re.sub(r"[^A-Za-z0-9._+-]+", "_", text).lstrip("._-")[:128]
+    return safe or fallback
 
 
 def fsync_folder(folder: Path) -> None:
@@ -25,21 +59,84 @@ def fsync_folder(folder: Path) -> None:
         os.close(fd)
 
 
+def check_target(path: Path | str) -> None:
+    """A file about to be replaced must be a regular file or absent: a rename over a device
+    node (`--log /dev/null` as root), a folder or a FIFO would destroy it or fail late. A
+    symbolic link is followed for this check only (a link to a device is refused too); the
+    rename then replaces the link, never what it points to."""
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return
+    except OSError as exc:  # a dangling or looping link, a path under a file: the write says so
+        if exc.errno in (errno.ELOOP, errno.ENOTDIR):
+            raise
+        return
+    if stat.S_ISDIR(st.st_mode):
+        raise IsADirectoryError(errno.EISDIR, "a folder is there, not a file", str(path))
+    if not stat.S_ISREG(st.st_mode):
+        raise OSError(errno.EPERM, "not a regular file (a device, FIFO or socket is never replaced)", str(path))
+
+
+def create_exclusively(path: Path | str) -> int:
+    """A new empty file at `path`, opened for writing: created here and now (`O_EXCL`), never
+    through a symbolic link planted at that name (`O_NOFOLLOW`), with the permissions the
+    umask gives. FileExistsError when anything is at `path`."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+    return os.open(path, flags, 0o666)
+
+
+def unique_sibling(path: Path, tag: str = "part") -> Path:
+    """An unpredictable hidden name beside `path` with its suffix (writers such as ffmpeg
+    recognise the format by it): `.NAME.<pid>.<random>.part.SUFFIX`."""
+    return path.with_name(f".{path.stem}.{os.getpid()}.{secrets.token_hex(4)}.{tag}{path.suffix}")
+
+
+def _same_file(path: Path, fd: int) -> bool:
+    """`path` is still the file `fd` was created as (nobody swapped a link in meanwhile)."""
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return False
+    mine = os.fstat(fd)
+    return stat.S_ISREG(st.st_mode) and (st.st_dev, st.st_ino) == (mine.st_dev, mine.st_ino)
+
+
 @contextlib.contextmanager
 def staged_path(path: Path | str) -> Iterator[Path]:
     """For writers that take a file name (ffmpeg, rerun): a temporary name beside `path`
     (same suffix, so the format is recognised), made durable and renamed over `path` when
-    the block finishes, removed on any error, so `path` holds the old file or a whole new one."""
+    the block finishes, removed on any error, so `path` holds the old file or a whole new one.
+
+    The temporary file is created here exclusively under an unpredictable name (so nothing
+    planted beside `path` is written through), and is renamed only if it is still the file
+    created; `path` itself must be a regular file or absent (`check_target`)."""
     path = Path(path)
-    part = path.with_name(f".{path.stem}.{os.getpid()}.part{path.suffix}")
+    check_target(path)
+    for _ in range(16):
+        part = unique_sibling(path)
+        try:
+            fd = create_exclusively(part)
+            break
+        except FileExistsError:
+            continue
+    else:  # pragma: no cover - 16 collisions of 32 random bits
+        raise FileExistsError(errno.EEXIST, "no free temporary name", str(path))
     try:
         yield part
+        if not _same_file(part, fd):
+            raise OSError(errno.EPERM, "the temporary file was replaced while it was written", str(part))
         with open(part, "rb") as f:
             os.fsync(f.fileno())
+        check_target(path)
         os.replace(part, path)
     except BaseException:
-        part.unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            if _same_file(part, fd):
+                part.unlink()
         raise
+    finally:
+        os.close(fd)
     fsync_folder(path.parent)
 
 

@@ -28,6 +28,7 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.errors import DynabarnError, unknown_choice
+from dynabarn.files import plain_name_problem
 from dynabarn.registry import Registry
 
 
@@ -81,8 +82,9 @@ class EvalProtocol:
     simulated time bounds an episode's memory)."""
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not self.name:
-            raise DynabarnError("protocol: name must be a non-empty string")
+        problem = plain_name_problem(self.name)
+        if problem:  # it names recordings and result lines: never a path or a line break
+            raise DynabarnError(f"protocol name {self.name!r} {problem}")
         for key, (low, high) in self.LIMITS.items():
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, int | float) or not low <= value <= high:

@@ -83,6 +83,19 @@ def ranged(kind: type, low: float, high: float) -> Callable[[str], float]:
     return parse
 
 
+def plain_name(text: str) -> str:
+    """An argparse type: a name that becomes part of a file name (`files.PLAIN_NAME`)."""
+    from dynabarn.files import plain_name_problem
+
+    problem = plain_name_problem(text)
+    if problem:
+        raise argparse.ArgumentTypeError(f"{text!r} {problem}")
+    return text
+
+
+plain_name.__name__ = "name"
+
+
 def make_parser(prog: str, description: str) -> argparse.ArgumentParser:
     prefer_offscreen_gl()  # every command builds its parser first, before mujoco is imported
     p = Parser(prog=prog, description=description, formatter_class=HelpFormatter)

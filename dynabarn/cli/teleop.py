@@ -12,6 +12,7 @@ from dynabarn.cli.common import (
     add_trial_seed,
     add_world,
     make_parser,
+    plain_name,
     ranged,
     run_command,
 )
@@ -30,7 +31,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_world(parser)
     add_protocol(parser)
     add_trial_seed(parser)
-    parser.add_argument("--operator", default="human", help="your name, stored with the demonstration")
+    parser.add_argument(
+        "--operator",
+        type=plain_name,
+        default="human",
+        help="your name, stored with the demonstration and part of its file name (letters, digits, ._+-)",
+    )
     parser.add_argument("--demos-dir", type=Path, default=Path("demos"), help="folder of demonstrations")
     parser.add_argument(
         "--out", type=Path, default=None, help="recording file (default: DEMOS_DIR/<world>_<operator>_<NNN>.mcap)"

@@ -11,12 +11,14 @@ from dynabarn.cli.common import (
     MAX_SEED,
     WORLD_HELP,
     make_parser,
+    plain_name,
     progress_bar,
     ranged,
     run_command,
     subcommands,
 )
 from dynabarn.errors import DynabarnError, ImportFormatError
+from dynabarn.files import file_name_part
 
 
 # Over 80 lines on purpose: the declarations of the four subcommands' options, one after
@@ -100,8 +102,9 @@ def build_parser() -> argparse.ArgumentParser:
     im.add_argument("--out", type=Path, default=Path("imported_worlds"), help="output directory")
     im.add_argument(
         "--name",
+        type=plain_name,
         default=None,
-        help="the set's name, the start of every world's name (<name>_<id>), so two imported sets never "
+        help="the set's name (letters, digits, ._+-), the start of every world's name (<name>_<id>), so two imported sets never "
         "collide in a results table (default: the file's name without .json)",
     )
     im.add_argument(
@@ -170,7 +173,7 @@ def _worlds_generate(args: argparse.Namespace) -> int:
 def _worlds_import(args: argparse.Namespace) -> int:
     from dynabarn.worldset import PAPER_SET, write_worlds
 
-    name = args.name if args.name is not None else args.file.stem
+    name = args.name if args.name is not None else file_name_part(args.file.stem)
     if args.format == "barn-static":
         from dynabarn.worlds.importers.barn import import_barn_static, load_barn_json
 

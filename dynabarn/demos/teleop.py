@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dynabarn.files import file_name_part
 from dynabarn.interfaces import EndEpisode, EpisodeInfo, Observation, Planner
 from dynabarn.recording import McapRecorder, Topic
 from dynabarn.recording.schemas import number, obj
@@ -172,10 +173,11 @@ class TeleopPlanner(Planner):
 def next_demo_path(demos_dir: Path, world: str, operator: str) -> Path:
     """demos/<world>_<operator>_<NNN>.mcap, the first number not taken."""
     demos_dir.mkdir(parents=True, exist_ok=True)
+    stem = f"{file_name_part(world)}_{file_name_part(operator)}"  # names never leave demos_dir
     k = 1
-    while (demos_dir / f"{world}_{operator}_{k:03d}.mcap").exists():
+    while (demos_dir / f"{stem}_{k:03d}.mcap").exists():
         k += 1
-    return demos_dir / f"{world}_{operator}_{k:03d}.mcap"
+    return demos_dir / f"{stem}_{k:03d}.mcap"
 
 
 def append_manifest(demos_dir: Path, entry: dict) -> None:

@@ -22,7 +22,7 @@ import foxglove
 import numpy as np
 from foxglove.mcap import MCAPWriteOptions
 
-from dynabarn.files import fsync_folder
+from dynabarn.files import file_name_part, fsync_folder
 from dynabarn.interfaces.events import EpisodeStart, Tick
 from dynabarn.metrics import EpisodeResult
 from dynabarn.provenance import portable_path
@@ -80,8 +80,10 @@ def _jsonable(value):
 
 
 def default_run_path(runs_dir: Path, world: str, planner: str, protocol: str, seed: int) -> Path:
-    """runs/<world>_<planner>_<protocol>_s<seed>.mcap"""
-    return Path(runs_dir) / f"{world}_{planner}_{protocol}_s{seed}.mcap"
+    """runs/<world>_<planner>_<protocol>_s<seed>.mcap, each name made safe for a file name
+    (`files.file_name_part`): whatever a world file or a plugin calls itself stays in `runs_dir`."""
+    parts = "_".join(file_name_part(n) for n in (world, planner, protocol))
+    return Path(runs_dir) / f"{parts}_s{int(seed)}.mcap"
 
 
 SOURCES = {"teleop": "human", "oracle": "oracle"}

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dynabarn.errors import WorldError
+from dynabarn.files import plain_name_problem
 from dynabarn.worlds.limits import MAX_OBSTACLES, check_layout, check_obstacle_numbers
 from dynabarn.worlds.profiles import (
     ARENA_HALF_SIZE,
@@ -246,6 +247,13 @@ class WorldSpec:
                     object.__setattr__(self, attr, kind(value))
         except ValueError as exc:
             raise WorldError(f"world {self.name!r}: {exc}") from None
+        problem = plain_name_problem(self.name)
+        if problem:  # it names the world's recordings and rows: never a path, a line break or nothing
+            raise WorldError(f"world name {self.name!r} {problem}")
+        if self.world_id is not None:  # a JSON 1.5 or true is no index
+            if isinstance(self.world_id, bool) or not isinstance(self.world_id, int | np.integer) or self.world_id < 0:
+                raise WorldError(f"world {self.name!r}: world_id {self.world_id!r} must be a whole number >= 0 or null")
+            object.__setattr__(self, "world_id", int(self.world_id))
         if len(self.obstacles) > MAX_OBSTACLES:
             raise WorldError(f"world {self.name!r}: {len(self.obstacles)} obstacles (at most {MAX_OBSTACLES})")
         names = [o.name for o in self.obstacles]
@@ -341,8 +349,8 @@ class WorldSpec:
                     )
                 )
             return cls(
-                name=str(d["name"]),
-                world_id=None if d["world_id"] is None else int(d["world_id"]),
+                name=d["name"],
+                world_id=d["world_id"],
                 difficulty=Difficulty(d["difficulty"]),
                 obstacles=tuple(obstacles),
                 count_class=CountClass(d["count_class"]) if d.get("count_class") else None,
