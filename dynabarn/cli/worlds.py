@@ -104,8 +104,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--name",
         type=plain_name,
         default=None,
-        help="the set's name (letters, digits, ._+-), the start of every world's name (<name>_<id>), so two imported sets never "
-        "collide in a results table (default: the file's name without .json)",
+        help="the set's name (letters, digits, ._+-), the start of every world's name (<name>_<id>), "
+        "so two imported sets never collide in a results table (default: the file's name without .json)",
     )
     im.add_argument(
         "--declared-obstacles",
