@@ -140,6 +140,106 @@ def staged_path(path: Path | str) -> Iterator[Path]:
     fsync_folder(path.parent)
 
 
+def claim_staging(path: Path | str, target: Path | str | None = None) -> int:
+    """Claim the staging file `path` (a recording's `NAME.mcap.part`) for one writer: a new
+    empty regular file, created exclusively and locked (flock) until the returned descriptor
+    is closed (`release`). A writer that finds the name taken by a file nobody holds (a killed
+    run's leftover) removes it and creates its own; one held by a running writer is refused
+    (FileExistsError: one writer per target at a time); a symbolic link or anything but a
+    regular file there is refused, never written through.
+
+    Args:
+        path: the staging name.
+        target: the final name, for the messages (default: `path`)."""
+    import fcntl
+
+    shown = str(target if target is not None else path)
+    nofollow = getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(16):
+        try:
+            fd = create_exclusively(path)
+        except FileExistsError:
+            try:
+                fd = os.open(path, os.O_RDONLY | nofollow)
+            except FileNotFoundError:  # its writer just renamed it: try again
+                continue
+            except OSError as exc:
+                if exc.errno == errno.ELOOP:
+                    raise OSError(
+                        errno.EPERM,
+                        "a symbolic link is at the staging name; not written through",
+                        str(path),
+                    ) from None
+                raise
+            try:
+                if not stat.S_ISREG(os.fstat(fd).st_mode):
+                    raise OSError(errno.EPERM, "not a regular file at the recording's staging name", str(path))
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    raise FileExistsError(
+                        errno.EBUSY, "another run is recording to this file now; wait for it or record elsewhere", shown
+                    ) from None
+                if _same_file(Path(path), fd):  # a killed writer's start: nobody holds it
+                    os.unlink(path)
+            finally:
+                os.close(fd)
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:  # another writer opened our new file first: it is theirs
+            os.close(fd)
+            raise FileExistsError(
+                errno.EBUSY, "another run is recording to this file now; wait for it or record elsewhere", shown
+            ) from None
+        return fd
+    raise FileExistsError(errno.EBUSY, "the recording's staging name keeps changing under us", shown)
+
+
+def release(fd: int | None) -> None:
+    """Let go of a claim (`claim_staging`): its lock ends with the descriptor."""
+    if fd is not None:
+        with contextlib.suppress(OSError):
+            os.close(fd)
+
+
+def still_claimed(path: Path | str, fd: int) -> bool:
+    """`path` is still the file claimed as `fd` (nothing swapped a link in since)."""
+    return _same_file(Path(path), fd)
+
+
+def kept_beside(path: Path, tag: str = "interrupted") -> Path:
+    """Where a file that must not replace `path` is kept instead: `NAME.<tag>.SUFFIX`."""
+    return path.with_name(f"{path.stem}.{tag}{path.suffix}")
+
+
+def publish(part: Path | str, path: Path | str, *, replace: bool = True) -> Path:
+    """Rename the whole, fsync'ed file `part` to `path` and make that durable; returns where
+    it went. `replace=False` (an interrupted episode's recording) never replaces a file at
+    `path`: it is kept beside it instead (`kept_beside`), so an interrupted re-run never
+    costs a finished file."""
+    part, path = Path(part), Path(path)
+    check_target(path)
+    if not replace:
+        try:
+            os.link(part, path)  # fails rather than replace what is there
+        except FileExistsError:
+            path = kept_beside(path)
+            check_target(path)
+            os.replace(part, path)
+        except OSError:  # a file system without hard links: the same test, not atomic
+            if os.path.lexists(path):
+                path = kept_beside(path)
+                check_target(path)
+            os.replace(part, path)
+        else:
+            os.unlink(part)
+    else:
+        os.replace(part, path)
+    fsync_folder(path.parent)
+    return path
+
+
 @contextlib.contextmanager
 def atomic_file(path: Path | str) -> Iterator[BinaryIO]:
     """Write `path` through a temporary file beside it (`staged_path`): flushed, fsync'ed and

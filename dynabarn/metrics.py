@@ -25,6 +25,15 @@ class Outcome(enum.StrEnum):
 OUTCOMES = frozenset(o.value for o in Outcome)
 """The outcomes a result may hold, as written in results and recordings."""
 
+INTERRUPTED = "interrupted"
+"""The reason of an episode ended by Ctrl-C or SIGTERM (outcome `error`)."""
+
+
+def is_interrupted(result) -> bool:
+    """An episode a person or a signal ended, not one the robot or the planner did."""
+    return result.outcome == Outcome.ERROR and result.reason == INTERRUPTED
+
+
 RESULT_NUMBERS = (
     "time", "sim_time", "path_length", "score", "spl", "min_clearance", "mean_abs_jerk", "sum_abs_dw",
     "time_stalled", "planner_ms_mean", "planner_ms_p95", "rtf", "wall_time", "clock_offset",

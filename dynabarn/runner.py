@@ -167,7 +167,8 @@ def run_spec(
         )
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: the recorder closed it whole
         if record_to is not None:
-            raise type(exc)(f"recording kept: {record_to}") from None
+            kept = getattr(recorder, "kept", None)
+            raise type(exc)(f"recording kept: {kept}" if kept else f"recording started in {record_to}.part") from None
         raise
     except OSError as exc:  # the recording could not be started or written
         raise RecordingFailed(f"cannot record to {record_to}: {exc.strerror or exc}") from None

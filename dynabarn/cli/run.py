@@ -19,6 +19,7 @@ from dynabarn.cli.common import (
 from dynabarn.cli.episode import exit_status, print_result
 from dynabarn.cli.live import LiveOutputs, add_live_options, exit_code
 from dynabarn.cli.render import add_video_options, render_video, video_settings
+from dynabarn.errors import DynabarnError
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -92,6 +93,12 @@ def _run_episode(args: argparse.Namespace) -> int:
         import tempfile
 
         log_path = Path(tempfile.mkdtemp()) / "episode.mcap"
+    recorders: list = []
+
+    def attach(recorder) -> None:
+        recorders.append(recorder)
+        live.attach(recorder)
+
     with LiveOutputs(args, sim, protocol) as live:
         result = run_spec(
             spec,
@@ -100,11 +107,15 @@ def _run_episode(args: argparse.Namespace) -> int:
             record_to=log_path,
             live_contexts=live.contexts,
             observers=live.observers,
-            on_recorder=live.attach,
+            on_recorder=attach,
         )
-    print_result(result, as_json=args.json, recording=None if args.no_log else log_path)
+    # Where the recording is now: None when its writer died (run_spec said so on stderr).
+    kept = recorders[0].kept if recorders and log_path is not None else None
+    print_result(result, as_json=args.json, recording=None if args.no_log else kept)
+    if args.video is not None and kept is None:
+        raise DynabarnError(f"no recording to render {args.video} from: its writer ended early")
     if args.video is not None:
-        render_video(log_path, args.video, video)
+        render_video(kept, args.video, video)
         if args.no_log:
             import shutil
 

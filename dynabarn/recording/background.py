@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dynabarn.files import SyncAhead
+from dynabarn.files import SyncAhead, claim_staging, release
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
 from dynabarn.metrics import EpisodeResult
 from dynabarn.recording.tick_rows import TickRows
@@ -43,6 +43,7 @@ from dynabarn.recording.writer import McapRecorder, staging_path
 from dynabarn.sim.period_record import PeriodRecord
 
 _NO_STEPS = np.zeros(0, dtype=np.int64)
+_WRITER_DIED = "the recording's writer process ended; the recording ends there (what it wrote is in NAME.mcap.part)"
 BATCH = 64
 """Ticks per message to the writer at most: one pipe write per 6.4 s of simulated time
 (each write wakes the writer and costs the episode far more than its bytes: batches of 8
@@ -86,8 +87,10 @@ class _Writer:
     def __init__(self) -> None:
         # The writer imports this package from where this process found it (a source tree on
         # sys.path, a test's installed topics), and any module a pickled value names.
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
-        command = [sys.executable, "-m", "dynabarn.recording.background"]
+        # Safe-path mode (-P, PYTHONSAFEPATH): the current folder is never searched, so a
+        # `numpy.py` or `dynabarn/` where the user runs a command is never imported.
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p), PYTHONSAFEPATH="1")
+        command = [sys.executable, "-P", "-m", "dynabarn.recording.background"]
         self.process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
         with contextlib.suppress(OSError):  # room for many batches: the episode never waits on a busy writer
             fcntl.fcntl(self.process.stdin.fileno(), F_SETPIPE_SZ, PIPE_BYTES)
@@ -160,9 +163,17 @@ class BackgroundRecorder(EpisodeObserver):
         self._writer: _Writer | None = None
         self._inline: McapRecorder | None = None
         """The recorder in this process, where no writer process could be started."""
+        self._claim: int | None = None
+        """The staging file's claim (`files.claim_staging`), held here while the episode runs."""
+        self.kept: Path | None = None
+        """Where the finished recording is (as `McapRecorder.kept`)."""
 
     def on_start(self, start: EpisodeStart) -> None:
         self._check.check_can_open()
+        # Claimed here, not in the writer: a second run to the same file is refused before
+        # its episode starts, and a writer that dies takes no lock with it.
+        release(self._claim)
+        self._claim = claim_staging(self.staging, self.path)
         self._layout = TickRows.for_episode(start)
         self._rows = np.zeros((BATCH, self._layout.width))
         self._limit = FIRST_BATCH
@@ -176,9 +187,12 @@ class BackgroundRecorder(EpisodeObserver):
             self._writer = _take_writer()
             # This process's sys.path now: the topics installed by packages added since the
             # writer started are recorded too (the table is read per sys.path).
-            self._writer.send(("start", str(self.path), self._options, start, list(sys.path)))
+            options = dict(self._options, claim=False)  # this process holds the claim
+            self._writer.send(("start", str(self.path), options, start, list(sys.path)))
         except OSError:  # no writer process here (an interpreter that cannot start one): this one records
             self._writer, self._inline = None, self._check
+            self._inline.hold(self._claim)
+            self._claim = None
             self._inline.on_start(start)
 
     def on_tick(self, tick: Tick) -> None:
@@ -232,24 +246,32 @@ class BackgroundRecorder(EpisodeObserver):
         self._send(("poses", times, poses))
 
     def on_end(self, result: EpisodeResult) -> None:
+        try:
+            self._end(result)
+        finally:
+            release(self._claim)
+            self._claim = None
+
+    def _end(self, result: EpisodeResult) -> None:
         if self._writer is None:
             if self._inline is not None:
                 self._inline.on_end(result)
-                self.stopped = self._inline.stopped
+                self.stopped, self.kept = self._inline.stopped, self._inline.kept
             return
         self._flush()
         writer, self._writer = self._writer, None
         try:
             reply = writer.ask(("end", result))
         except (OSError, EOFError):
-            self.stopped = "the recording's writer process ended; the recording ends there"
+            self.stopped = self.stopped or _WRITER_DIED
             return
         _give_back(writer)
         kind, *rest = reply
         if kind == "error":
             code, text = rest
             raise OSError(code, text)
-        self.stopped = rest[0]
+        self.stopped, kept = rest
+        self.kept = Path(kept) if kept is not None else None
 
     def _flush(self) -> None:
         if not self._count:
@@ -283,7 +305,7 @@ class BackgroundRecorder(EpisodeObserver):
         try:
             self._writer.send(message, *raw)
         except OSError:  # the writer died: the episode goes on without its recording
-            self.stopped = "the recording's writer process ended; the recording ends there"
+            self.stopped = _WRITER_DIED
             self._writer = None
 
 
@@ -351,7 +373,7 @@ def _serve(stdin, stdout) -> None:
                 except OSError as exc:
                     failed = exc
             reply = (
-                ("done", recorder.stopped)
+                ("done", recorder.stopped, None if recorder.kept is None else str(recorder.kept))
                 if failed is None
                 else ("error", failed.errno, failed.strerror or str(failed))
             )

@@ -22,9 +22,9 @@ import foxglove
 import numpy as np
 from foxglove.mcap import MCAPWriteOptions
 
-from dynabarn.files import file_name_part, fsync_folder
+from dynabarn.files import check_target, claim_staging, file_name_part, publish, release, still_claimed
 from dynabarn.interfaces.events import EpisodeStart, Tick
-from dynabarn.metrics import EpisodeResult
+from dynabarn.metrics import EpisodeResult, is_interrupted
 from dynabarn.provenance import portable_path
 from dynabarn.recording import scene, wire
 from dynabarn.recording.schemas import MACHINE_FIELDS
@@ -115,6 +115,9 @@ class McapRecorder:
         extra_metadata: fields added to `/world/metadata` (e.g. the operator's name).
         live: further foxglove contexts every message is sent to as well (a live server's),
             under the same topics and schemas.
+        claim: claim the staging file here (`files.claim_staging`: created exclusively,
+            locked while the episode runs); False where the caller holds the claim (the
+            writer process, whose episode's process claimed it).
     """
 
     def __init__(
@@ -125,6 +128,7 @@ class McapRecorder:
         extra_channels: tuple[Topic, ...] = (),
         extra_metadata: dict | None = None,
         live: tuple[foxglove.Context, ...] = (),
+        claim: bool = True,
     ):
         self.path = Path(path) if path is not None else None
         self.staging = staging_path(self.path) if self.path is not None else None
@@ -144,6 +148,11 @@ class McapRecorder:
         """What was written on the LATCHED topics: (message, log time [ns])."""
         self.stopped: str | None = None
         """Why the recording ended before the episode (a nearly full disk), or None."""
+        self.claim = claim
+        self._claim: int | None = None
+        self.kept: Path | None = None
+        """Where the finished recording is: `path`, or beside it (`NAME.interrupted.mcap`)
+        for an interrupted episode when a recording was at `path` already."""
 
     # -- EpisodeObserver --------------------------------------------------------------
     def _space_left(self) -> int:
@@ -159,11 +168,19 @@ class McapRecorder:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if self.path.is_dir():
             raise IsADirectoryError(errno.EISDIR, f"{self.path} is a folder, not a recording file")
+        check_target(self.path)  # a device or FIFO is never replaced by a recording
         if not self._room():
             raise OSError(errno.ENOSPC, f"no space left for a recording in {self.path.parent}")
 
+    def hold(self, claim: int) -> None:
+        """Take over a claim on the staging file made by the caller (`files.claim_staging`);
+        it is released when the recording is closed."""
+        self._claim = claim
+
     def _open_file(self, start: EpisodeStart) -> foxglove.Context:
         self.check_can_open()
+        if self.claim and self._claim is None:
+            self._claim = claim_staging(self.staging, self.path)
         ctx = foxglove.Context()
         self._writer = foxglove.open_mcap(
             self.staging,
@@ -172,6 +189,10 @@ class McapRecorder:
             # compression_threads=0: compress on this thread, so one episode uses one core.
             writer_options=MCAPWriteOptions(chunk_size=self.chunk_size, profile=PROFILE, compression_threads=0),
         )
+        if self._claim is not None and not still_claimed(self.staging, self._claim):
+            self._writer.close()
+            self._writer = None
+            raise OSError(errno.EPERM, "the staging file was replaced as it was opened; not written", str(self.staging))
         # The world file itself, so the recording rebuilds its world without the project
         # (create and log time 0: the same bytes on every machine).
         if start.world_xml:
@@ -272,7 +293,8 @@ class McapRecorder:
             self._writer.write_metadata(MACHINE_METADATA, _strings(d.get("machine", {})))
             self._writer.write_metadata(RESULT_METADATA, _strings(judged))
         self.log_json(RESULT.name, result.sim_time, judged)
-        self.close()
+        # An interrupted episode never replaces a finished recording (kept beside it instead).
+        self.close(replace=not is_interrupted(result))
 
     # -- helpers ------------------------------------------------------------------------
     def log_json(self, topic: str, t: float, payload: dict) -> None:
@@ -292,16 +314,20 @@ class McapRecorder:
         """topic -> this recorder's channel in one of its live contexts (empty before the start)."""
         return dict(self._by_context.get(id(context), {}))
 
-    def close(self) -> None:
-        """End the recording: the file is closed, made durable and renamed to `path`."""
+    def close(self, *, replace: bool = True) -> None:
+        """End the recording: the file is closed, made durable and renamed to `path` (with
+        `replace=False`, beside a recording already there: `files.publish`)."""
         self._open = False
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
-            with open(self.staging, "rb") as f:
-                os.fsync(f.fileno())
-            os.replace(self.staging, self.path)
-            fsync_folder(self.path.parent)
+        try:
+            if self._writer is not None:
+                self._writer.close()
+                self._writer = None
+                with open(self.staging, "rb") as f:
+                    os.fsync(f.fileno())
+                self.kept = publish(self.staging, self.path, replace=replace)
+        finally:
+            release(self._claim)
+            self._claim = None
 
     def _metadata(self, start: EpisodeStart) -> dict:
         info = start.info

@@ -27,6 +27,7 @@ from dynabarn.errors import EndEpisode
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart
 from dynabarn.interfaces.observation import EpisodeInfo, Observation
 from dynabarn.metrics import (
+    INTERRUPTED,
     EpisodeResult,
     Outcome,
 )
@@ -125,11 +126,11 @@ def run_episode(
                 for on_poses in pose_hooks:
                     on_poses(period)
     except KeyboardInterrupt:
-        episode.end(Outcome.ERROR, "interrupted")
+        episode.end(Outcome.ERROR, INTERRUPTED)
         result = episode_result(episode, start)
         for obs_ in observers:
             obs_.on_end(result)
-        _finish(planner, "interrupted")
+        _finish(planner, INTERRUPTED)
         raise
     _finish(planner, episode.outcome.value if episode.outcome else "error")
     result = episode_result(episode, start)
