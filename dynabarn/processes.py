@@ -1,11 +1,42 @@
-"""Child processes that must not outlive the process that started them (a viewer's server,
-a ROS master, a bridge node): on Linux they get SIGTERM when their parent dies, even by
-SIGKILL or `os._exit` (how pool workers end, without running atexit handlers)."""
+"""Child processes: they must not outlive the process that started them (a viewer's server,
+a ROS master, a bridge node, pool workers): on Linux they get SIGTERM when their parent
+dies, even by SIGKILL or `os._exit` (how pool workers end, without running atexit
+handlers). And they never import from the current folder (`safe_path_for_children`)."""
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
-from collections.abc import Callable
+import tempfile
+from collections.abc import Callable, Iterator
+
+SAFE_PATH = {"PYTHONSAFEPATH": "1"}
+"""Python's safe-path mode (3.11+) for every interpreter we start: `python -m ...` and
+`python -c ...` (how multiprocessing's spawn starts a worker) then leave the current folder
+off `sys.path`, so a `numpy.py`, `struct.py` or `dynabarn/` where a user runs a command is
+never imported in a child."""
+
+
+def safe_path_for_children() -> None:
+    """Every child this process starts from now on runs in safe-path mode (`SAFE_PATH`):
+    set in this process's environment, which `subprocess`, multiprocessing's spawn and a
+    local Ray cluster's raylet pass on. Called by everything that starts interpreters."""
+    os.environ.update(SAFE_PATH)
+
+
+@contextlib.contextmanager
+def in_empty_folder() -> Iterator[str]:
+    """Run the block from a new empty folder, then come back: for libraries that put the
+    current folder on their workers' `sys.path` themselves (Ray adds the driver's), so that
+    what they add holds nothing to import."""
+    here = os.getcwd()
+    empty = tempfile.mkdtemp(prefix="dynabarn-empty-")
+    os.chdir(empty)
+    try:
+        yield here
+    finally:
+        os.chdir(here)
 
 
 def _die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
@@ -19,11 +50,10 @@ def _die_with_parent() -> None:  # pragma: no cover - runs in the child before e
 
 
 def worker_start(parent: int) -> None:
-    """Initializer of the sweep's pool workers: SIGTERM ends them outright (not the
-    command's "end like Ctrl-C" handler inherited through fork), and they end with the
-    sweep even when it is killed with SIGKILL, releasing the results folder's lock and the
-    caller's pipes."""
-    import os
+    """Initializer of pool workers (the sweep's, DAgger's collectors): SIGTERM ends them
+    outright (not the command's "end like Ctrl-C" handler inherited through fork), and they
+    end with their parent even when it is killed with SIGKILL, releasing the results folder's
+    lock and the caller's pipes."""
     import signal
 
     signal.signal(signal.SIGTERM, signal.SIG_DFL)

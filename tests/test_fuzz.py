@@ -770,8 +770,9 @@ def _wait_for(condition, timeout: float = 60.0) -> bool:
 
 
 def test_sigterm_ends_a_run_as_ctrl_c_does_with_its_recording_whole(tmp_path):
-    """SIGTERM: the episode is judged as interrupted, the recording closed whole under its
-    name (an earlier one there replaced only now), one line, exit 143."""
+    """SIGTERM: the episode is judged as interrupted, the recording closed whole, one line,
+    exit 143; a finished recording already at its name is never replaced by an interrupted
+    one: that is kept beside it (NAME.interrupted.mcap)."""
     from dynabarn.recording import read_recording
 
     log = tmp_path / "keep.mcap"
@@ -801,8 +802,10 @@ def test_sigterm_ends_a_run_as_ctrl_c_does_with_its_recording_whole(tmp_path):
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, (proc.returncode, err)
-    assert err.strip().splitlines()[-1] == f"terminated; recording kept: {log}", err  # after Foxglove's address
-    rec = read_recording(log)
+    kept = tmp_path / "keep.interrupted.mcap"
+    assert err.strip().splitlines()[-1] == f"terminated; recording kept: {kept}", err  # after Foxglove's address
+    assert log.read_bytes() == b"an earlier, finished recording"
+    rec = read_recording(kept)
     assert not rec.truncated and rec.result["outcome"] == "error" and rec.result["reason"] == "interrupted"
     assert not part.exists()
 

@@ -4,13 +4,14 @@ the same job gives the same row on either."""
 
 from __future__ import annotations
 
+import functools
 import os
 import sys
 from collections.abc import Iterator
 
 from dynabarn.bench.jobs import Job, row_head, run_job
 from dynabarn.errors import DynabarnError
-from dynabarn.processes import worker_start
+from dynabarn.processes import in_empty_folder, safe_path_for_children, worker_start
 
 MAX_ATTEMPTS = 3
 """Times an episode is started when its worker process dies under it (killed, out of
@@ -32,6 +33,7 @@ def _local_backend(jobs: list[Job], n_workers: int) -> Iterator[dict]:
     # a futex). Then fresh interpreters (spawn) run the episodes.
     forkable = sys.platform.startswith("linux") and "torch" not in sys.modules
     ctx = mp.get_context("fork" if forkable else "spawn")
+    safe_path_for_children()  # a spawned worker starts as `python -c`: never from the current folder
     attempts: dict[str, int] = {}
     remaining = list(jobs)
     while remaining:
@@ -91,11 +93,16 @@ def _ray_backend(jobs: list[Job], n_workers: int, address: str | None) -> Iterat
     started_here = not ray.is_initialized()
     if started_here and address:
         _check_ray_address(address)
-    if started_here:
-        kwargs = {"address": address} if address else {"num_cpus": n_workers, "include_dashboard": False}
-        ray.init(ignore_reinit_error=True, log_to_driver=False, **kwargs)
-    remote = ray.remote(num_cpus=1)(run_job)
-    jobs_of = {remote.remote(job): job for job in jobs}
+    local = started_here and not address
+    if local:
+        _start_local_ray(ray, n_workers)
+    elif started_here:
+        ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+    # A local cluster's workers start in an empty folder (see _start_local_ray): each episode
+    # runs from the sweep's folder, where its relative paths lead.
+    remote = ray.remote(num_cpus=1)(_run_job_in if local else run_job)
+    run = functools.partial(remote.remote, os.getcwd()) if local else remote.remote
+    jobs_of = {run(job): job for job in jobs}
     pending = list(jobs_of)
     try:
         while pending:
@@ -110,6 +117,32 @@ def _ray_backend(jobs: list[Job], n_workers: int, address: str | None) -> Iterat
             ray.cancel(ref, force=True)
         if started_here:
             ray.shutdown()
+
+
+LOOPBACK_RAY = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0"}
+"""Ray's single-machine mode: the node's address is 127.0.0.1 and every server of a local
+cluster (GCS, raylet, object manager, workers, this process's own) listens there only (by
+default they listen on every interface: `ss -ltn` showed `*:PORT` for each)."""
+
+
+def _start_local_ray(ray, n_workers: int) -> None:
+    """A Ray cluster on this machine for one sweep: on loopback only (`LOOPBACK_RAY`, in the
+    environment its processes inherit and in the constant Ray read at import), its workers in
+    safe-path mode and dying with their raylet, and started from an empty folder, since Ray
+    puts the driver's current folder first on every worker's `sys.path` itself."""
+    from ray._private import ray_constants
+
+    os.environ.update(LOOPBACK_RAY)
+    safe_path_for_children()
+    ray_constants.ENABLE_RAY_CLUSTER = False  # read when the node's address is chosen
+    with in_empty_folder():
+        ray.init(num_cpus=n_workers, include_dashboard=False, ignore_reinit_error=True, log_to_driver=False)
+
+
+def _run_job_in(folder: str, job: Job) -> dict:
+    """`run_job` from `folder` (a local Ray worker starts in an empty one)."""
+    os.chdir(folder)
+    return run_job(job)
 
 
 def _check_ray_address(address: str, timeout: float = 5.0) -> None:

@@ -197,6 +197,25 @@ def _save_state(out: Path, learner: Learner, report: TD3Report, step: int, rng, 
     save_atomically(out / STATE, lambda f: torch.save(state, f))
 
 
+def _resume(out: Path, learner: Learner, rng) -> tuple[int, TD3Report, ReplayBuffer, ReplayBuffer]:
+    """Step, report and buffers of the last checkpoint, its weights and random states set
+    (tensors and plain data only: `weights_only`, so a checkpoint never runs code); one line
+    if anything in it is damaged."""
+    try:
+        state = torch.load(out / STATE, weights_only=True)
+        for name, m in learner.modules().items():
+            m.load_state_dict(state[name])
+        step, learner.updates = int(state["step"]), int(state["updates"])
+        report = TD3Report(**state["report"])
+        rng.bit_generator.state = json.loads(state["rng"])
+        torch.set_rng_state(state["torch_rng"])
+        demos, online = ReplayBuffer.load(out / DEMOS), ReplayBuffer.load(out / REPLAY)
+    except Exception as exc:  # PyTorch's and numpy's refusals run to a page; their first line says it
+        first = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else ""
+        raise DynabarnError(f"{out}: cannot resume from its checkpoint ({type(exc).__name__}: {first})") from None
+    return step, report, demos, online
+
+
 def _identity(cfg: dict | None) -> dict | None:
     return None if cfg is None else {k: v for k, v in cfg.items() if k not in ("threads", "steps")}
 
@@ -219,21 +238,17 @@ def train_td3(cfg: TD3Config, out_dir: Path, *, progress=None) -> TD3Report:
     config_path = out / "config.json"
     step = 0
     if (out / STATE).is_file():  # resume: the same configuration, from the last checkpoint
-        old = json.loads(config_path.read_text()) if config_path.is_file() else None
+        try:
+            old = json.loads(config_path.read_text()) if config_path.is_file() else None
+        except (ValueError, UnicodeDecodeError):
+            raise DynabarnError(f"{config_path}: not a training configuration (not JSON); use another --out") from None
         # The thread count may change between sessions (a busier machine), and the step
         # count (to train on, or to stop earlier); nothing else may.
         if _identity(old) != _identity(json.loads(json.dumps(asdict(cfg)))):
             raise DynabarnError(f"{out} holds a run with another configuration ({config_path}); use another --out")
-        state = torch.load(out / STATE, weights_only=False)
-        for name, m in learner.modules().items():
-            m.load_state_dict(state[name])
-        step, learner.updates = state["step"], state["updates"]
-        report = TD3Report(**state["report"])
+        step, report, demos, online = _resume(out, learner, rng)
         report.steps = cfg.steps
         write_atomically(config_path, json.dumps(asdict(cfg), indent=1))
-        rng.bit_generator.state = json.loads(state["rng"])
-        torch.set_rng_state(state["torch_rng"])
-        demos, online = ReplayBuffer.load(out / DEMOS), ReplayBuffer.load(out / REPLAY)
         _log(out, f"resumed at step {step}")
     else:
         write_atomically(config_path, json.dumps(asdict(cfg), indent=1))
