@@ -24,9 +24,43 @@ WORLD_ELEMENTS = frozenset(
 neighbours. Everything else (replicate, flexcomp, composite, height fields, meshes, joints,
 actuators, ...) is refused before MuJoCo compiles anything: some of it expands a few bytes
 into millions of elements, and none of it belongs in a world."""
-WORLD_COUNT_LIMITS = {"body": 5_000, "geom": 20_000, "numeric": 2_000, "material": 1_000, "light": 16}
+WORLD_COUNT_LIMITS = {
+    "body": 5_000, "geom": 20_000, "numeric": 2_000, "material": 1_000, "light": 16, "frame": 5_000,
+    "inertial": 5_000, "site": 5_000, "camera": 64, "texture": 64, "default": 1_000, "text": 64, "attach": 4,
+    "model": 4, "custom": 4,
+}  # fmt: skip
 """How many of an element a world may hold (the largest shipped kind, a static BARN field,
-has about 800 geoms; at most 500 moving obstacles with a numeric each)."""
+has about 800 geoms; at most 500 moving obstacles with a numeric each); every element kind
+MuJoCo allocates is counted (500,000 `<site>` in 22 MB compiled for minutes)."""
+DEFAULT_COUNT_LIMIT = 16
+"""Any other kind a world may hold (`option`, `visual`'s children, ...): a few of each."""
+MAX_ELEMENTS = 50_000
+"""Elements of every kind together."""
+MAX_DEPTH = 64
+"""Nesting depth of the document (the generated worlds nest 4 deep): checked before anything
+recurses over it (writing it out anew, MuJoCo's parser), so 990 nested `<frame>`s are one
+line, not a RecursionError."""
+NUMERIC_ATTRIBUTES = frozenset(
+    {
+        "pos", "size", "quat", "euler", "axisangle", "xyaxes", "zaxis", "fromto", "rgba", "gravity", "wind",
+        "magnetic", "density", "viscosity", "timestep", "iterations", "ls_iterations", "noslip_iterations",
+        "ccd_iterations", "impratio", "tolerance", "ls_tolerance", "mass", "diaginertia", "fullinertia", "friction",
+        "solref", "solimp", "margin", "gap", "priority", "condim", "width", "height", "specular", "shininess",
+        "reflectance", "emission", "diffuse", "ambient", "dir", "attenuation", "cutoff", "exponent", "fovy",
+        "ipd", "data", "extent", "meaninertia", "meanmass", "meansize", "center", "znear", "zfar", "haze",
+        "fogstart", "fogend", "o_margin", "o_solref", "o_solimp", "o_friction", "texrepeat", "offwidth",
+        "offheight", "shadowsize", "offsamples", "numslices", "numstacks", "numquads", "framelength",
+        "framewidth", "forcewidth", "contactwidth", "contactheight", "connect", "com", "selectpoint", "light",
+        "jointlength", "jointwidth", "actuatorlength", "actuatorwidth", "slidercrank", "constraint",
+        "bvh_depth", "range", "rgb1", "rgb2", "markrgb", "random", "builtin_size", "group", "user",
+    }
+)  # fmt: skip
+"""Attributes whose value is numbers: each must be finite and within `MAX_MAGNITUDE`."""
+MAX_MAGNITUDE = 1e6
+"""Largest magnitude of any number in a world's attributes (the arena is 20 m; 1e308 or inf
+sizes made MuJoCo's bounding volumes and the recording's scene meaningless)."""
+OPTION_RANGES = {"timestep": (1e-5, 0.1), "iterations": (1, 1000), "ls_iterations": (1, 1000)}
+"""`<option>` values with their own physical range (a negative time step, 1e9 iterations)."""
 MAX_TEXTURE_PIXELS = 4096 * 4096
 MAX_NUMERIC_SIZE = 300_000  # 100,000 keyframes of [t, x, y]
 
@@ -60,9 +94,12 @@ def check_self_contained(path: Path, root: ET.Element) -> None:
     is always taken from this package) and nothing else outside itself. `<include>`, plugins,
     and every file reference (meshes, textures, height fields, skins, compiler folders) are
     refused with one line naming the element."""
+    _check_depth(path, root)
     robots = 0
     counts: dict[str, int] = {}
-    for element in root.iter():
+    for total, element in enumerate(root.iter(), start=1):
+        if total > MAX_ELEMENTS:
+            raise WorldError(f"{path}: more than {MAX_ELEMENTS:,} elements; a world holds fewer")
         tag = element.tag if isinstance(element.tag, str) else "?"
         if tag in _REFUSED_ELEMENTS:
             raise WorldError(f"{path}: <{tag}> is not allowed: a world file loads nothing but itself and the Jackal")
@@ -78,8 +115,10 @@ def check_self_contained(path: Path, root: ET.Element) -> None:
         if tag not in WORLD_ELEMENTS:
             raise WorldError(f"{path}: <{tag}> is not allowed in a world file (bodies, geoms, lights, materials are)")
         counts[tag] = counts.get(tag, 0) + 1
-        if counts[tag] > WORLD_COUNT_LIMITS.get(tag, counts[tag]):
-            raise WorldError(f"{path}: more than {WORLD_COUNT_LIMITS[tag]:,} <{tag}> elements; a world holds fewer")
+        limit = WORLD_COUNT_LIMITS.get(tag, DEFAULT_COUNT_LIMIT)
+        if counts[tag] > limit:
+            raise WorldError(f"{path}: more than {limit:,} <{tag}> elements; a world holds fewer")
+        _check_numbers(path, tag, element)
         _check_sizes(path, tag, element)
     if robots > 1:
         raise WorldError(f"{path}: more than one <model name='jackal'>")
@@ -89,6 +128,38 @@ def check_world_data(path: Path, data: bytes) -> None:
     """The checks every world file passes, on bytes from elsewhere (a recording's attached
     world): parsed, then self-contained and bounded, or one `WorldError`."""
     check_self_contained(path, _parse(path, data))
+
+
+def _check_depth(path: Path, root: ET.Element) -> None:
+    """No deeper than `MAX_DEPTH`, found without recursion."""
+    stack = [(root, 1)]
+    while stack:
+        element, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            raise WorldError(f"{path}: elements nested more than {MAX_DEPTH} deep; a world nests a few levels")
+        stack.extend((child, depth + 1) for child in element)
+
+
+def _check_numbers(path: Path, tag: str, element: ET.Element) -> None:
+    """Every number attribute finite and within `MAX_MAGNITUDE`; `<option>`'s within their
+    physical range (`OPTION_RANGES`). Words where numbers go are left to MuJoCo, which says so."""
+    for attribute, value in element.attrib.items():
+        if attribute not in NUMERIC_ATTRIBUTES:
+            continue
+        for token in value.split():
+            try:
+                number = float(token)
+            except ValueError:
+                continue
+            if not abs(number) <= MAX_MAGNITUDE:  # also NaN
+                raise WorldError(
+                    f"{path}: <{tag} {attribute}={value[:60]!r}> holds {token[:24]!r}: numbers in a world are finite, "
+                    f"within {MAX_MAGNITUDE:g}"
+                )
+            if tag == "option" and attribute in OPTION_RANGES:
+                low, high = OPTION_RANGES[attribute]
+                if not low <= number <= high:
+                    raise WorldError(f"{path}: <option {attribute}={value!r}> is not in [{low:g}, {high:g}]")
 
 
 def _check_sizes(path: Path, tag: str, element: ET.Element) -> None:

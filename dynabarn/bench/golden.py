@@ -238,7 +238,12 @@ def run_cases(
         return
     import multiprocessing as mp
 
-    with mp.get_context("spawn").Pool(min(jobs, len(items) or 1)) as pool:
+    from dynabarn.processes import safe_path_for_children, worker_start
+
+    safe_path_for_children()
+    with mp.get_context("spawn").Pool(
+        min(jobs, len(items) or 1), initializer=worker_start, initargs=(os.getpid(),)
+    ) as pool:
         for row in pool.imap_unordered(_run_one, items):
             yield by_key[row["case"]], row
 

@@ -224,6 +224,8 @@ def planner_config(text: str | None) -> dict:
                 + ", ".join(planner_presets())
                 + ")"
             )
+        if key.strip() in cfg:  # the second value would silently win
+            raise DynabarnError(f"bad --planner-config: {key.strip()!r} given twice")
         try:
             cfg[key.strip()] = json.loads(value)
         except json.JSONDecodeError:

@@ -32,7 +32,23 @@ def config_from_kwargs(cls, kwargs: dict, what: str):
     hints = typing.get_type_hints(cls)
     limits: dict[str, tuple[float, float]] = getattr(cls, "LIMITS", {})
     checked = {key: _checked(f"{what} {key}", value, hints.get(key), limits.get(key)) for key, value in kwargs.items()}
-    return cls(**checked)
+    config = cls(**checked)
+    check_relations(config, what)
+    return config
+
+
+def check_relations(config, what: str) -> None:
+    """A configuration's fields against each other, where its class declares them:
+    `ORDERED` pairs (low, high) whose values must not cross (`min_vel_x` above `max_vel_x`,
+    a rollout step longer than the rollout), and a `check(what)` method for the rest (the
+    memory a sample grid allocates). Raises TypeError with one line."""
+    for low, high in getattr(type(config), "ORDERED", ()):
+        a, b = getattr(config, low), getattr(config, high)
+        if a > b:
+            raise TypeError(f"{what} {low}={a!r} is above {high}={b!r}; it must not be")
+    check = getattr(config, "check", None)
+    if check is not None:
+        check(what)
 
 
 def nested_config(kwargs: dict, key: str, build: typing.Callable[[dict], object], what: str) -> dict:

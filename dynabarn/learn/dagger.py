@@ -22,6 +22,7 @@ continues after the last one.
 from __future__ import annotations
 
 import json
+import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
@@ -39,6 +40,7 @@ from dynabarn.learn.split import describe_split
 from dynabarn.planners.learned.spaces import HEADS, command_to_action
 from dynabarn.planners.learned.student import StudentActor, save_student
 from dynabarn.planners.registry import get_planner
+from dynabarn.processes import safe_path_for_children, worker_start
 
 STATE, LOG, DATA = "state.pt", "train.log", "data"
 
@@ -193,15 +195,22 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
     config_path = out / "config.json"
     done = 0
     if (out / STATE).is_file():
-        old = json.loads(config_path.read_text()) if config_path.is_file() else None
+        try:
+            old = json.loads(config_path.read_text()) if config_path.is_file() else None
+        except (ValueError, UnicodeDecodeError):
+            raise DynabarnError(f"{config_path}: not a training configuration (not JSON); use another --out") from None
         if _identity(old) != _identity(json.loads(json.dumps(asdict(cfg)))):
             raise DynabarnError(f"{out} holds a run with another configuration; choose another --out")
         done, report = _resume(out, actor, opt, data)
     write_atomically(config_path, json.dumps(asdict(cfg), indent=1))
     bar = progress(total=cfg.iterations, initial=done) if progress else None
     ctx = get_context("spawn")  # workers import torch afresh: no fork of a threaded parent
+    safe_path_for_children()  # a spawned worker starts as `python -c`: never from the current folder
     t0 = time.perf_counter() - report.seconds
-    with ProcessPoolExecutor(max_workers=cfg.workers, mp_context=ctx) as pool:
+    # The collectors end with this process, even when it is killed with SIGKILL.
+    with ProcessPoolExecutor(
+        max_workers=cfg.workers, mp_context=ctx, initializer=worker_start, initargs=(os.getpid(),)
+    ) as pool:
         for it in range(done, cfg.iterations):
             report.final = None  # a run extended after its final fit fits again at its new end
             beta = cfg.beta_decay**it

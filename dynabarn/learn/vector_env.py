@@ -39,6 +39,7 @@ from dynabarn.learn.env import DynaBARNEnv
 from dynabarn.learn.shared_worlds import SHARED_WORLDS, shared_world
 from dynabarn.planners.learned.spaces import action_to_command
 from dynabarn.planners.local_goal_batch import LocalGoalBatch
+from dynabarn.processes import safe_path_for_children
 from dynabarn.sim.ray_batch import BatchCaster, supports
 from dynabarn.worlds.schedule_batch import ScheduleBatch, batchable
 
@@ -244,6 +245,7 @@ class DynaBARNVectorEnv(VectorEnv):
         sizes = [len(part) for part in np.array_split(np.arange(num_envs), max(1, workers))]
         self._sizes, self._slices = sizes, np.cumsum([0, *sizes])
         ctx = mp.get_context("spawn")
+        safe_path_for_children()  # a spawned worker starts as `python -c`: never from the current folder
         # Every share writes its observations into one buffer shared with the workers (a
         # pipe would pickle 46 kB per step and share); step returns a copy of it.
         obs_dim = int(np.prod(self.single_observation_space.shape))

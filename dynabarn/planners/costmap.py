@@ -50,6 +50,8 @@ class CostmapConfig:
         "inflation_radius": (0.0, 5.0),
         "cost_scaling": (0.0, 100.0),
     }
+    ORDERED: ClassVar[tuple[tuple[str, str], ...]] = (("inscribed_radius", "inflation_radius"),)
+    """Lethal inside the inscribed radius, inflated out to the inflation radius: not crossed."""
 
 
 def with_costmap(kwargs: dict, what: str) -> dict:

@@ -98,6 +98,8 @@ class DWAConfig:
         "escape_vel": (-2.0, 0.0),
     }
     """Accepted ranges (checked before a run: a typo cannot exhaust memory or time)."""
+    ORDERED: ClassVar[tuple[tuple[str, str], ...]] = (("min_vel_x", "max_vel_x"), ("sim_dt", "sim_time"))
+    """Fields that must not cross (`interfaces.planner.check_relations`)."""
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> DWAConfig:

@@ -70,13 +70,17 @@ class OracleConfig:
     """Accepted ranges (checked before a run)."""
     MAX_CANDIDATES: ClassVar[int] = 10_000
     """(v, w) pairs squared: two segments of every pair are rolled out each tick."""
+    ORDERED: ClassVar[tuple[tuple[str, str], ...]] = (("dt", "t1"),)
+    """A rollout step no longer than the first segment (`interfaces.planner.check_relations`)."""
+
+    def check(self, what: str) -> None:
+        """The candidate grid fits in memory (3,000 x 3,000 samples asked for 589 TiB)."""
+        if (len(self.v_samples) * len(self.w_samples)) ** 2 > self.MAX_CANDIDATES:
+            raise TypeError(f"{what}: too many candidates ((v samples x w samples)^2 > {self.MAX_CANDIDATES})")
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> OracleConfig:
-        cfg = config_from_kwargs(cls, kwargs, "oracle")
-        if (len(cfg.v_samples) * len(cfg.w_samples)) ** 2 > cls.MAX_CANDIDATES:
-            raise TypeError(f"oracle: too many candidates ((v samples x w samples)^2 > {cls.MAX_CANDIDATES})")
-        return cfg
+        return config_from_kwargs(cls, kwargs, "oracle")
 
 
 class OraclePlanner(Planner):

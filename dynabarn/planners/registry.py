@@ -62,8 +62,11 @@ def registered_at_run_time(name: str) -> bool:
     return PLANNERS.registered_at_run_time(name)
 
 
-def get_planner(name: str, *, factory: Callable[..., Planner] | None = None, **config) -> Planner:
-    """Instantiate the planner `name` (or `factory`, when given) with keyword configuration."""
+def get_planner(name: str, /, factory: Callable[..., Planner] | None = None, **config) -> Planner:
+    """Instantiate the planner `name` (or `factory`, when given) with keyword configuration
+    (`name` positional only: a configuration key called `name` is the planner's to refuse)."""
+    if factory is not None and not callable(factory):  # `--planner-config factory=x`
+        raise DynabarnError(f"planner {name!r}: bad configuration: unknown parameter 'factory'")
     factory = factory or planner_factory(name)
     try:
         return factory(**config)

@@ -120,6 +120,8 @@ class TEBConfig:
         },
     }
     """Accepted ranges (checked before a run)."""
+    ORDERED: ClassVar[tuple[tuple[str, str], ...]] = (("min_obstacle_dist", "inflation_dist"),)
+    """The inflation zone lies beyond the minimum distance (teb_local_planner's reading)."""
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> TEBConfig:
