@@ -47,7 +47,7 @@ NUMERIC_ATTRIBUTES = frozenset(
         "ccd_iterations", "impratio", "tolerance", "ls_tolerance", "mass", "diaginertia", "fullinertia", "friction",
         "solref", "solimp", "margin", "gap", "priority", "condim", "width", "height", "specular", "shininess",
         "reflectance", "emission", "diffuse", "ambient", "dir", "attenuation", "cutoff", "exponent", "fovy",
-        "ipd", "data", "extent", "meaninertia", "meanmass", "meansize", "center", "znear", "zfar", "haze",
+        "ipd", "extent", "meaninertia", "meanmass", "meansize", "center", "znear", "zfar", "haze",
         "fogstart", "fogend", "o_margin", "o_solref", "o_solimp", "o_friction", "texrepeat", "offwidth",
         "offheight", "shadowsize", "offsamples", "numslices", "numstacks", "numquads", "framelength",
         "framewidth", "forcewidth", "contactwidth", "contactheight", "connect", "com", "selectpoint", "light",
@@ -55,7 +55,8 @@ NUMERIC_ATTRIBUTES = frozenset(
         "bvh_depth", "range", "rgb1", "rgb2", "markrgb", "random", "builtin_size", "group", "user",
     }
 )  # fmt: skip
-"""Attributes whose value is numbers: each must be finite and within `MAX_MAGNITUDE`."""
+"""Attributes whose value is numbers: each must be finite and within `MAX_MAGNITUDE`
+(a `<numeric>`'s data are keyframes, checked as such with the world's schedule)."""
 MAX_MAGNITUDE = 1e6
 """Largest magnitude of any number in a world's attributes (the arena is 20 m; 1e308 or inf
 sizes made MuJoCo's bounding volumes and the recording's scene meaningless)."""

@@ -19,6 +19,7 @@ MuJoCo picks its OpenGL platform when first imported: on a machine without a dis
 from __future__ import annotations
 
 import contextlib
+import errno
 import itertools
 import math
 import tempfile
@@ -123,8 +124,51 @@ def _writer(out: Path, fps: float):
     except BaseException:
         with contextlib.suppress(Exception):
             writer.close()
+        _disarm(writer)
         raise
-    writer.close()
+    try:
+        writer.close()
+    except BaseException:
+        _disarm(writer)
+        raise
+    # ffmpeg reports a failed trailer (a disk full at the very end) only in its own output
+    # and exits as if nothing happened: the file says whether it is whole.
+    if out.suffix.lower() == ".mp4" and not mp4_is_whole(out):
+        raise OSError(errno.EIO, "the encoder did not finish the video (its index is missing: a full disk?)", str(out))
+
+
+def _disarm(writer) -> None:
+    """A writer whose close failed is closed: its finaliser must not write (and fail) again."""
+    writer.closed = True
+    plugin = getattr(writer, "instance", None)
+    if plugin is not None:  # imageio's Pillow plugin: its file is closed here, once
+        with contextlib.suppress(Exception):
+            plugin._request.finish()
+        plugin.close = lambda: None
+
+
+def mp4_is_whole(path: Path) -> bool:
+    """The MP4 file's top-level boxes run exactly to its end and hold the index (`moov`),
+    which ffmpeg writes last: what a player needs, and what a cut file lacks."""
+    size = path.stat().st_size
+    seen = set()
+    with open(path, "rb") as f:
+        at = 0
+        while at < size:
+            f.seek(at)
+            head = f.read(16)
+            if len(head) < 8:
+                return False
+            length, kind = int.from_bytes(head[:4], "big"), head[4:8]
+            if length == 1 and len(head) == 16:  # a 64-bit size follows
+                length = int.from_bytes(head[8:16], "big")
+            elif length == 0:  # to the end of the file
+                length = size - at
+            if length < 8:
+                return False
+            seen.add(kind)
+            at += length
+    return at == size and b"moov" in seen
 
 
 def check_video(out: Path, width: int, height: int) -> None:
