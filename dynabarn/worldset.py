@@ -166,7 +166,14 @@ def entry_path(index_dir: Path, entry: dict) -> Path:
     """An index entry's world file: a plain file name inside the index's folder (an entry
     cannot point elsewhere, e.g. "../../etc/passwd")."""
     file = entry.get("file")
-    if not isinstance(file, str) or not file or file in (".", "..") or Path(file).name != file or "\\" in file:
+    if (
+        not isinstance(file, str)
+        or not file
+        or file in (".", "..")
+        or "\x00" in file
+        or Path(file).name != file
+        or "\\" in file
+    ):
         raise WorldError(f"{index_dir / INDEX_NAME}: world file {file!r} must be a file name inside the folder")
     path = Path(index_dir) / file
     if path.is_symlink():  # a link is a way out of the folder too
@@ -201,9 +208,13 @@ MAX_WORLD_ID = 999_999
 
 
 def parse_ids(text: str | None) -> list[int] | None:
-    """'0,5,100-119' -> [0, 5, 100, ..., 119], each id once, in the order first given."""
-    if not text:
+    """'0,5,100-119' -> [0, 5, 100, ..., 119], each id once, in the order first given; None
+    (every world) only when no --worlds was given: an empty one selects nothing, so it is
+    refused rather than read as "all"."""
+    if text is None:
         return None
+    if not text.strip():
+        raise WorldError("--worlds is empty: give ids and ranges like 0,5,100-119, or leave it out for every world")
     ids: dict[int, None] = {}
     for part in text.split(","):
         part = part.strip()

@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import errno
 import json
 import os
 import shutil
+import stat
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -123,7 +125,17 @@ def locked(out_dir: Path):
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / LOCK
     while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:  # never through a link planted at the name, never a device or FIFO there
+            fd = os.open(
+                path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0), 0o644
+            )
+        except OSError as exc:
+            if exc.errno == errno.ELOOP:
+                raise DynabarnError(f"{path} is a symbolic link; the lock is a plain file (remove the link)") from None
+            raise
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
+            raise DynabarnError(f"{path} is not a plain file; the lock is one (remove what is there)")
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

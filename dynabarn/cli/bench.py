@@ -109,10 +109,27 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+GOLDEN_OPTIONS = {"verify_golden", "update_golden", "reference", "jobs", "debug"}
+"""The options that apply to `--verify-golden` and `--update-golden`."""
+
+
+def _given(argv: Sequence[str] | None) -> list[str]:
+    """The options written on the command line (not those left at their defaults)."""
+    probe = build_parser()
+    for action in probe._actions:
+        action.default = argparse.SUPPRESS
+    return list(vars(probe.parse_args(argv)))
+
+
 def bench_main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.verify_golden or args.update_golden:
+        # The golden set is fixed (its cases name their planners, worlds and seeds): a sweep's
+        # choices would be silently ignored, so they are refused.
+        ignored = ["--" + key.replace("_", "-") for key in _given(argv) if key not in GOLDEN_OPTIONS]
+        if ignored:
+            parser.error(f"{', '.join(ignored)}: not for the golden set, which runs its own committed cases")
         return run_command(_golden, args)
     if args.out is None:
         parser.error("--out is required for a sweep")

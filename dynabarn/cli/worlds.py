@@ -317,7 +317,7 @@ def _worlds_stats(args: argparse.Namespace) -> int:
     from dynabarn.worldset import parse_ids
 
     names = [str(f) for f in args.sets] or [str(worlds_dir())]
-    ids = parse_ids(args.worlds) if args.worlds else None
+    ids = parse_ids(args.worlds)
     measured = {name: _set_measures(name, ids) for name in names}
     width = max(11, *(len(n) + 2 for n in names))
     print(

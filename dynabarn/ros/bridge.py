@@ -101,6 +101,21 @@ class BridgeConfig:
         if not 0.0001 <= self.clock_step <= 0.1:
             raise ValueError(f"clock_step {self.clock_step!r}: use a step in [0.0001, 0.1] s")
 
+    def check(self, what: str) -> None:
+        """Across fields (`interfaces.planner.check_relations`): one way to start the stack,
+        a launch line that splits into words, a stack of ours that is built."""
+        if self.launch and self.stack:
+            raise TypeError(f"{what}: give a launch command or a stack of ours, not both (--ros-launch, --ros-stack)")
+        if isinstance(self.launch, str):
+            try:
+                shlex.split(self.launch)
+            except ValueError as exc:  # an unbalanced quote
+                raise TypeError(f"{what} launch {self.launch!r}: {exc}") from None
+        if self.stack:
+            from dynabarn.ros.stacks import stack_command
+
+            stack_command(self.stack, Path(self.nav_workspace) if self.nav_workspace else None)
+
 
 class RosPlanner(Planner):
     """A ROS navigation stack, reached through the bridge node, as a `Planner`."""
