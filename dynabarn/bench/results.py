@@ -4,8 +4,8 @@ full metrics, versions, world hash) and `metadata.json` (what the sweep was)."""
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import errno
+import hashlib
 import json
 import os
 import shutil
