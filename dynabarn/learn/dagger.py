@@ -37,6 +37,7 @@ from dynabarn.files import save_atomically, write_atomically
 from dynabarn.learn.configs import DaggerConfig
 from dynabarn.learn.dagger_rollout import EpisodeData, run_episodes
 from dynabarn.learn.split import describe_split
+from dynabarn.planners.learned.models import load_tensors
 from dynabarn.planners.learned.spaces import HEADS, command_to_action
 from dynabarn.planners.learned.student import StudentActor, save_student
 from dynabarn.planners.registry import get_planner
@@ -86,7 +87,7 @@ def _resume(out: Path, actor: StudentActor, opt, data: Dataset) -> tuple[int, Da
     """Weights, optimiser, report and data of the finished iterations, from the checkpoint
     (tensors and plain data only: `weights_only`, no pickled code); one line if it is damaged."""
     try:
-        state = torch.load(out / STATE, weights_only=True)
+        state = load_tensors(out / STATE)
         actor.load_state_dict(state["actor"])
         opt.load_state_dict(state["optimizer"])
         report = DaggerReport(**state["report"])

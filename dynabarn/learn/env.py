@@ -100,7 +100,7 @@ from dynabarn.learn.shared_worlds import shared_world
 from dynabarn.learn.split import DEFAULT_PROFILE_SETS, ProceduralWorlds, reserved_fingerprints
 from dynabarn.metrics import Outcome
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.planners.learned.spaces import action_to_command, policy_input
+from dynabarn.planners.learned.spaces import action_to_command, checked_actions, policy_input
 from dynabarn.protocol import get_protocol
 from dynabarn.provenance import has_display
 from dynabarn.render import CAMERAS, NO_GL_PLATFORM, offscreen_renderer, place_camera
@@ -152,6 +152,7 @@ class DynaBARNEnv(gymnasium.Env):
         width: int = 640,
         height: int = 480,
     ) -> None:
+        self._closed = False
         if render_mode == "human" and not has_display():
             raise ValueError("render_mode 'human' needs a display (DISPLAY is not set); use 'rgb_array'")
         if render_mode not in (None, *self.metadata["render_modes"]):
@@ -170,7 +171,9 @@ class DynaBARNEnv(gymnasium.Env):
         if worlds is not None:
             if difficulty not in (None, "all"):
                 raise ValueError("give worlds or difficulty, not both (worlds picks the exact ids)")
-            if isinstance(worlds, str | bytes) or not all(isinstance(i, int | np.integer) for i in worlds):
+            if isinstance(worlds, str | bytes) or not all(
+                isinstance(i, int | np.integer) and not isinstance(i, bool) for i in worlds
+            ):
                 raise ValueError(f"worlds must be a list of world ids, got {worlds!r}")
             worlds = [int(i) for i in worlds]
             if not worlds:
@@ -287,9 +290,11 @@ class DynaBARNEnv(gymnasium.Env):
 
     def _apply(self, action) -> Outcome | None:
         """Run one control period of the action; the outcome if the episode ended."""
+        if self._closed:
+            raise RuntimeError("the environment is closed; make a new one")
         if self.episode is None:
             raise RuntimeError("call reset() before step()")
-        v, w = action_to_command(action)
+        v, w = action_to_command(checked_actions(action))
         return self.episode.apply(v, w)
 
     def _conclude(self, outcome: Outcome | None, observation: np.ndarray):
@@ -377,6 +382,7 @@ class DynaBARNEnv(gymnasium.Env):
         time.sleep(max(0.0, self._wall_next - time.perf_counter()))
 
     def close(self) -> None:
+        self._closed = True
         for renderer in self._renderers.values():
             renderer.close()
         self._renderers.clear()

@@ -45,7 +45,7 @@ from dynabarn.learn import ENV_ID
 from dynabarn.learn.bc import fit_actor
 from dynabarn.learn.configs import TD3Config
 from dynabarn.learn.replay import ReplayBuffer, collect_demonstrations
-from dynabarn.planners.learned.models import Actor, Critic, save_policy
+from dynabarn.planners.learned.models import Actor, Critic, load_tensors, save_policy
 
 EVAL_SEED_BASE = 2_000_000
 """Trial seeds of the evaluations during training (the benchmark uses 0..trials-1)."""
@@ -202,7 +202,7 @@ def _resume(out: Path, learner: Learner, rng) -> tuple[int, TD3Report, ReplayBuf
     (tensors and plain data only: `weights_only`, so a checkpoint never runs code); one line
     if anything in it is damaged."""
     try:
-        state = torch.load(out / STATE, weights_only=True)
+        state = load_tensors(out / STATE)
         for name, m in learner.modules().items():
             m.load_state_dict(state[name])
         step, learner.updates = int(state["step"]), int(state["updates"])

@@ -37,7 +37,7 @@ from gymnasium.vector.utils import batch_space
 
 from dynabarn.learn.env import DynaBARNEnv
 from dynabarn.learn.shared_worlds import SHARED_WORLDS, shared_world
-from dynabarn.planners.learned.spaces import action_to_command
+from dynabarn.planners.learned.spaces import action_to_command, checked_actions
 from dynabarn.planners.local_goal_batch import LocalGoalBatch
 from dynabarn.processes import safe_path_for_children
 from dynabarn.sim.ray_batch import BatchCaster, supports
@@ -232,7 +232,7 @@ class DynaBARNVectorEnv(VectorEnv):
         if "render_mode" in env_kwargs:
             raise ValueError("the vector environment does not render; use DynaBARNEnv for pictures")
         workers = min(2, os.cpu_count() or 1) if workers is None else workers
-        if not (isinstance(workers, int) and 0 <= workers <= num_envs):
+        if isinstance(workers, bool) or not (isinstance(workers, int) and 0 <= workers <= num_envs):
             raise ValueError(f"workers must be a whole number in [0, num_envs], got {workers!r}")
         probe = DynaBARNEnv(**env_kwargs)  # checks the arguments here, with one clear error
         self.single_observation_space = probe.observation_space
@@ -285,13 +285,17 @@ class DynaBARNVectorEnv(VectorEnv):
         return parts
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if self.closed:
+            raise RuntimeError("the environment is closed; make a new one")
         seeds = [None if seed is None else seed + i for i in range(self.num_envs)]
         payloads = [(seeds[a:b], options) for a, b in zip(self._slices[:-1], self._slices[1:], strict=True)]
         parts = self._parts("reset", payloads)
         return self._obs.copy(), _join([p[0] for p in parts], self._sizes)
 
     def step(self, actions):
-        actions = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)
+        if self.closed:
+            raise RuntimeError("the environment is closed; make a new one")
+        actions = checked_actions(actions, self.num_envs).astype(np.float32)
         payloads = [actions[a:b] for a, b in zip(self._slices[:-1], self._slices[1:], strict=True)]
         parts = self._parts("step", payloads)
         rew, term, trunc = (np.concatenate([p[k] for p in parts]) for k in range(3))

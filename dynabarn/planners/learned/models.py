@@ -87,6 +87,22 @@ def save_policy(actor: Actor, path: Path, *, kind: str, lookahead: float, notes:
     return path
 
 
+def load_tensors(path: Path):
+    """What `torch.save` wrote to `path`: every member's CRC checked first (PyTorch reads a
+    zip without checking them, so a flipped byte loaded and drove), then tensors and plain
+    data only (`weights_only`: a file never runs code). The one way this package reads a
+    PyTorch file (policies, students, training checkpoints); raises on anything else."""
+    import zipfile
+
+    with zipfile.ZipFile(path) as archive:
+        bad = archive.testzip()
+    if bad is not None:
+        raise zipfile.BadZipFile(f"{bad} is damaged (its CRC does not match)")
+    with warnings.catch_warnings():  # PyTorch warns about a foreign file's pickle protocol
+        warnings.simplefilter("ignore")
+        return torch.load(path, map_location="cpu", weights_only=True)
+
+
 def read_blob(path: Path, fmt: str) -> dict:
     """A policy file's dictionary (weights only, no pickled code), or one clear error."""
     from dynabarn.errors import DynabarnError
@@ -95,9 +111,7 @@ def read_blob(path: Path, fmt: str) -> dict:
     if not path.is_file():
         raise DynabarnError(f"policy file not found: {path}")
     try:
-        with warnings.catch_warnings():  # PyTorch warns about a foreign file's pickle protocol
-            warnings.simplefilter("ignore")
-            blob = torch.load(path, map_location="cpu", weights_only=True)
+        blob = load_tensors(path)
     except Exception as exc:  # PyTorch's refusals run to a page; their first sentence says it
         first = str(exc).strip().split(". ")[0].splitlines()[0][:160] if str(exc).strip() else ""
         raise DynabarnError(f"{path}: not a loadable policy ({type(exc).__name__}: {first})") from None

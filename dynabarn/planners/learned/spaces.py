@@ -23,6 +23,24 @@ def policy_input(scan: np.ndarray, local_goal: np.ndarray, dtype=np.float64) -> 
     return np.concatenate([scan, local_goal]).astype(dtype)
 
 
+def checked_actions(action, count: int | None = None) -> np.ndarray:
+    """An environment's action(s) as float64, checked like any input: shape (2,) (or
+    (count, 2) for `count` worlds) and finite. ValueError with one line otherwise (a NaN
+    action would drive a NaN command into the physics)."""
+    expected = (2,) if count is None else (count, 2)
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"action {action!r:.80}: expected numbers of shape {expected}") from None
+    if count is not None and a.size == 2 * count:
+        a = a.reshape(expected)
+    if a.shape != expected:
+        raise ValueError(f"action of shape {a.shape}: expected {expected}")
+    if not np.isfinite(a).all():
+        raise ValueError("action holds NaN or infinity; actions are finite numbers in [-1, 1]")
+    return a
+
+
 def action_to_command(action: np.ndarray) -> tuple[float, float]:
     """Normalised action in [-1, 1]^2 -> (v [m/s], w [rad/s])."""
     a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
