@@ -102,6 +102,19 @@ class DaggerConfig:
     seed: int = option(0, 0, MAX_SEED, "seed of the split, the trials, the coin and torch")
     profile_sets: list[str] = field(default_factory=lambda: list(DEFAULT_PROFILE_SETS))
 
+    def __post_init__(self) -> None:
+        """Names checked here, where the run is configured (a `DynabarnError` line), not first
+        inside the collection workers."""
+        from dynabarn.errors import DynabarnError
+        from dynabarn.protocol import get_protocol
+        from dynabarn.worlds.profiles import get_profile_set
+
+        get_protocol(self.protocol)
+        if isinstance(self.profile_sets, str) or not self.profile_sets:
+            raise DynabarnError(f"profile_sets {self.profile_sets!r}: give a list of one or more profile set names")
+        for name in self.profile_sets:
+            get_profile_set(name)
+
     def features(self) -> FeatureConfig:
         return FeatureConfig(
             history=self.history, history_every=self.history_every, velocity=self.velocity, tracks=self.tracks

@@ -130,10 +130,18 @@ class Dataset:
         return len(x)
 
     def load(self, iterations: int) -> None:
+        """The first `iterations` files, each checked: rows of one width, a label per row,
+        finite numbers (ValueError otherwise: a resumed run never trains on NaN features)."""
         for i in range(iterations):
-            with np.load(self.folder / f"iteration_{i:03d}.npz") as z:
-                self.x.append(z["x"])
-                self.y.append(z["y"])
+            path = self.folder / f"iteration_{i:03d}.npz"
+            with np.load(path, allow_pickle=False) as z:
+                x, y = z["x"], z["y"]
+            if x.ndim != 2 or len(y) != len(x) or (self.x and x.shape[1] != self.x[0].shape[1]):
+                raise ValueError(f"{path.name}: arrays of shapes {x.shape} and {y.shape} do not fit the run's")
+            if not (np.isfinite(x).all() and np.isfinite(y).all()):
+                raise ValueError(f"{path.name}: holds NaN or infinite values")
+            self.x.append(x)
+            self.y.append(y)
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         return np.concatenate(self.x), np.concatenate(self.y)
