@@ -11,7 +11,6 @@ from dynabarn.cli.common import (
     MAX_SEED,
     WORLD_HELP,
     make_parser,
-    plain_name,
     progress_bar,
     ranged,
     run_command,
@@ -102,9 +101,8 @@ def build_parser() -> argparse.ArgumentParser:
     im.add_argument("--out", type=Path, default=Path("imported_worlds"), help="output directory")
     im.add_argument(
         "--name",
-        type=plain_name,
         default=None,
-        help="the set's name (letters, digits, ._+-), the start of every world's name (<name>_<id>), "
+        help="the set's name (a letter, then letters, digits, _ or -), the start of every world's name (<name>_<id>), "
         "so two imported sets never collide in a results table (default: the file's name without .json)",
     )
     im.add_argument(
