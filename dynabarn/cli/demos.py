@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -83,13 +82,14 @@ def _demos_collect(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from dynabarn import bench, worldset
-    from dynabarn.demos.teleop import MANIFEST, append_manifest
+    from dynabarn.demos.teleop import MANIFEST, append_manifest, listed_files
     from dynabarn.planners import get_planner
     from dynabarn.protocol import get_protocol
 
     get_planner(args.planner)
     protocol = get_protocol(args.protocol)
     worlds = worldset.world_set(args.set, worldset.parse_ids(args.worlds))
+    listed = listed_files(args.out)  # a damaged manifest is one line before anything runs
     jobs = bench.make_jobs([(args.planner, {})], worlds, protocol, args.trials, record="all", recordings_dir=args.out)
     report = bench.run_sweep(
         jobs,
@@ -97,12 +97,13 @@ def _demos_collect(args: argparse.Namespace) -> int:
         n_workers=args.jobs,
         progress=lambda stream, total: tqdm(stream, total=total, desc="demos", unit="ep", disable=None),
     )
-    listed = set()
-    if (args.out / MANIFEST).is_file():
-        listed = {json.loads(line)["file"] for line in (args.out / MANIFEST).read_text().splitlines() if line}
+    missing = 0
     for row in sorted(report.rows, key=lambda r: r["key"]):
         name = Path(row.get("recording", "")).name
-        if not name or name in listed:
+        if not name or not (args.out / name).is_file():  # not recorded (a full disk): not listed
+            missing += 1
+            continue
+        if name in listed:
             continue
         append_manifest(
             args.out,
@@ -121,4 +122,9 @@ def _demos_collect(args: argparse.Namespace) -> int:
         )
     ok = sum(r["outcome"] == "success" for r in report.rows)
     print(f"{len(report.rows)} demonstrations in {args.out} ({ok} successful); manifest: {args.out / MANIFEST}")
+    if missing:
+        raise DynabarnError(
+            f"{missing} of {len(report.rows)} episodes left no recording in {args.out} (a full disk?); "
+            "run the same command again once there is room"
+        )
     return 0

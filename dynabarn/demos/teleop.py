@@ -180,6 +180,32 @@ def next_demo_path(demos_dir: Path, world: str, operator: str) -> Path:
     return demos_dir / f"{stem}_{k:03d}.mcap"
 
 
+def listed_files(demos_dir: Path) -> set[str]:
+    """The recordings `demos_dir`'s manifest lists, read as untrusted input: a line that is
+    not a JSON object with a string `file` is one `DynabarnError` naming it."""
+    from dynabarn.errors import DynabarnError
+
+    path = demos_dir / MANIFEST
+    if not path.is_file():
+        return set()
+    try:
+        lines = path.read_text().splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DynabarnError(f"{path}: cannot read it ({exc})") from None
+    listed = set()
+    for line_no, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        try:
+            entry = json.loads(line)
+        except (ValueError, RecursionError):
+            entry = None
+        if not isinstance(entry, dict) or not isinstance(entry.get("file"), str):
+            raise DynabarnError(f"{path}:{line_no}: not a manifest entry (a JSON object with a file name)")
+        listed.add(entry["file"])
+    return listed
+
+
 def append_manifest(demos_dir: Path, entry: dict) -> None:
     with (demos_dir / MANIFEST).open("a") as f:
         f.write(json.dumps(entry, sort_keys=True) + "\n")
