@@ -278,11 +278,41 @@ def _check_messages(rec: Recording) -> None:
     for key, kind in _METADATA_FIELDS.items():
         if meta is not None and key in meta and not (isinstance(meta[key], kind) and not isinstance(meta[key], bool)):
             raise RecordingError(f"{rec.path}: {METADATA.name} field {key!r} is not a JSON {kind.__name__}")
+    _check_motion(rec)
     result = rec.result
     if result is not None and result.get("outcome") not in OUTCOMES:
         raise RecordingError(f"{rec.path}: the recorded result has no outcome the runner gives")
     if result is not None and not numbers_ok(result):
         raise RecordingError(f"{rec.path}: the recorded result has a metric that is not a number")
+
+
+MAX_RECORDED_TIME = 2 * 3600.0
+"""Latest log time a recording may hold [s]: two of the longest time limit (an hour), the
+most an episode can last. A far-future time would make a video of billions of frames."""
+MAX_RECORDED_COORDINATE = 1000.0
+"""Largest |x| or |y| of a recorded pose [m] (keyframes are bounded alike)."""
+
+
+def _check_motion(rec: Recording) -> None:
+    """What the readers draw and replay from: every message's time within
+    `MAX_RECORDED_TIME`, the robot's poses finite and within `MAX_RECORDED_COORDINATE`, and
+    every scan with the first scan's number of beams and finite ranges."""
+    from dynabarn.recording.topics import POSE, SCAN
+
+    for topic, messages in rec.messages.items():
+        if messages and not all(0.0 <= t <= MAX_RECORDED_TIME for t, _ in messages):
+            raise RecordingError(f"{rec.path}: a {topic} message is logged outside [0, {MAX_RECORDED_TIME:g}] s")
+    poses = [m.pose for _, m in rec.messages.get(POSE.name, []) if hasattr(m, "pose")]  # decoded ones
+    if poses:
+        xyzw = np.array([(p.position.x, p.position.y, p.orientation.z, p.orientation.w) for p in poses])
+        if not np.isfinite(xyzw).all() or np.abs(xyzw[:, :2]).max() > MAX_RECORDED_COORDINATE:
+            raise RecordingError(f"{rec.path}: a robot pose is not finite or lies beyond {MAX_RECORDED_COORDINATE:g} m")
+    scans = [m.ranges for _, m in rec.messages.get(SCAN.name, []) if hasattr(m, "ranges")]
+    if scans:
+        if len({len(r) for r in scans}) != 1:
+            raise RecordingError(f"{rec.path}: its scans have different numbers of beams")
+        if not np.isfinite(np.array(scans, dtype=np.float64)).all():
+            raise RecordingError(f"{rec.path}: a scan holds a range that is not finite")
 
 
 def _attachments_and_records(path: Path) -> tuple[dict[str, bytes], dict[str, dict[str, str]]]:
