@@ -52,6 +52,35 @@ def prefer_offscreen_gl() -> None:
     default GLFW. An explicit MUJOCO_GL wins. Library users choose their own."""
     if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
         os.environ["MUJOCO_GL"] = "egl"
+    problem = gl_environment_problem(os.environ)
+    if problem:  # mujoco's import would raise it as a traceback, in every command
+        print(f"error: {problem}", file=sys.stderr)
+        raise SystemExit(EXIT_USAGE)
+
+
+_MUJOCO_GL = {
+    "Linux": ("glfw", "glx", "egl", "osmesa"),
+    "Darwin": ("glfw", "cgl"),
+    "Windows": ("glfw", "wgl"),
+}
+"""MUJOCO_GL's platforms per system (mujoco's own list, less its spellings of on and off)."""
+_GL_OFF_OR_ON = ("", "disable", "disabled", "off", "false", "0", "enable", "enabled", "on", "true", "1")
+
+
+def gl_environment_problem(environ) -> str | None:
+    """Why MUJOCO_GL and PYOPENGL_PLATFORM (the two environment variables that choose how
+    MuJoCo renders) cannot work together, or None: mujoco checks them at import, with a
+    traceback."""
+    import platform
+
+    gl = environ.get("MUJOCO_GL", "").lower().strip()
+    valid = _MUJOCO_GL.get(platform.system(), ("glfw",))
+    if gl not in valid and gl not in _GL_OFF_OR_ON:
+        return f"MUJOCO_GL={environ['MUJOCO_GL']!r} is not one of {', '.join(valid)} (or unset)"
+    pyopengl = environ.get("PYOPENGL_PLATFORM", "")
+    if gl in ("egl", "osmesa") and pyopengl and pyopengl.lower() != gl:
+        return f"PYOPENGL_PLATFORM={pyopengl!r} contradicts MUJOCO_GL={gl}: unset it or set it to {gl}"
+    return None
 
 
 class Parser(argparse.ArgumentParser):

@@ -139,7 +139,8 @@ def _writer(out: Path, fps: float):
 
 def _disarm(writer) -> None:
     """A writer whose close failed is closed: its finaliser must not write (and fail) again."""
-    writer.closed = True
+    with contextlib.suppress(AttributeError):  # imageio's ffmpeg writer has no such flag to set
+        writer.closed = True
     plugin = getattr(writer, "instance", None)
     if plugin is not None:  # imageio's Pillow plugin: its file is closed here, once
         with contextlib.suppress(Exception):
