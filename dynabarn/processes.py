@@ -66,3 +66,22 @@ def worker_start(parent: int) -> None:
 def die_with_parent() -> Callable[[], None] | None:
     """A `preexec_fn` for `subprocess.Popen` (None where the platform has no such signal)."""
     return _die_with_parent if sys.platform.startswith("linux") else None
+
+
+@contextlib.contextmanager
+def no_interrupts() -> Iterator[None]:
+    """The block runs to its end through a further Ctrl-C or SIGTERM (ignored meanwhile, in
+    the main thread; elsewhere signals do not arrive): what an interrupted episode still
+    writes (its recording's end) is not cut by a second, impatient Ctrl-C."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)

@@ -13,6 +13,7 @@ from dynabarn.cli.common import (
     add_jobs,
     add_protocol,
     add_sim_settings,
+    command,
     make_parser,
     planner_config,
     ranged,
@@ -121,6 +122,7 @@ def _given(argv: Sequence[str] | None) -> list[str]:
     return list(vars(probe.parse_args(argv)))
 
 
+@command
 def bench_main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)

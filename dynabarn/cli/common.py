@@ -9,12 +9,14 @@ its line under `[project.scripts]` (docs/architecture.md, "Extending").
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from importlib.metadata import PackageNotFoundError, version
 
+from dynabarn.cli import _interrupted_while_starting
 from dynabarn.errors import DynabarnError, ImportFormatError, Terminated
 from dynabarn.limits import MAX_JOBS, MAX_SEED
 
@@ -268,6 +270,41 @@ def one_line(text: str) -> str:
     """An error message on one line, whatever it quotes (a path with a newline in it, a
     library's multi-line message): line breaks shown as \\n."""
     return text.strip().replace("\r", "\\r").replace("\n", "\\n")
+
+
+def command(main: Callable[[Sequence[str] | None], int]) -> Callable[[Sequence[str] | None], int]:
+    """A command's `*_main`: Ctrl-C or SIGTERM outside its body too (while it starts, parses
+    its options, or a second Ctrl-C while it ends) is one line and exit 130 or 143, never a
+    traceback."""
+
+    @functools.wraps(main)
+    def wrapped(argv: Sequence[str] | None = None) -> int:
+        import signal
+
+        if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:  # started: Ctrl-C as usual
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+        try:
+            code = main(argv)
+        except KeyboardInterrupt as exc:
+            terminated = isinstance(exc, Terminated)
+            print("terminated" if terminated else "interrupted", file=sys.stderr)
+            code = EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
+        if argv is None and code in (EXIT_INTERRUPTED, EXIT_TERMINATED):  # a script, ending
+            _quiet_from_now()
+        return code
+
+    return wrapped
+
+
+def _quiet_from_now() -> None:
+    """The command is ending: a further Ctrl-C (or SIGTERM) must not interrupt what it still
+    writes and closes."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 def _terminate(signum, frame) -> None:

@@ -9,6 +9,7 @@ from pathlib import Path
 from dynabarn.cli.common import (
     add_jobs,
     add_protocol,
+    command,
     make_parser,
     ranged,
     run_command,
@@ -54,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@command
 def demos_main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable, Sequence
 
@@ -28,6 +29,14 @@ def _summary(command: Callable) -> str:
 
 
 def main(argv: Sequence[str] | None = None, prog: str = "python -m dynabarn") -> int:
+    try:
+        return _main(argv, prog)
+    except BrokenPipeError:  # `python -m dynabarn --help | head`: the reader left, as for cat
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+        return 0
+
+
+def _main(argv: Sequence[str] | None, prog: str) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if not args or args[0] in ("-h", "--help"):
         print(f"usage: {prog} COMMAND [options]   (the same as dynabarn-COMMAND)\n\ncommands:")

@@ -8,7 +8,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from dynabarn.cli.common import make_parser, run_command
+from dynabarn.cli.common import command, make_parser, run_command
 from dynabarn.errors import DynabarnError
 
 
@@ -33,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@command
 def export_main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)

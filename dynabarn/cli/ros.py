@@ -14,6 +14,7 @@ from dynabarn.cli.common import (
     add_recording,
     add_trial_seed,
     add_world,
+    command,
     make_parser,
     ranged,
     run_command,
@@ -153,6 +154,7 @@ def _add_timing(parser: argparse.ArgumentParser) -> None:
     )
 
 
+@command
 def ros_main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)

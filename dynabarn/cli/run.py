@@ -12,6 +12,7 @@ from dynabarn.cli.common import (
     add_sim_settings,
     add_trial_seed,
     add_world,
+    command,
     make_parser,
     planner_config,
     run_command,
@@ -60,6 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@command
 def run_main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)

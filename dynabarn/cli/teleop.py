@@ -11,6 +11,7 @@ from dynabarn.cli.common import (
     add_protocol,
     add_trial_seed,
     add_world,
+    command,
     make_parser,
     plain_name,
     ranged,
@@ -47,6 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@command
 def teleop_main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -9,6 +9,7 @@ from pathlib import Path
 from dynabarn.cli.common import (
     MAX_SEED,
     add_protocol,
+    command,
     make_parser,
     ranged,
     run_command,
@@ -82,6 +83,7 @@ def _add_options(parser: argparse.ArgumentParser, config: type) -> None:
         parser.add_argument("--" + name.replace("_", "-"), type=ranged(kind, lo, hi), default=default, help=text)
 
 
+@command
 def train_main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)

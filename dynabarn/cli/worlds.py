@@ -10,6 +10,7 @@ from pathlib import Path
 from dynabarn.cli.common import (
     MAX_SEED,
     WORLD_HELP,
+    command,
     make_parser,
     progress_bar,
     ranged,
@@ -134,6 +135,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@command
 def worlds_main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)

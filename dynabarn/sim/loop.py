@@ -31,6 +31,7 @@ from dynabarn.metrics import (
     EpisodeResult,
     Outcome,
 )
+from dynabarn.processes import no_interrupts
 from dynabarn.protocol import EvalProtocol
 from dynabarn.provenance import versions
 from dynabarn.sim.config import SimConfig
@@ -126,11 +127,12 @@ def run_episode(
                 for on_poses in pose_hooks:
                     on_poses(period)
     except KeyboardInterrupt:
-        episode.end(Outcome.ERROR, INTERRUPTED)
-        result = episode_result(episode, start)
-        for obs_ in observers:
-            obs_.on_end(result)
-        _finish(planner, INTERRUPTED)
+        with no_interrupts():  # a second Ctrl-C must not cut the recording's end
+            episode.end(Outcome.ERROR, INTERRUPTED)
+            result = episode_result(episode, start)
+            for obs_ in observers:
+                obs_.on_end(result)
+            _finish(planner, INTERRUPTED)
         raise
     _finish(planner, episode.outcome.value if episode.outcome else "error")
     result = episode_result(episode, start)
