@@ -26,6 +26,7 @@ All `rr.` calls of the package live here, in `rerun_scene` (the entities themsel
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -278,10 +279,16 @@ def save_rrd(recs: list[Recording], path: Path) -> list[ReplayCounts]:
     stream = rr.RecordingStream(APP_ID, make_default=False, make_thread_default=False)
     with staged_path(path) as part:
         stream.save(str(part))
-        counts = build_stream(recs, stream)
-        stream.flush()
+        try:
+            counts = build_stream(recs, stream)
+            stream.flush()
+        except RuntimeError as exc:  # rerun's file writer stopped (a full disk): it says so only here
+            with contextlib.suppress(Exception):
+                stream.disconnect()
+            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            raise DynabarnError(f"cannot write {path}: {first} (a full disk?)") from None
         stream.disconnect()
-        if not part.is_file():  # rerun's sink writes in its own thread and reports nothing
+        if not part.stat().st_size:  # rerun's sink writes in its own thread and reports nothing
             raise DynabarnError(f"cannot write {path} (nothing was written; is the folder writable?)")
     return counts
 

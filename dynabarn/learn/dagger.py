@@ -37,7 +37,7 @@ from dynabarn.files import save_atomically, write_atomically
 from dynabarn.learn.configs import DaggerConfig
 from dynabarn.learn.dagger_rollout import EpisodeData, run_episodes
 from dynabarn.learn.split import describe_split
-from dynabarn.planners.learned.models import load_tensors
+from dynabarn.planners.learned.models import load_tensors, save_tensors
 from dynabarn.planners.learned.spaces import HEADS, command_to_action
 from dynabarn.planners.learned.student import StudentActor, save_student
 from dynabarn.planners.registry import get_planner
@@ -107,7 +107,7 @@ def _validate(pool, cfg: DaggerConfig, actor: StudentActor) -> list[EpisodeData]
 def _checkpoint(out: Path, actor: StudentActor, opt, report: DaggerReport, line: dict) -> None:
     """Everything a resumed run needs, then the log line that says it is there."""
     state = {"actor": actor.state_dict(), "optimizer": opt.state_dict(), "report": asdict(report)}
-    save_atomically(out / STATE, lambda f: torch.save(state, f))
+    save_tensors(out / STATE, state)
     _log(out, json.dumps(line))
 
 

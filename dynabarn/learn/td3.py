@@ -45,7 +45,7 @@ from dynabarn.learn import ENV_ID
 from dynabarn.learn.bc import fit_actor
 from dynabarn.learn.configs import TD3Config
 from dynabarn.learn.replay import ReplayBuffer, collect_demonstrations
-from dynabarn.planners.learned.models import Actor, Critic, load_tensors, save_policy
+from dynabarn.planners.learned.models import Actor, Critic, load_tensors, save_policy, save_tensors
 
 EVAL_SEED_BASE = 2_000_000
 """Trial seeds of the evaluations during training (the benchmark uses 0..trials-1)."""
@@ -194,7 +194,7 @@ def _save_state(out: Path, learner: Learner, report: TD3Report, step: int, rng, 
         "rng": json.dumps(rng.bit_generator.state),
         "torch_rng": torch.get_rng_state(),
     }
-    save_atomically(out / STATE, lambda f: torch.save(state, f))
+    save_tensors(out / STATE, state)
 
 
 def _resume(out: Path, learner: Learner, rng) -> tuple[int, TD3Report, ReplayBuffer, ReplayBuffer]:

@@ -83,8 +83,24 @@ def save_policy(actor: Actor, path: Path, *, kind: str, lookahead: float, notes:
         "notes": dict(notes or {}),
         "state_dict": actor.state_dict(),
     }
-    save_atomically(path, lambda f: torch.save(blob, f))
+    save_tensors(path, blob)
     return path
+
+
+def save_tensors(path: Path, blob: dict) -> None:
+    """`torch.save` into `path`, atomically (`files.save_atomically`); PyTorch's failure to
+    write (a full disk, which its zip writer reports as a RuntimeError of several lines) is
+    an OSError with one line, like any other failed write."""
+    import errno
+
+    def save(f) -> None:
+        try:
+            torch.save(blob, f)
+        except RuntimeError as exc:
+            first = (str(exc).strip().splitlines() or ["write failed"])[0][:160]
+            raise OSError(errno.EIO, f"PyTorch could not write it ({first}; a full disk?)", str(path)) from None
+
+    save_atomically(path, save)
 
 
 def load_tensors(path: Path):

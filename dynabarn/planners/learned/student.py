@@ -28,9 +28,8 @@ import torch
 from torch import nn
 
 from dynabarn.errors import DynabarnError
-from dynabarn.files import save_atomically
 from dynabarn.planners.learned.features import FeatureConfig
-from dynabarn.planners.learned.models import load_weights, read_blob
+from dynabarn.planners.learned.models import load_weights, read_blob, save_tensors
 from dynabarn.planners.learned.spaces import HEADS
 
 STUDENT_FORMAT = "dynabarn-student-v1"
@@ -100,7 +99,7 @@ def save_student(actor: StudentActor, path: Path, *, features: FeatureConfig, tr
         "notes": notes,
         "state_dict": actor.state_dict(),
     }
-    save_atomically(path, lambda f: torch.save(blob, f))
+    save_tensors(path, blob)
     return path
 
 
