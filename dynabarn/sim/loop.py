@@ -127,18 +127,24 @@ def run_episode(
                 for on_poses in pose_hooks:
                     on_poses(period)
     except KeyboardInterrupt:
-        with no_interrupts():  # a second Ctrl-C must not cut the recording's end
-            episode.end(Outcome.ERROR, INTERRUPTED)
-            result = episode_result(episode, start)
-            for obs_ in observers:
-                obs_.on_end(result)
-            _finish(planner, INTERRUPTED)
+        _end_interrupted(episode, start, observers, planner)
         raise
     _finish(planner, episode.outcome.value if episode.outcome else "error")
     result = episode_result(episode, start)
     for obs_ in observers:
         obs_.on_end(result)
     return result
+
+
+def _end_interrupted(episode: Episode, start: EpisodeStart, observers: Sequence[EpisodeObserver], planner) -> None:
+    """Ctrl-C or SIGTERM: the episode judged as interrupted and every observer ended (the
+    recording closed whole), through a second, impatient Ctrl-C."""
+    with no_interrupts():
+        episode.end(Outcome.ERROR, INTERRUPTED)
+        result = episode_result(episode, start)
+        for obs_ in observers:
+            obs_.on_end(result)
+        _finish(planner, INTERRUPTED)
 
 
 def _planning_ms(planner, since: float) -> float:
