@@ -583,8 +583,15 @@ def _messages(path: Path):
 
 
 @pytest.mark.slow
-def test_a_local_ray_cluster_listens_on_loopback_only(tmp_path):
+def test_a_local_ray_cluster_listens_on_loopback_only_and_imports_nothing_from_here(tmp_path):
+    """Its GCS, raylets, workers and this process's own server on 127.0.0.1; and no worker
+    imports the planted modules of the folder the sweep runs from (Ray puts the driver's
+    folder on its workers' path itself)."""
     require("ray", "ray")
+    marker = tmp_path / "MARKER"
+    work = tmp_path / "work"
+    work.mkdir()
+    _plant(work, marker)
     script = tmp_path / "sweep.py"
     script.write_text(
         textwrap.dedent(
@@ -608,10 +615,18 @@ def test_a_local_ray_cluster_listens_on_loopback_only(tmp_path):
             """
         )
     )
+    env = dict(os.environ, PYTHONPATH=str(REPO))
     done = subprocess.run(
-        [sys.executable, str(script)], capture_output=True, text=True, timeout=300, cwd=tmp_path, start_new_session=True
+        [sys.executable, str(script)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=work,
+        env=env,
+        start_new_session=True,
     )
     assert "ROW " in done.stdout, done.stdout + done.stderr
+    assert not marker.exists(), f"a Ray worker imported from the sweep's folder: {marker.read_text()}"
     session = {int(p) for line in done.stdout.splitlines() if line.startswith("SESSION") for p in line.split()[1:]}
     ours = [line for line in done.stdout.splitlines() if line.startswith("LISTEN") and _pids(line) & session]
     assert any("gcs_server" in line for line in ours), done.stdout  # the cluster's servers are seen
