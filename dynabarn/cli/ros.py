@@ -162,6 +162,7 @@ def ros_main(argv: Sequence[str] | None = None) -> int:
 
 
 def _ros_episode(args: argparse.Namespace) -> int:
+    from dynabarn.interfaces.planner import check_relations
     from dynabarn.protocol import get_protocol
     from dynabarn.recording import default_run_path
     from dynabarn.ros.bridge import BridgeConfig, RosMaster, RosPlanner, bridge_overhead, ros_python
@@ -209,6 +210,10 @@ def _ros_episode(args: argparse.Namespace) -> int:
         nav_workspace=str(workspace) if workspace else None,
         stack_log=str(stack_log) if stack_log else None,
     )
+    try:
+        check_relations(config, "dynabarn-ros")  # an unbalanced quote in --launch, before a master starts
+    except TypeError as exc:
+        raise DynabarnError(str(exc)) from None
     master = RosMaster.start(args.master)
     planner = RosPlanner(master, config)
     try:
