@@ -17,6 +17,7 @@ import stat
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,7 @@ import pytest
 
 from dynabarn.provenance import SHIPPED_WORLDS
 from tests.conftest import require
-from tests.test_fuzz import _call
+from tests.test_fuzz import _call, _wait_for
 
 REPO = Path(__file__).resolve().parent.parent
 WORLD = SHIPPED_WORLDS / "world_000.xml"
@@ -636,3 +637,38 @@ def test_a_local_ray_cluster_listens_on_loopback_only_and_imports_nothing_from_h
 
 def _pids(line: str) -> set[int]:
     return {int(p) for p in re.findall(r"pid=(\d+)", line)}
+
+
+@pytest.mark.slow
+def test_a_killed_dagger_run_takes_its_collection_workers_with_it(tmp_path):
+    """SIGKILL to a DAgger run: its spawned collection workers (and multiprocessing's
+    resource tracker) end too, instead of holding the caller's pipes."""
+    require("torch", "learn")
+    from tests.conftest import cmdline, processes_carrying, tagged_environment
+
+    script = tmp_path / "dagger.py"
+    script.write_text(
+        textwrap.dedent(
+            f"""
+            from pathlib import Path
+            from dynabarn.learn.configs import DaggerConfig
+            from dynabarn.learn.dagger import train_dagger
+
+            if __name__ == "__main__":
+                cfg = DaggerConfig(iterations=50, episodes=4, validation_episodes=1, updates=2, workers=2)
+                train_dagger(cfg, Path({str(tmp_path / "out")!r}))
+            """
+        )
+    )
+    token, env = tagged_environment()
+    env["PYTHONPATH"] = str(REPO)
+    proc = subprocess.Popen(
+        [sys.executable, str(script)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    try:
+        assert _wait_for(lambda: len(processes_carrying(token)) >= 3, 120), "the workers never started"
+        time.sleep(1.0)  # collecting
+    finally:
+        proc.kill()
+        proc.wait()
+    assert _wait_for(lambda: not processes_carrying(token), 30), [cmdline(p) for p in processes_carrying(token)]
