@@ -11,7 +11,7 @@ from collections.abc import Iterator
 
 from dynabarn.bench.jobs import Job, row_head, run_job
 from dynabarn.errors import DynabarnError
-from dynabarn.processes import in_empty_folder, safe_path_for_children, worker_start
+from dynabarn.processes import in_empty_folder, one_thread_per_worker, safe_path_for_children, worker_start
 
 MAX_ATTEMPTS = 3
 """Times an episode is started when its worker process dies under it (killed, out of
@@ -34,6 +34,7 @@ def _local_backend(jobs: list[Job], n_workers: int) -> Iterator[dict]:
     forkable = sys.platform.startswith("linux") and "torch" not in sys.modules
     ctx = mp.get_context("fork" if forkable else "spawn")
     safe_path_for_children()  # a spawned worker starts as `python -c`: never from the current folder
+    one_thread_per_worker()  # the workers fill the cores: PyTorch's threads would fight over them
     attempts: dict[str, int] = {}
     remaining = list(jobs)
     while remaining:
@@ -134,6 +135,7 @@ def _start_local_ray(ray, n_workers: int) -> None:
 
     os.environ.update(LOOPBACK_RAY)
     safe_path_for_children()
+    one_thread_per_worker()
     ray_constants.ENABLE_RAY_CLUSTER = False  # read when the node's address is chosen
     with in_empty_folder():
         ray.init(num_cpus=n_workers, include_dashboard=False, ignore_reinit_error=True, log_to_driver=False)

@@ -238,9 +238,10 @@ def run_cases(
         return
     import multiprocessing as mp
 
-    from dynabarn.processes import safe_path_for_children, worker_start
+    from dynabarn.processes import one_thread_per_worker, safe_path_for_children, worker_start
 
     safe_path_for_children()
+    one_thread_per_worker()
     with mp.get_context("spawn").Pool(
         min(jobs, len(items) or 1), initializer=worker_start, initargs=(os.getpid(),)
     ) as pool:
