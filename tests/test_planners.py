@@ -165,3 +165,70 @@ def test_local_goal_paths_kept_along_the_plan_are_the_plans_own():
             max_cells = math.floor(lookahead / g.resolution) + 3  # as the planner counts
             np.testing.assert_array_equal(g._plan_suffix(x, y, lookahead), g.plan(x, y, max_cells=max_cells)[1:])
     assert len(g._suffixes) > len(on_plan)  # the walk kept more than the cells asked for
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["oracle", "oracle_present", "predictive"])
+def test_the_search_measures_only_what_can_change_its_decision(name):
+    """The oracles' search skips the obstacles and walls that cannot come within `comfort` of
+    any candidate, and measures a first segment once per (v1, w1): every command, and every
+    plan drawn, is the one the full measurement gives, tick by tick, in easy to hard worlds
+    (including ticks where nothing is safe)."""
+    from dynabarn.interfaces import Planner
+    from dynabarn.planners import get_planner
+    from dynabarn.planners.oracle import _boxes
+    from dynabarn.protocol import get_protocol
+    from dynabarn.sim import run_episode
+    from dynabarn.worldset import resolve_world
+
+    class Everything(type(get_planner(name))):
+        def _near(self, box, future, radii):
+            return np.ones(future.shape[1], dtype=bool)
+
+        def _near_walls(self, box):
+            self._walls = list(self.info.walls)
+            return self._walls
+
+        def _obstacle_clearance(self, xy, future, radii):
+            return self._clearance(xy, future, radii) if future.shape[1] else np.full(xy.shape[:2], np.inf)
+
+    planner_name = name
+
+    class Both(Planner):
+        name = planner_name
+        privileged = True
+
+        def __init__(self):
+            self.fast, self.full = get_planner(name), Everything()
+            self.ticks = self.pruned = 0
+
+        def reset(self, info):
+            self.fast.reset(info)
+            self.full.reset(info)
+
+        def act(self, obs):
+            fast, full = self.fast.act(obs), self.full.act(obs)
+            assert fast == full and np.array_equal(self.fast._last, self.full._last), (obs.time, fast, full)
+            # What is skipped is never within comfort; what is measured is measured exactly,
+            # here and beside a wall (where the episodes rarely go).
+            future, radii = self.fast.obstacle_future(obs)
+            comfort = self.fast.cfg.comfort
+            for pose in (obs.pose, np.array([obs.pose[0], 9.4, obs.pose[2]])):
+                xy = self.fast._rollout(pose)[..., :2]
+                box = _boxes(xy)
+                walls = self.fast._wall_distance(xy, self.fast._near_walls(box))
+                all_walls = self.fast._wall_distance(xy, self.fast.info.walls)
+                near = self.fast._near(box, future, radii)
+                movers = self.fast._obstacle_clearance(xy, future[:, near], radii[..., near])
+                all_movers = self.full._obstacle_clearance(xy, future, radii)
+                for got, want in ((walls - self.fast.radius, all_walls - self.fast.radius), (movers, all_movers)):
+                    close = want <= comfort
+                    assert np.array_equal(got[close], want[close]) and (got[~close] > comfort).all()
+            self.ticks += 1
+            self.pruned += len(self.fast._walls) < len(self.fast.info.walls)
+            return fast
+
+    both = Both()
+    for world in (5, 105, 205, 250, 299):
+        run_episode(resolve_world(world), both, get_protocol("barn"), seed=1)
+    assert both.ticks > 300 and both.pruned > 0

@@ -83,6 +83,12 @@ class OracleConfig:
         return config_from_kwargs(cls, kwargs, "oracle")
 
 
+def _boxes(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and half size (K, 2) of the box around every candidate's position at each step."""
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    return 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+
 class OraclePlanner(Planner):
     """Privileged planner: time-aware search against the obstacles' known schedules."""
 
@@ -102,6 +108,8 @@ class OraclePlanner(Planner):
         self._steps = np.arange(1, n1 + n2 + 1) * c.dt  # (K,)
         self._in_first = np.arange(1, n1 + n2 + 1) <= n1
         self._n_first = n1
+        self._per_first = len(v) * len(w)
+        """Consecutive candidates sharing a first segment (the meshgrid's inner (v2, w2))."""
         self._last: np.ndarray | None = None
 
     def config(self) -> dict:
@@ -137,9 +145,55 @@ class OraclePlanner(Planner):
         y = pose[1] + np.cumsum(v * sin_mid * dt, axis=1)
         return np.stack([x, y, th], axis=-1)
 
-    def _wall_distance(self, xy: np.ndarray) -> np.ndarray:
+    def _obstacle_clearance(self, xy: np.ndarray, future: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """(N, K) clearance of every candidate pose from the obstacles `future` (K, n, 2) of
+        radii (n,) or (K, n): the least distance beyond touching (inf without obstacles)."""
+        if not future.shape[1]:
+            return np.full(xy.shape[:2], np.inf)
+        # The first segment's poses are those of the (v1, w1) pair alone: each run of
+        # `_per_first` consecutive candidates shares them, bit for bit, so they are measured
+        # once and repeated (a third of the work).
+        n1, m = self._n_first, self._per_first
+        per_step = radii.ndim == 2
+        first = self._clearance(xy[::m, :n1], future[:n1], radii[:n1] if per_step else radii)
+        rest = self._clearance(xy[:, n1:], future[n1:], radii[n1:] if per_step else radii)
+        return np.concatenate([np.repeat(first, m, axis=0), rest], axis=1)
+
+    def _clearance(self, xy: np.ndarray, future: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        d = np.hypot(xy[:, :, None, 0] - future[None, :, :, 0], xy[:, :, None, 1] - future[None, :, :, 1])
+        radii = radii[None, None, :] if radii.ndim == 1 else radii[None]
+        return (d - radii).min(axis=2) - self.radius
+
+    def _near(self, box: tuple[np.ndarray, np.ndarray], future: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """(n,) which obstacles can come within `comfort` of some candidate: at each step,
+        the distance from an obstacle to the box around every candidate's pose bounds its
+        distance to each of them from below. The others change nothing a decision rests on
+        while some candidate is safe (a clearance over `comfort` costs nothing and blocks
+        nothing, and the least clearance below it is a near obstacle's or a wall's), so
+        their distances are not computed; `act` computes them where it needs every one."""
+        centre, half = box
+        gap = np.maximum(np.abs(future - centre[:, None, :]) - half[:, None, :], 0.0)  # (K, n, 2)
+        bound = np.hypot(gap[..., 0], gap[..., 1]) - (radii[None, :] if radii.ndim == 1 else radii)
+        # 1e-6 m of slack covers the rounding of the box and of the distances themselves.
+        return bound.min(axis=0) - self.radius <= self.cfg.comfort + 1e-6
+
+    def _near_walls(self, box: tuple[np.ndarray, np.ndarray]) -> list:
+        """The walls that can come within `comfort` of some candidate (as `_near`: the
+        distance between a wall and the candidates' box at each step bounds it from below)."""
+        centre, half = box
+        near = []
+        for wall in self.info.walls:
+            cx, cy, sx, sy = wall
+            gx = np.maximum(np.abs(centre[:, 0] - cx) - half[:, 0] - sx / 2, 0.0)
+            gy = np.maximum(np.abs(centre[:, 1] - cy) - half[:, 1] - sy / 2, 0.0)
+            if np.hypot(gx, gy).min() - self.radius <= self.cfg.comfort + 1e-6:
+                near.append(wall)
+        self._walls = near
+        return near
+
+    def _wall_distance(self, xy: np.ndarray, walls) -> np.ndarray:
         d = np.full(xy.shape[:-1], np.inf)
-        for cx, cy, sx, sy in self.info.walls:
+        for cx, cy, sx, sy in walls:
             dx = np.maximum(np.abs(xy[..., 0] - cx) - sx / 2, 0.0)
             dy = np.maximum(np.abs(xy[..., 1] - cy) - sy / 2, 0.0)
             d = np.minimum(d, np.hypot(dx, dy))
@@ -170,13 +224,10 @@ class OraclePlanner(Planner):
         traj = self._rollout(obs.pose)  # (N, K, 3)
         xy = traj[..., :2]
         future, radii = self.obstacle_future(obs)  # (K, n, 2), (n,) or (K, n)
-        if future.shape[1]:
-            d = np.hypot(xy[:, :, None, 0] - future[None, :, :, 0], xy[:, :, None, 1] - future[None, :, :, 1])
-            radii = radii[None, None, :] if radii.ndim == 1 else radii[None]
-            clear = (d - radii).min(axis=2) - self.radius  # (N, K)
-        else:
-            clear = np.full(xy.shape[:2], np.inf)
-        clear = np.minimum(clear, self._wall_distance(xy) - self.radius)
+        box = _boxes(xy)
+        walls = self._wall_distance(xy, self._near_walls(box)) - self.radius
+        near = self._near(box, future, radii)
+        clear = np.minimum(self._obstacle_clearance(xy, future[:, near], radii[..., near]), walls)
         min_clear = clear.min(axis=1)
         blocked = clear <= c.safety  # (N, K)
         static_ok = np.ones(len(xy), dtype=bool)
@@ -200,7 +251,15 @@ class OraclePlanner(Planner):
             best = int(np.argmin(snap_array(cost, SCORE_RESOLUTION, out=cost)))
         else:
             # Nothing is safe for the whole horizon: stay clear for as long as possible, and
-            # never run into a static cylinder to get away from a mover if avoidable.
+            # never run into a static cylinder to get away from a mover if avoidable. Here
+            # every clearance counts, the far obstacles' too.
+            if not near.all() or len(self._walls) != len(self.info.walls):
+                walls = self._wall_distance(xy, self.info.walls) - self.radius
+                clear = np.minimum(self._obstacle_clearance(xy, future, radii), walls)
+                min_clear = clear.min(axis=1)
+                blocked = clear <= c.safety
+                if self._static is not None:
+                    blocked |= static_blocked
             first_hit = np.where(blocked, np.arange(clear.shape[1])[None, :], clear.shape[1]).min(axis=1)
             best = int(np.argmax(snap_array(static_ok * 1e6 + first_hit * 1000.0 + min_clear, SCORE_RESOLUTION)))
         self._last = xy[best]
