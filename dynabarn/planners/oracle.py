@@ -17,6 +17,7 @@ the one that stays clear longest.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import asdict, dataclass
 from typing import ClassVar
@@ -83,6 +84,51 @@ class OracleConfig:
         return config_from_kwargs(cls, kwargs, "oracle")
 
 
+@dataclass(frozen=True)
+class _CandidateGrid:
+    """What the search's rollouts take from the samples alone (read-only arrays, shared)."""
+
+    v1: np.ndarray  # (N,) each candidate's two (v, w) commands
+    w1: np.ndarray
+    v2: np.ndarray
+    w2: np.ndarray
+    steps: np.ndarray  # (K,) rollout times after now [s]
+    in_first: np.ndarray  # (K,) the steps of the first segment
+    v: np.ndarray  # (N, K) each step's speed
+    turned: np.ndarray  # (P,) distinct (turn so far, half a step's turn) pairs
+    half_step: np.ndarray
+    heading_of: np.ndarray  # (N * K,) each step's pair
+    n_first: int
+    per_first: int  # consecutive candidates sharing a first segment (the meshgrid's inner (v2, w2))
+
+
+@functools.lru_cache(maxsize=8)
+def _candidate_grid(v_samples: tuple, w_samples: tuple, t1: float, t2: float, dt: float) -> _CandidateGrid:
+    """The (v1, w1, v2, w2) grid and its rollouts' constant parts, made once per configuration
+    (every episode of a sweep makes a planner). A heading at mid-step is (yaw + turned) -
+    half_step: the first segment's turn depends on w1 alone and the second's on (w1, w2), so
+    of the 42,336 steps of the shipped grid only 589 pairs differ, and `_rollout` takes sine
+    and cosine once per pair (the same expressions as per step, so the same bits)."""
+    v = np.asarray(v_samples, dtype=float)
+    w = np.asarray(w_samples, dtype=float)
+    v1, w1, v2, w2 = (a.ravel() for a in np.meshgrid(v, w, v, w, indexing="ij"))
+    n1, n2 = round(t1 / dt), round(t2 / dt)
+    steps = np.arange(1, n1 + n2 + 1) * dt
+    in_first = np.arange(1, n1 + n2 + 1) <= n1
+    speed = np.where(in_first[None, :], v1[:, None], v2[:, None])
+    turn_rate = np.where(in_first[None, :], w1[:, None], w2[:, None])
+    turned, half_step = np.cumsum(turn_rate * dt, axis=1), 0.5 * turn_rate * dt
+    pairs, heading_of = np.unique(np.stack([turned.ravel(), half_step.ravel()]), axis=1, return_inverse=True)
+    arrays = (v1, w1, v2, w2, steps, in_first, speed, pairs[0].copy(), pairs[1].copy(), heading_of.ravel())
+    for a in arrays:
+        a.flags.writeable = False
+    return _CandidateGrid(*arrays, n_first=n1, per_first=len(v) * len(w))
+
+
+GOAL_REACH = 0.2
+"""A rollout pose this close to the goal [m] reaches it (and beats any cost-to-go)."""
+
+
 def _boxes(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Centre and half size (K, 2) of the box around every candidate's position at each step."""
     lo, hi = xy.min(axis=0), xy.max(axis=0)
@@ -99,17 +145,11 @@ class OraclePlanner(Planner):
     def __init__(self, **config) -> None:
         self.cfg = self.config_class.from_kwargs(**config)
         c = self.cfg
-        v = np.asarray(c.v_samples, dtype=float)
-        w = np.asarray(c.w_samples, dtype=float)
-        v1, w1, v2, w2 = np.meshgrid(v, w, v, w, indexing="ij")
-        self._v1, self._w1, self._v2, self._w2 = (a.ravel() for a in (v1, w1, v2, w2))
-        n1 = round(c.t1 / c.dt)
-        n2 = round(c.t2 / c.dt)
-        self._steps = np.arange(1, n1 + n2 + 1) * c.dt  # (K,)
-        self._in_first = np.arange(1, n1 + n2 + 1) <= n1
-        self._n_first = n1
-        self._per_first = len(v) * len(w)
-        """Consecutive candidates sharing a first segment (the meshgrid's inner (v2, w2))."""
+        grid = _candidate_grid(tuple(c.v_samples), tuple(c.w_samples), c.t1, c.t2, c.dt)
+        self._v1, self._w1, self._v2, self._w2 = grid.v1, grid.w1, grid.v2, grid.w2
+        self._steps, self._in_first, self._v = grid.steps, grid.in_first, grid.v
+        self._turned, self._half_step, self._heading_of = grid.turned, grid.half_step, grid.heading_of
+        self._n_first, self._per_first = grid.n_first, grid.per_first
         self._last: np.ndarray | None = None
 
     def config(self) -> dict:
@@ -134,15 +174,13 @@ class OraclePlanner(Planner):
 
     def _rollout(self, pose: np.ndarray) -> np.ndarray:
         """(N, K, 3) poses of every two-segment candidate."""
-        c = self.cfg
-        dt = c.dt
-        v = np.where(self._in_first[None, :], self._v1[:, None], self._v2[:, None])  # (N, K)
-        w = np.where(self._in_first[None, :], self._w1[:, None], self._w2[:, None])
-        th = pose[2] + np.cumsum(w * dt, axis=1)
-        th_mid = th - 0.5 * w * dt
-        sin_mid, cos_mid = sincos(th_mid)  # the same bits on every CPU (numpy's are not)
+        dt, v = self.cfg.dt, self._v
+        sin_u, cos_u = sincos((pose[2] + self._turned) - self._half_step)  # the same bits on every CPU
+        shape = v.shape
+        sin_mid, cos_mid = sin_u[self._heading_of].reshape(shape), cos_u[self._heading_of].reshape(shape)
         x = pose[0] + np.cumsum(v * cos_mid * dt, axis=1)
         y = pose[1] + np.cumsum(v * sin_mid * dt, axis=1)
+        th = pose[2] + self._turned[self._heading_of].reshape(shape)
         return np.stack([x, y, th], axis=-1)
 
     def _obstacle_clearance(self, xy: np.ndarray, future: np.ndarray, radii: np.ndarray) -> np.ndarray:
@@ -236,15 +274,18 @@ class OraclePlanner(Planner):
             static_ok = ~static_blocked.any(axis=1)
             blocked |= static_blocked
         ok = ~blocked.any(axis=1)
-        goal_d = np.hypot(*(xy[..., 0] - obs.goal_in_world[0], xy[..., 1] - obs.goal_in_world[1]))
-        reached = (goal_d < 0.2).any(axis=1)
         cost = (
             self._cost_to_go(xy[:, -1])
             + c.first_segment_weight * self._cost_to_go(xy[:, self._n_first - 1])
             + c.clearance_weight * np.maximum(0.0, c.comfort - min_clear)
         )
-        # Reaching the goal beats any cost-to-go; reaching it sooner beats later.
-        cost = np.where(reached, -10.0 + 0.01 * np.argmax(goal_d < 0.2, axis=1), cost)
+        # Reaching the goal beats any cost-to-go; reaching it sooner beats later. (Measured
+        # only where the candidates' box comes within reach of it.)
+        goal = obs.goal_in_world
+        gap = np.maximum(np.abs(box[0] - goal[:2]) - box[1], 0.0)  # (K, 2)
+        if np.hypot(gap[:, 0], gap[:, 1]).min() < GOAL_REACH + 1e-6:
+            at_goal = np.hypot(xy[..., 0] - goal[0], xy[..., 1] - goal[1]) < GOAL_REACH
+            cost = np.where(at_goal.any(axis=1), -10.0 + 0.01 * np.argmax(at_goal, axis=1), cost)
         if ok.any():
             cost = np.where(ok, cost, np.inf)
             # Ties in exact arithmetic stay ties on every CPU; the first candidate wins.
