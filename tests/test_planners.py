@@ -189,7 +189,7 @@ def test_the_search_measures_only_what_can_change_its_decision(name):
             self._walls = list(self.info.walls)
             return self._walls
 
-        def _obstacle_clearance(self, xy, future, radii):
+        def _obstacle_clearance(self, xy, future, radii, box=None):
             return self._clearance(xy, future, radii) if future.shape[1] else np.full(xy.shape[:2], np.inf)
 
     planner_name = name
@@ -218,8 +218,7 @@ def test_the_search_measures_only_what_can_change_its_decision(name):
                 box = _boxes(xy)
                 walls = self.fast._wall_distance(xy, self.fast._near_walls(box))
                 all_walls = self.fast._wall_distance(xy, self.fast.info.walls)
-                near = self.fast._near(box, future, radii)
-                movers = self.fast._obstacle_clearance(xy, future[:, near], radii[..., near])
+                movers = self.fast._obstacle_clearance(xy, future, radii, box)
                 all_movers = self.full._obstacle_clearance(xy, future, radii)
                 for got, want in ((walls - self.fast.radius, all_walls - self.fast.radius), (movers, all_movers)):
                     close = want <= comfort
