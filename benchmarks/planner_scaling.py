@@ -1,0 +1,71 @@
+"""Per-call time of the search planners and how a pool of workers scales them.
+
+    python benchmarks/planner_scaling.py [--jobs 1,4,8,16]
+
+Prints each planner's mean and 95th-percentile time per `act` over six worlds of every
+difficulty (as `make bench`'s planner rows), then the wall time and x real time of
+`predictive` on the 48 hard worlds 200-247 (seed 0) run by a pool of 1, 4, 8 and 16
+workers (docs/speed.md's 16-core table). Each worker runs one episode at a time in its own
+process, with one intra-op thread (OMP_NUM_THREADS=1 unless set)."""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing as mp
+import os
+import time
+
+import numpy as np
+
+from dynabarn.interfaces import EpisodeObserver
+from dynabarn.planners import get_planner, planner_spec
+from dynabarn.protocol import get_protocol
+from dynabarn.sim import run_episode
+from dynabarn.worldset import resolve_world
+
+WORLDS = (0, 15, 105, 155, 205, 215)
+HARD = range(200, 248)
+
+
+def planner_compute(planner: str, worlds=WORLDS) -> tuple[float, float, int]:
+    """(mean, p95 [ms], calls) of `planner.act` over one episode in each of `worlds`."""
+    times: list[float] = []
+
+    class Timer(EpisodeObserver):
+        def on_tick(self, tick):
+            times.append(tick.planner_ms)
+
+    name, config, _ = planner_spec(planner)
+    for w in worlds:
+        run_episode(resolve_world(w), get_planner(name, **config), get_protocol("barn"), seed=0, observers=[Timer()])
+    arr = np.array(times)
+    return float(arr.mean()), float(np.percentile(arr, 95)), len(arr)
+
+
+def _episode(item: tuple[str, int]) -> tuple[float, float]:
+    planner, world = item
+    result = run_episode(resolve_world(world), get_planner(planner), get_protocol("barn"), seed=0)
+    return result.sim_time, result.wall_time
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--jobs", default="1,4,8,16", help="pool sizes to time (default: 1,4,8,16)")
+    parser.add_argument("--planners", default="oracle,oracle_present,predictive,dwa", help="planners to time per call")
+    args = parser.parse_args()
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    for planner in args.planners.split(","):
+        mean, p95, calls = planner_compute(planner)
+        print(f"{planner}: {mean:.2f} ms per call (p95 {p95:.2f}), {calls} calls", flush=True)
+    items = [("predictive", w) for w in HARD]
+    for jobs in (int(j) for j in args.jobs.split(",")):
+        t0 = time.perf_counter()
+        with mp.get_context("spawn").Pool(jobs) as pool:
+            rows = pool.map(_episode, items, chunksize=1)
+        wall = time.perf_counter() - t0
+        sim = sum(r[0] for r in rows)
+        print(f"predictive, {len(items)} hard episodes, {jobs} workers: {wall:.1f} s, {sim / wall:.0f}x real time")
+
+
+if __name__ == "__main__":
+    main()
