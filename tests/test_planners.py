@@ -231,3 +231,27 @@ def test_the_search_measures_only_what_can_change_its_decision(name):
     for world in (5, 105, 205, 250, 299):
         run_episode(resolve_world(world), both, get_protocol("barn"), seed=1)
     assert both.ticks > 300 and both.pruned > 0
+
+
+def test_the_distance_to_the_plan_has_the_bits_of_the_whole_array_form():
+    """`distance_to_polyline` in chunks of points, x and y apart: the same bits as the form
+    that built every (point, segment) pair in one array, on random plans and points
+    (zero-length segments, a single point, more points than a chunk)."""
+    from dynabarn.planners.dwa import POLYLINE_CHUNK, distance_to_polyline
+
+    def whole(points, path):
+        if len(path) == 1:
+            return np.hypot(*(points - path[0]).T)
+        a, ab = path[:-1][None], (path[1:] - path[:-1])[None]
+        ap = points[:, None, :] - a
+        u = np.clip((ap * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12), 0.0, 1.0)
+        return np.hypot(*(points[:, None, :] - (a + u[..., None] * ab)).transpose(2, 0, 1)).min(axis=1)
+
+    rng = np.random.default_rng(7)
+    for trial in range(200):
+        n, m = int(rng.integers(1, 3 * POLYLINE_CHUNK)), int(rng.integers(1, 120))
+        points = rng.uniform(-10.0, 10.0, (n, 2))
+        path = np.cumsum(rng.normal(0.0, 0.05, (m, 2)), axis=0) + rng.uniform(-5.0, 5.0, 2)
+        if trial % 5 == 0 and m > 3:
+            path[1:3] = path[0]
+        assert distance_to_polyline(points, path).tobytes() == whole(points, path).tobytes(), trial
