@@ -5,7 +5,8 @@ Measures, on one core:
 2. the runner with `straight` and `stop` on a hard world, without and with MCAP recording,
    and where a recorded episode spends its time (`recording_cost.py`);
 3. world generation (300 worlds) and MCAP recovery;
-4. DWA's and TEB's compute time per call over six worlds of all difficulties;
+4. the planners' compute time per call over six worlds of all difficulties, and where the
+   search planners' time goes (`planner_breakdown.py`: each part their `act` calls);
 5. converting a 60 s recording to a rerun .rrd (and its ratio to the recording's length);
 6. the Gymnasium environment's control steps per second (with the learn extra);
 7. the speed-up of a 2-worker benchmark sweep over 1 worker;
@@ -32,6 +33,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 import mujoco
 import numpy as np
+from planner_breakdown import print_breakdown
 from recording_cost import fixed_costs, recording_breakdown
 
 from dynabarn.planners import get_planner, planner_spec
@@ -399,6 +401,7 @@ def main(argv: list[str] | None = None) -> int:
     for planner in ("dwa", "teb", "dwa@dwa_dynamic", "teb@teb_dynamic", "predictive", "oracle"):
         mean, p95, calls = planner_compute(planner)
         print(f"{planner:<44}{mean:>11.2f}{p95:>11.2f}{calls:>8}")
+    print_breakdown(("oracle", "predictive", "dwa@dwa_dynabarn_authors", "teb"))
     mean, p95, n_obstacles = min(tracker_cost() for _ in range(args.repeat))
     label = f"laser tracker, one scan of world_{HARD_WORLD:03d} ({n_obstacles} obstacles)"
     print(f"{label:<44}{mean:>11.2f}{p95:>11.2f}{300:>8}")
