@@ -134,10 +134,24 @@ GOAL_REACH = 0.2
 """A rollout pose this close to the goal [m] reaches it (and beats any cost-to-go)."""
 
 
+BOUND_SLACK = 1e-6
+"""[m] added to every lower bound on a distance taken from the candidates' box: covers the
+rounding of the box and of the distances themselves."""
+
+
 def _boxes(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Centre and half size (K, 2) of the box around every candidate's position at each step."""
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     return 0.5 * (lo + hi), 0.5 * (hi - lo)
+
+
+def _box_distance(box: tuple[np.ndarray, np.ndarray], centres: np.ndarray, halves=0.0) -> np.ndarray:
+    """(K, n) distance at each step from the candidates' box (centre and half size, (K, 2)
+    each) to n boxes of `centres` and half sizes `halves` ((K, n, 2) or (n, 2); 0: points):
+    a lower bound on the distance from any candidate at that step to anything inside them."""
+    centre, half = box
+    gap = np.maximum(np.abs(centres - centre[:, None, :]) - half[:, None, :] - halves, 0.0)
+    return np.hypot(gap[..., 0], gap[..., 1])
 
 
 class OraclePlanner(Planner):
@@ -227,25 +241,16 @@ class OraclePlanner(Planner):
         while some candidate is safe (a clearance over `comfort` costs nothing and blocks
         nothing, and the least clearance below it is a near obstacle's or a wall's), so
         their distances are not computed; `act` computes them where it needs every one."""
-        centre, half = box
-        gap = np.maximum(np.abs(future - centre[:, None, :]) - half[:, None, :], 0.0)  # (K, n, 2)
-        bound = np.hypot(gap[..., 0], gap[..., 1]) - (radii[None, :] if radii.ndim == 1 else radii)
-        # 1e-6 m of slack covers the rounding of the box and of the distances themselves.
-        return bound.min(axis=0) - self.radius <= self.cfg.comfort + 1e-6
+        bound = _box_distance(box, future) - (radii[None, :] if radii.ndim == 1 else radii)
+        return bound.min(axis=0) - self.radius <= self.cfg.comfort + BOUND_SLACK
 
     def _near_walls(self, box: tuple[np.ndarray, np.ndarray]) -> list:
         """The walls that can come within `comfort` of some candidate (as `_near`: the
         distance between a wall and the candidates' box at each step bounds it from below)."""
-        centre, half = box
-        near = []
-        for wall in self.info.walls:
-            cx, cy, sx, sy = wall
-            gx = np.maximum(np.abs(centre[:, 0] - cx) - half[:, 0] - sx / 2, 0.0)
-            gy = np.maximum(np.abs(centre[:, 1] - cy) - half[:, 1] - sy / 2, 0.0)
-            if np.hypot(gx, gy).min() - self.radius <= self.cfg.comfort + 1e-6:
-                near.append(wall)
-        self._walls = near
-        return near
+        walls = np.asarray(self.info.walls, dtype=float).reshape(-1, 4)
+        bound = _box_distance(box, walls[:, :2], walls[:, 2:] / 2).min(axis=0)
+        near = bound - self.radius <= self.cfg.comfort + BOUND_SLACK
+        return [wall for wall, keep in zip(self.info.walls, near, strict=True) if keep]
 
     def _wall_distance(self, xy: np.ndarray, walls) -> np.ndarray:
         d = np.full(xy.shape[:-1], np.inf)
@@ -299,8 +304,7 @@ class OraclePlanner(Planner):
         # Reaching the goal beats any cost-to-go; reaching it sooner beats later. (Measured
         # only where the candidates' box comes within reach of it.)
         goal = obs.goal_in_world
-        gap = np.maximum(np.abs(box[0] - goal[:2]) - box[1], 0.0)  # (K, 2)
-        if np.hypot(gap[:, 0], gap[:, 1]).min() < GOAL_REACH + 1e-6:
+        if _box_distance(box, goal[None, :2]).min() < GOAL_REACH + BOUND_SLACK:
             at_goal = np.hypot(xy[..., 0] - goal[0], xy[..., 1] - goal[1]) < GOAL_REACH
             cost = np.where(at_goal.any(axis=1), -10.0 + 0.01 * np.argmax(at_goal, axis=1), cost)
         if ok.any():
