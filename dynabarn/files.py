@@ -78,12 +78,30 @@ def check_target(path: Path | str) -> None:
         raise OSError(errno.EPERM, "not a regular file (a device, FIFO or socket is never replaced)", str(path))
 
 
+_NO_FOLLOW = getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+
+
 def create_exclusively(path: Path | str) -> int:
     """A new empty file at `path`, opened for writing: created here and now (`O_EXCL`), never
     through a symbolic link planted at that name (`O_NOFOLLOW`), with the permissions the
     umask gives. FileExistsError when anything is at `path`."""
-    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
-    return os.open(path, flags, 0o666)
+    return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NO_FOLLOW, 0o666)
+
+
+def open_plain(path: Path | str, flags: int, mode: int = 0o666) -> int:
+    """`os.open` for a lock or a claim: never through a symbolic link at `path`, and only a
+    regular file (not a device, FIFO or socket); OSError (EPERM) saying what is there
+    otherwise."""
+    try:
+        fd = os.open(path, flags | _NO_FOLLOW, mode)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise OSError(errno.EPERM, "a symbolic link is there; not opened through it", str(path)) from None
+        raise
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise OSError(errno.EPERM, "not a regular file", str(path))
+    return fd
 
 
 def unique_sibling(path: Path, tag: str = "part") -> Path:
@@ -92,7 +110,7 @@ def unique_sibling(path: Path, tag: str = "part") -> Path:
     return path.with_name(f".{path.stem}.{os.getpid()}.{secrets.token_hex(4)}.{tag}{path.suffix}")
 
 
-def _same_file(path: Path, fd: int) -> bool:
+def is_same_file(path: Path | str, fd: int) -> bool:
     """`path` is still the file `fd` was created as (nobody swapped a link in meanwhile)."""
     try:
         st = os.lstat(path)
@@ -124,7 +142,7 @@ def staged_path(path: Path | str) -> Iterator[Path]:
         raise FileExistsError(errno.EEXIST, "no free temporary name", str(path))
     try:
         yield part
-        if not _same_file(part, fd):
+        if not is_same_file(part, fd):
             raise OSError(errno.EPERM, "the temporary file was replaced while it was written", str(part))
         with open(part, "rb") as f:
             os.fsync(f.fileno())
@@ -132,7 +150,7 @@ def staged_path(path: Path | str) -> Iterator[Path]:
         os.replace(part, path)
     except BaseException:
         with contextlib.suppress(OSError):
-            if _same_file(part, fd):
+            if is_same_file(part, fd):
                 part.unlink()
         raise
     finally:
@@ -154,33 +172,23 @@ def claim_staging(path: Path | str, target: Path | str | None = None) -> int:
     import fcntl
 
     shown = str(target if target is not None else path)
-    nofollow = getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+    busy = FileExistsError(
+        errno.EBUSY, "another run is recording to this file now; wait for it or record elsewhere", shown
+    )
     for _ in range(16):
         try:
             fd = create_exclusively(path)
         except FileExistsError:
             try:
-                fd = os.open(path, os.O_RDONLY | nofollow)
+                fd = open_plain(path, os.O_RDONLY)  # a link or a device there: refused
             except FileNotFoundError:  # its writer just renamed it: try again
                 continue
-            except OSError as exc:
-                if exc.errno == errno.ELOOP:
-                    raise OSError(
-                        errno.EPERM,
-                        "a symbolic link is at the staging name; not written through",
-                        str(path),
-                    ) from None
-                raise
             try:
-                if not stat.S_ISREG(os.fstat(fd).st_mode):
-                    raise OSError(errno.EPERM, "not a regular file at the recording's staging name", str(path))
                 try:
                     fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 except BlockingIOError:
-                    raise FileExistsError(
-                        errno.EBUSY, "another run is recording to this file now; wait for it or record elsewhere", shown
-                    ) from None
-                if _same_file(Path(path), fd):  # a killed writer's start: nobody holds it
+                    raise busy from None
+                if is_same_file(path, fd):  # a killed writer's start: nobody holds it
                     os.unlink(path)
             finally:
                 os.close(fd)
@@ -189,9 +197,7 @@ def claim_staging(path: Path | str, target: Path | str | None = None) -> int:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:  # another writer opened our new file first: it is theirs
             os.close(fd)
-            raise FileExistsError(
-                errno.EBUSY, "another run is recording to this file now; wait for it or record elsewhere", shown
-            ) from None
+            raise busy from None
         return fd
     raise FileExistsError(errno.EBUSY, "the recording's staging name keeps changing under us", shown)
 
@@ -201,11 +207,6 @@ def release(fd: int | None) -> None:
     if fd is not None:
         with contextlib.suppress(OSError):
             os.close(fd)
-
-
-def still_claimed(path: Path | str, fd: int) -> bool:
-    """`path` is still the file claimed as `fd` (nothing swapped a link in since)."""
-    return _same_file(Path(path), fd)
 
 
 def kept_beside(path: Path, tag: str = "interrupted") -> Path:

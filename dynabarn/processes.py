@@ -85,18 +85,25 @@ def die_with_parent() -> Callable[[], None] | None:
     return _die_with_parent if sys.platform.startswith("linux") else None
 
 
-@contextlib.contextmanager
-def no_interrupts() -> Iterator[None]:
-    """The block runs to its end through a further Ctrl-C or SIGTERM (ignored meanwhile, in
-    the main thread; elsewhere signals do not arrive): what an interrupted episode still
-    writes (its recording's end) is not cut by a second, impatient Ctrl-C."""
+def ignore_interrupts() -> dict:
+    """Ctrl-C and SIGTERM ignored from now on (in the main thread; elsewhere signals do not
+    arrive and nothing changes); the handlers they had, to put back."""
     import signal
     import threading
 
     if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
+        return {}
+    return {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
+
+
+@contextlib.contextmanager
+def no_interrupts() -> Iterator[None]:
+    """The block runs to its end through a further Ctrl-C or SIGTERM (`ignore_interrupts`,
+    then the handlers put back): what an interrupted episode still writes (its recording's
+    end) is not cut by a second, impatient Ctrl-C."""
+    import signal
+
+    previous = ignore_interrupts()
     try:
         yield
     finally:

@@ -9,14 +9,13 @@ import hashlib
 import json
 import os
 import shutil
-import stat
 import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 from dynabarn.bench.jobs import Job
 from dynabarn.errors import DynabarnError
-from dynabarn.files import write_atomically
+from dynabarn.files import open_plain, write_atomically
 from dynabarn.metrics import OUTCOMES, numbers_ok
 
 RESULTS = "results.jsonl"
@@ -126,16 +125,13 @@ def locked(out_dir: Path):
     path = out_dir / LOCK
     while True:
         try:  # never through a link planted at the name, never a device or FIFO there
-            fd = os.open(
-                path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0), 0o644
-            )
+            fd = open_plain(path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
-            if exc.errno == errno.ELOOP:
-                raise DynabarnError(f"{path} is a symbolic link; the lock is a plain file (remove the link)") from None
+            if exc.errno == errno.EPERM:
+                raise DynabarnError(
+                    f"{path}: {exc.strerror}; the lock is a plain file (remove what is there)"
+                ) from None
             raise
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            os.close(fd)
-            raise DynabarnError(f"{path} is not a plain file; the lock is one (remove what is there)")
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -19,6 +19,7 @@ from importlib.metadata import PackageNotFoundError, version
 from dynabarn.cli import _interrupted_while_starting
 from dynabarn.errors import DynabarnError, ImportFormatError, Terminated
 from dynabarn.limits import MAX_JOBS, MAX_SEED
+from dynabarn.processes import ignore_interrupts
 
 WORLD_HELP = (
     "a world by id or name (137, world_137, world_137.xml; from $DYNABARN_WORLDS, else the shipped 300) "
@@ -289,22 +290,12 @@ def command(main: Callable[[Sequence[str] | None], int]) -> Callable[[Sequence[s
             terminated = isinstance(exc, Terminated)
             print("terminated" if terminated else "interrupted", file=sys.stderr)
             code = EXIT_TERMINATED if terminated else EXIT_INTERRUPTED
-        if argv is None and code in (EXIT_INTERRUPTED, EXIT_TERMINATED):  # a script, ending
-            _quiet_from_now()
+        if argv is None and code in (EXIT_INTERRUPTED, EXIT_TERMINATED):
+            # A script, ending: a further Ctrl-C must not interrupt what it still closes.
+            ignore_interrupts()
         return code
 
     return wrapped
-
-
-def _quiet_from_now() -> None:
-    """The command is ending: a further Ctrl-C (or SIGTERM) must not interrupt what it still
-    writes and closes."""
-    import signal
-    import threading
-
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 def _terminate(signum, frame) -> None:

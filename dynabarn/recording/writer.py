@@ -22,7 +22,7 @@ import foxglove
 import numpy as np
 from foxglove.mcap import MCAPWriteOptions
 
-from dynabarn.files import check_target, claim_staging, file_name_part, publish, release, still_claimed
+from dynabarn.files import check_target, claim_staging, file_name_part, is_same_file, publish, release
 from dynabarn.interfaces.events import EpisodeStart, Tick
 from dynabarn.metrics import EpisodeResult, is_interrupted
 from dynabarn.provenance import portable_path
@@ -189,7 +189,7 @@ class McapRecorder:
             # compression_threads=0: compress on this thread, so one episode uses one core.
             writer_options=MCAPWriteOptions(chunk_size=self.chunk_size, profile=PROFILE, compression_threads=0),
         )
-        if self._claim is not None and not still_claimed(self.staging, self._claim):
+        if self._claim is not None and not is_same_file(self.staging, self._claim):
             self._writer.close()
             self._writer = None
             raise OSError(errno.EPERM, "the staging file was replaced as it was opened; not written", str(self.staging))
