@@ -146,12 +146,9 @@ def _train(args: argparse.Namespace) -> int:
 def _train_dagger(args: argparse.Namespace, tqdm) -> int:
     from dynabarn.learn.configs import DaggerConfig, cli_options
     from dynabarn.learn.dagger import train_dagger
-    from dynabarn.worlds.profiles import get_profile_set
 
     profile_sets = [p for p in args.profile_sets.split(",") if p]
-    for name in profile_sets:
-        get_profile_set(name)  # one line for an unknown name, before any worker starts
-    cfg = DaggerConfig(
+    cfg = DaggerConfig(  # checks the protocol and profile sets: one line before any worker starts
         protocol=args.protocol,
         head=args.head,
         velocity=args.velocity,

@@ -4,7 +4,11 @@
 
 from __future__ import annotations
 
+import contextlib
+import json
+from collections.abc import Iterator
 from dataclasses import dataclass, field, fields
+from pathlib import Path
 from typing import Any
 
 from dynabarn.learn.split import DEFAULT_PROFILE_SETS
@@ -119,3 +123,32 @@ class DaggerConfig:
         return FeatureConfig(
             history=self.history, history_every=self.history_every, velocity=self.velocity, tracks=self.tracks
         )
+
+
+def saved_config(path: Path) -> dict | None:
+    """The configuration a run folder holds (its `config.json`), None where it has none;
+    one `DynabarnError` line where the file is not a JSON object."""
+    from dynabarn.errors import DynabarnError
+
+    if not path.is_file():
+        return None
+    try:
+        saved = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError, RecursionError):
+        saved = None
+    if not isinstance(saved, dict):
+        raise DynabarnError(f"{path}: not a training configuration (not JSON, or not an object); use another --out")
+    return saved
+
+
+@contextlib.contextmanager
+def resuming(out: Path) -> Iterator[None]:
+    """Reading a run's checkpoint back: any failure (PyTorch's and numpy's refusals run to a
+    page) is one `DynabarnError` line that names the run and their first line."""
+    from dynabarn.errors import DynabarnError
+
+    try:
+        yield
+    except Exception as exc:
+        first = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else ""
+        raise DynabarnError(f"{out}: cannot resume from its checkpoint ({type(exc).__name__}: {first})") from None

@@ -34,7 +34,7 @@ import torch
 
 from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically, write_atomically
-from dynabarn.learn.configs import DaggerConfig
+from dynabarn.learn.configs import DaggerConfig, resuming, saved_config
 from dynabarn.learn.dagger_rollout import EpisodeData, run_episodes
 from dynabarn.learn.split import describe_split
 from dynabarn.planners.learned.models import load_tensors, save_tensors
@@ -86,15 +86,12 @@ def _rates(eps: list[EpisodeData]) -> dict:
 def _resume(out: Path, actor: StudentActor, opt, data: Dataset) -> tuple[int, DaggerReport]:
     """Weights, optimiser, report and data of the finished iterations, from the checkpoint
     (tensors and plain data only: `weights_only`, no pickled code); one line if it is damaged."""
-    try:
+    with resuming(out):
         state = load_tensors(out / STATE)
         actor.load_state_dict(state["actor"])
         opt.load_state_dict(state["optimizer"])
         report = DaggerReport(**state["report"])
         data.load(len(report.iterations))
-    except Exception as exc:  # PyTorch's and numpy's refusals run to a page; their first line says it
-        first = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else ""
-        raise DynabarnError(f"{out}: cannot resume from its checkpoint ({type(exc).__name__}: {first})") from None
     return len(report.iterations), report
 
 
@@ -204,10 +201,7 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
     config_path = out / "config.json"
     done = 0
     if (out / STATE).is_file():
-        try:
-            old = json.loads(config_path.read_text()) if config_path.is_file() else None
-        except (ValueError, UnicodeDecodeError):
-            raise DynabarnError(f"{config_path}: not a training configuration (not JSON); use another --out") from None
+        old = saved_config(config_path)
         if _identity(old) != _identity(json.loads(json.dumps(asdict(cfg)))):
             raise DynabarnError(f"{out} holds a run with another configuration; choose another --out")
         done, report = _resume(out, actor, opt, data)

@@ -43,7 +43,7 @@ from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically, write_atomically
 from dynabarn.learn import ENV_ID
 from dynabarn.learn.bc import fit_actor
-from dynabarn.learn.configs import TD3Config
+from dynabarn.learn.configs import TD3Config, resuming, saved_config
 from dynabarn.learn.replay import ReplayBuffer, collect_demonstrations
 from dynabarn.planners.learned.models import Actor, Critic, load_tensors, save_policy, save_tensors
 
@@ -201,7 +201,7 @@ def _resume(out: Path, learner: Learner, rng) -> tuple[int, TD3Report, ReplayBuf
     """Step, report and buffers of the last checkpoint, its weights and random states set
     (tensors and plain data only: `weights_only`, so a checkpoint never runs code); one line
     if anything in it is damaged."""
-    try:
+    with resuming(out):
         state = load_tensors(out / STATE)
         for name, m in learner.modules().items():
             m.load_state_dict(state[name])
@@ -210,9 +210,6 @@ def _resume(out: Path, learner: Learner, rng) -> tuple[int, TD3Report, ReplayBuf
         rng.bit_generator.state = json.loads(state["rng"])
         torch.set_rng_state(state["torch_rng"])
         demos, online = ReplayBuffer.load(out / DEMOS), ReplayBuffer.load(out / REPLAY)
-    except Exception as exc:  # PyTorch's and numpy's refusals run to a page; their first line says it
-        first = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else ""
-        raise DynabarnError(f"{out}: cannot resume from its checkpoint ({type(exc).__name__}: {first})") from None
     return step, report, demos, online
 
 
@@ -238,10 +235,7 @@ def train_td3(cfg: TD3Config, out_dir: Path, *, progress=None) -> TD3Report:
     config_path = out / "config.json"
     step = 0
     if (out / STATE).is_file():  # resume: the same configuration, from the last checkpoint
-        try:
-            old = json.loads(config_path.read_text()) if config_path.is_file() else None
-        except (ValueError, UnicodeDecodeError):
-            raise DynabarnError(f"{config_path}: not a training configuration (not JSON); use another --out") from None
+        old = saved_config(config_path)
         # The thread count may change between sessions (a busier machine), and the step
         # count (to train on, or to stop earlier); nothing else may.
         if _identity(old) != _identity(json.loads(json.dumps(asdict(cfg)))):
