@@ -469,6 +469,16 @@ def _call(command: str, argv: list[str]) -> tuple[int, str]:
     return code, err.getvalue()
 
 
+def one_clear_line(command: str, argv: list[str]) -> str:
+    """Run a command that must refuse its input: exit 2 and one line, never a traceback;
+    that line."""
+    code, err = _call(command, argv)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2, f"exit {code}: {err}"
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
 @pytest.mark.parametrize("command, argv, message", BAD_INPUTS, ids=[f"{c} {' '.join(a)}" for c, a, _ in BAD_INPUTS])
 def test_bad_input_gives_one_clear_line(command, argv, message, bad_files, monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)  # nothing may depend on (or write to) the repository folder
@@ -476,12 +486,8 @@ def test_bad_input_gives_one_clear_line(command, argv, message, bad_files, monke
         require("torch", "learn")  # without it, the one line says to install the extra
     if "ray" in argv:
         require("ray", "ray")
-    argv = [a.replace("{bad}", str(bad_files)) for a in argv]
-    code, err = _call(command, argv)
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert code == 2, f"exit {code}: {err}"
-    assert len(lines) == 1 and "Traceback" not in err, err
-    assert message.replace("{bad}", str(bad_files)) in lines[0], lines[0]
+    line = one_clear_line(command, [a.replace("{bad}", str(bad_files)) for a in argv])
+    assert message.replace("{bad}", str(bad_files)) in line, line
 
 
 def test_the_documentation_counts_the_table():

@@ -25,7 +25,7 @@ import pytest
 
 from dynabarn.provenance import SHIPPED_WORLDS
 from tests.conftest import require
-from tests.test_fuzz import _call, _wait_for
+from tests.test_fuzz import _call, _wait_for, one_clear_line
 
 REPO = Path(__file__).resolve().parent.parent
 WORLD = SHIPPED_WORLDS / "world_000.xml"
@@ -145,12 +145,8 @@ THIRD_PASS: list[tuple[str, list[str], str]] = [
 def test_third_pass_bad_input_gives_one_clear_line(command, argv, message, third_files, monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("DYNABARN_NAV_WS", str(tmp_path / "no_workspace"))  # move_base is never built there
-    argv = [a.replace("{bad}", str(third_files)) for a in argv]
-    code, err = _call(command, argv)
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert code == 2, f"exit {code}: {err}"
-    assert len(lines) == 1 and "Traceback" not in err, err
-    assert message in lines[0], lines[0]
+    line = one_clear_line(command, [a.replace("{bad}", str(third_files)) for a in argv])
+    assert message in line, line
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").rglob("*.jsonl")), "nothing may run"
 
 
