@@ -98,3 +98,94 @@ def test_teb_episode_twice_in_one_process_is_identical(seed):
     a, b = (r.to_dict() for r in runs)
     for key in ("outcome", "n_ticks", "path_length", "time", "mean_abs_jerk"):
         assert a[key] == b[key], key
+
+
+def _right_looking_reference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The solver as first written: a column's division, its rank-one update, then forward
+    and back substitution, each a loop of its own."""
+    n = len(b)
+    s = a.copy()
+    low = np.zeros_like(a)
+    for k in range(n):
+        pivot = float(np.sqrt(s[k, k])) if s[k, k] > 0.0 else np.inf
+        col = s[k:, k] / pivot
+        low[k:, k] = col
+        low[k, k] = pivot
+        s[k + 1 :, k + 1 :] -= col[1:, None] * col[None, 1:]
+    y = b.astype(np.float64, copy=True)
+    for k in range(n):
+        y[k] /= low[k, k]
+        y[k + 1 :] -= low[k + 1 :, k] * y[k]
+    for k in range(n - 1, -1, -1):
+        y[k] /= low[k, k]
+        y[:k] -= low[k, :k] * y[k]
+    return y
+
+
+def test_the_solver_has_the_bits_of_the_plain_right_looking_factorisation():
+    """b carried as an extra column and the views made once change no bit: sparse, badly
+    scaled and singular systems (a frozen variable) alike."""
+    from dynabarn.planners.levenberg_marquardt import CholeskySolver
+
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        n = int(rng.integers(1, 45))
+        m = rng.normal(size=(n + int(rng.integers(0, 8)), n)) * rng.choice([1e-3, 1.0, 1e3], size=n)
+        m[rng.random(m.shape) < 0.6] = 0.0
+        a = gram(m) + np.diag(rng.random(n) * 1e-3 * (rng.random(n) < 0.8))
+        b = rng.normal(size=n)
+        expected = _right_looking_reference(a, b)
+        got = CholeskySolver(n).solve(a, b)
+        assert np.array_equal(np.isnan(got), np.isnan(expected))
+        finite = ~np.isnan(expected)
+        assert np.array_equal(got[finite].view(np.int64), expected[finite].view(np.int64))
+
+
+def test_gram_sums_each_entry_pairwise_in_row_order_whatever_the_layout():
+    """Each entry is numpy's pairwise sum of its products (what the 3-D form gave for TEB's
+    column-major Jacobian), for a row-major Jacobian too, and `pairs` leaves out only zeros."""
+    from dynabarn.planners.levenberg_marquardt import gradient
+
+    rng = np.random.default_rng(2)
+    for m, n in ((5, 3), (95, 41), (300, 17)):
+        j = rng.normal(size=(m, n)) * 10.0 ** rng.normal(size=(m, n))
+        j[rng.random((m, n)) < 0.5] = 0.0
+        r = rng.normal(size=m)
+        column_major = np.asfortranarray(j)
+        reference = (column_major[:, :, None] * column_major[:, None, :]).sum(axis=0)
+        for layout in (j, column_major):
+            assert np.array_equal(gram(layout), reference)
+            assert np.array_equal(gradient(layout, r), (column_major * r[:, None]).sum(axis=0))
+        shared = np.triu(((j != 0.0)[:, :, None] & (j != 0.0)[:, None, :]).any(axis=0))
+        assert np.array_equal(gram(j, np.nonzero(shared)), reference)
+
+
+@pytest.mark.parametrize("planner", ["teb", "teb@teb_dynamic"])
+def test_teb_steps_variables_together_with_the_bits_of_one_row_per_variable(planner):
+    """The coloured forward differences give every Jacobian of an episode bit for bit as one
+    batch row per variable did, and the colouring needs far fewer rows."""
+    from dynabarn.planners import get_planner, planner_spec
+    from dynabarn.planners.teb import TEBPlanner
+    from dynabarn.protocol import get_protocol
+    from dynabarn.provenance import SHIPPED_WORLDS
+    from dynabarn.sim import run_episode
+
+    name, config, _ = planner_spec(planner)
+    teb = get_planner(name, **config)
+    compared = []
+
+    def checked(z, start, goal, obstacles, moving):
+        r, jacobian = TEBPlanner._evaluate(teb, z, start, goal, obstacles, moving)
+        if len(compared) < 60:
+            h = 1e-6 * np.maximum(1.0, np.abs(z))
+            rows = teb._residuals(np.vstack([z[None], z[None, :] + np.diag(h)]), start, goal, obstacles, moving)
+            assert np.array_equal(r.view(np.int64), rows[0].view(np.int64))
+            expected = ((rows[1:] - rows[0]) / h[:, None]).T
+            assert np.array_equal(jacobian().view(np.int64), expected.view(np.int64))
+            compared.append(teb._structure(z, start, goal, obstacles, moving).n_colours)
+        return r, jacobian
+
+    teb._evaluate = checked
+    run_episode(SHIPPED_WORLDS / "world_155.xml", teb, get_protocol("barn"), seed=0)
+    assert len(compared) == 60
+    assert max(compared) <= 20 < 3 * (teb.cfg.n_poses - 2) + teb.cfg.n_poses - 1

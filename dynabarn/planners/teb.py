@@ -43,7 +43,7 @@ from dynabarn.interfaces import EpisodeInfo, Observation, Planner, config_from_k
 from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.planners.levenberg_marquardt import levenberg_marquardt
+from dynabarn.planners.levenberg_marquardt import Evaluation, Pairs, minimise
 from dynabarn.planners.tracking import track_moving, with_tracker
 
 
@@ -131,6 +131,40 @@ class TEBConfig:
         return cfg
 
 
+@dataclass(frozen=True)
+class _Structure:
+    """Which residuals each of the band's variables moves, and what follows from it."""
+
+    colours: np.ndarray
+    """(n_var,) the batch row each variable is stepped in: no two variables of a colour move
+    the same residual (greedy colouring in variable order)."""
+    n_colours: int
+    rows: np.ndarray
+    """Residual of each entry of the Jacobian that can be nonzero."""
+    cols: np.ndarray
+    """Variable of each such entry."""
+    pairs: Pairs
+    """Entries (i <= j) of J^T J that can be nonzero: i and j move a residual in common."""
+
+    @classmethod
+    def of(cls, moves: np.ndarray) -> _Structure:
+        """From `moves` (n_var, n_res): whether variable i moves residual k."""
+        colours = np.empty(len(moves), dtype=np.int64)
+        taken: list[np.ndarray] = []  # per colour: the residuals its variables move
+        for i, residuals in enumerate(moves):
+            free = [c for c, t in enumerate(taken) if not (t & residuals).any()]
+            if free:
+                colours[i] = free[0]
+                taken[free[0]] |= residuals
+            else:
+                colours[i] = len(taken)
+                taken.append(residuals.copy())
+        cols, rows = np.nonzero(moves)
+        shared = (moves[:, None, :] & moves[None, :, :]).any(axis=-1)
+        upper, lower = np.nonzero(np.triu(shared))
+        return cls(colours, len(taken), rows, cols, (upper, lower))
+
+
 def _headings(d: np.ndarray) -> np.ndarray:
     """Directions of the segments d (m, 2) with libm's atan2 (numpy's differs between CPUs)."""
     return np.array([math.atan2(dy, dx) for dx, dy in d.tolist()])
@@ -167,6 +201,7 @@ class TEBPlanner(Planner):
         )
         self._band: np.ndarray | None = None  # (n, 3)
         self._dts: np.ndarray | None = None  # (n - 1,)
+        self._structures: dict[tuple, _Structure] = {}
 
     def config(self) -> dict:
         return asdict(self.cfg)
@@ -310,14 +345,41 @@ class TEBPlanner(Planner):
         ex, ey = x[..., None] - ox, y[..., None] - oy
         return (np.sqrt(ex * ex + ey * ey) - moving.sizes).min(axis=-1)
 
-    def _jacobian(
-        self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray, moving: Tracks | None = None
-    ) -> np.ndarray:
-        """Forward-difference Jacobian, all columns in one batched residual evaluation."""
+    def _evaluate(
+        self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray, moving: Tracks | None
+    ) -> Evaluation:
+        """The residuals at z and, from the same batched evaluation, the forward-difference
+        Jacobian: variables that move no residual in common are stepped together (one row
+        of the batch for each colour of `_structure`), so about a dozen rows give what one
+        row per variable gave, with the same bits (a residual sees only its own variables'
+        steps, each the same value as alone)."""
+        structure = self._structure(z, start, goal, obstacles, moving)
         h = 1e-6 * np.maximum(1.0, np.abs(z))
-        batch = z[None, :] + np.diag(h)
-        r = self._residuals(np.vstack([z[None], batch]), start, goal, obstacles, moving)
-        return ((r[1:] - r[0]) / h[:, None]).T
+        steps = np.zeros((structure.n_colours, len(z)))
+        steps[structure.colours, np.arange(len(z))] = h
+        r = self._residuals(np.vstack([z[None], z[None, :] + steps]), start, goal, obstacles, moving)
+
+        def jacobian() -> np.ndarray:
+            rows, cols = structure.rows, structure.cols
+            transposed = np.zeros((len(z), r.shape[1]))
+            transposed[cols, rows] = (r[1 + structure.colours[cols], rows] - r[0, rows]) / h[cols]
+            return transposed.T
+
+        return r[0], jacobian
+
+    def _structure(
+        self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray, moving: Tracks | None
+    ) -> _Structure:
+        """Which residuals each variable moves, found once per kind of call (with or without
+        laser points and tracks) by setting each variable to NaN in turn: NaN flows through
+        every operation of `_residuals` (none of them compares or clips it away)."""
+        key = (len(obstacles) > 0, None if moving is None else len(moving) > 0)
+        if key not in self._structures:
+            with np.errstate(invalid="ignore"):
+                probe = z[None, :] + np.diag(np.full(len(z), np.nan))
+                moves = np.isnan(self._residuals(probe, start, goal, obstacles, moving))  # (variable, residual)
+            self._structures[key] = _Structure.of(moves)
+        return self._structures[key]
 
     def _obstacle_points(self, obs: Observation, moving_beams: np.ndarray | None = None) -> np.ndarray:
         """Laser returns within `obstacle_range` (one in `obstacle_stride` beams), world
@@ -364,11 +426,11 @@ class TEBPlanner(Planner):
         band[:, 2] = start[2] + _wrap(band[:, 2] - start[2])
         goal[2] = band[-1, 2]
         z0 = self._pack(band, dts)
-        sol = levenberg_marquardt(
-            lambda z: self._residuals(z, start, goal, obstacles, moving),
-            lambda z: self._jacobian(z, start, goal, obstacles, moving),
+        sol = minimise(
+            lambda z: self._evaluate(z, start, goal, obstacles, moving),
             z0,
             max_nfev=cfg.max_iterations,
+            pairs=self._structure(z0, start, goal, obstacles, moving).pairs,
         )
         band, dts = self._unpack(sol.x, start, goal)
         # The band on a fixed grid, so the warm start and the command drawn from it stay on
