@@ -92,6 +92,16 @@ _INV_LN2 = 1.44269504088896338700e00
 _EXP_TAYLOR = tuple(1.0 / math.factorial(n) for n in range(13, 1, -1))  # 1/13!, ..., 1/2!
 
 
+def hypot(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """sqrt(dx^2 + dy^2) elementwise, in IEEE-754 operations (each correctly rounded): the
+    same bits on every CPU and C library. `np.hypot` calls the C library's hypot, which
+    the C standard does not require to be correctly rounded (its last bits are the
+    library's own), and takes ten times as long (1.9 ms against 0.19 ms for 106,000
+    distances, about what the oracle's search measures per tick); it guards against
+    overflow and underflow that distances in metres never reach."""
+    return np.sqrt(dx * dx + dy * dy)
+
+
 def sincos(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(sin x, cos x) within 2 ulp for |x| < 1e5, bit-identical on every CPU."""
     x = np.asarray(x, dtype=np.float64)

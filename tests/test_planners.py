@@ -188,8 +188,8 @@ def test_the_search_measures_only_what_can_change_its_decision(name):
         def _near_walls(self, box):
             return list(self.info.walls)
 
-        def _obstacle_clearance(self, xy, future, radii, box=None):
-            return self._clearance(xy, future, radii) if future.shape[1] else np.full(xy.shape[:2], np.inf)
+        def _obstacle_clearance(self, rollouts, future, radii, box=None):
+            return self._clearance(rollouts, future, radii) if future.shape[1] else np.full(rollouts.x.shape, np.inf)
 
     planner_name = name
 
@@ -213,14 +213,14 @@ def test_the_search_measures_only_what_can_change_its_decision(name):
             future, radii = self.fast.obstacle_future(obs)
             comfort = self.fast.cfg.comfort
             for beside_wall, pose in enumerate((obs.pose, np.array([obs.pose[0], 9.4, obs.pose[2]]))):
-                xy = self.fast._rollout(pose)[..., :2]
-                box = _boxes(xy)
+                rollouts = self.fast._rollout(pose)
+                box = _boxes(rollouts)
                 near_walls = self.fast._near_walls(box)
                 self.pruned += not beside_wall and len(near_walls) < len(self.fast.info.walls)
-                walls = self.fast._wall_distance(xy, near_walls)
-                all_walls = self.fast._wall_distance(xy, self.fast.info.walls)
-                movers = self.fast._obstacle_clearance(xy, future, radii, box)
-                all_movers = self.full._obstacle_clearance(xy, future, radii)
+                walls = self.fast._wall_distance(rollouts, near_walls)
+                all_walls = self.fast._wall_distance(rollouts, self.fast.info.walls)
+                movers = self.fast._obstacle_clearance(rollouts, future, radii, box)
+                all_movers = self.full._obstacle_clearance(rollouts, future, radii)
                 for got, want in ((walls - self.fast.radius, all_walls - self.fast.radius), (movers, all_movers)):
                     close = want <= comfort
                     assert np.array_equal(got[close], want[close]) and (got[~close] > comfort).all()

@@ -58,4 +58,8 @@ class MapDistance:
 
     def lookup(self, xy: np.ndarray) -> np.ndarray:
         """Distances (...) for points (..., 2)."""
-        return self.distance[grid_indices(xy[..., 0], xy[..., 1], self.resolution, self.nx, self.ny)]
+        return self.at(xy[..., 0], xy[..., 1])
+
+    def at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Distances for points given as x and y arrays of one shape."""
+        return self.distance[grid_indices(x, y, self.resolution, self.nx, self.ny)]

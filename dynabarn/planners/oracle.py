@@ -25,7 +25,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
+from dynabarn.determinism import SCORE_RESOLUTION, hypot, sincos, snap_array
 from dynabarn.interfaces import EpisodeInfo, Observation, ObstacleState, Planner, config_from_kwargs
 from dynabarn.perception.map_distance import MapDistance, grid_indices
 from dynabarn.planners.global_planner import GlobalPlanner
@@ -95,10 +95,10 @@ class _CandidateGrid:
     w2: np.ndarray
     steps: np.ndarray  # (K,) rollout times after now [s]
     in_first: np.ndarray  # (K,) the steps of the first segment
-    v: np.ndarray  # (N, K) each step's speed
+    v: np.ndarray  # (K, N) each step's speed
     turned: np.ndarray  # (P,) distinct (turn so far, half a step's turn) pairs
     half_step: np.ndarray
-    heading_of: np.ndarray  # (N * K,) each step's pair
+    heading_of: np.ndarray  # (K * N,) each step's pair
     n_first: int
     per_first: int  # consecutive candidates sharing a first segment (the meshgrid's inner (v2, w2))
 
@@ -116,9 +116,9 @@ def _candidate_grid(v_samples: tuple, w_samples: tuple, t1: float, t2: float, dt
     n1, n2 = round(t1 / dt), round(t2 / dt)
     steps = np.arange(1, n1 + n2 + 1) * dt
     in_first = np.arange(1, n1 + n2 + 1) <= n1
-    speed = np.where(in_first[None, :], v1[:, None], v2[:, None])
-    turn_rate = np.where(in_first[None, :], w1[:, None], w2[:, None])
-    turned, half_step = np.cumsum(turn_rate * dt, axis=1), 0.5 * turn_rate * dt
+    speed = np.where(in_first[:, None], v1[None, :], v2[None, :])  # (K, N)
+    turn_rate = np.where(in_first[:, None], w1[None, :], w2[None, :])
+    turned, half_step = np.cumsum(turn_rate * dt, axis=0), 0.5 * turn_rate * dt
     pairs, heading_of = np.unique(np.stack([turned.ravel(), half_step.ravel()]), axis=1, return_inverse=True)
     arrays = (v1, w1, v2, w2, steps, in_first, speed, pairs[0].copy(), pairs[1].copy(), heading_of.ravel())
     for a in arrays:
@@ -139,9 +139,32 @@ BOUND_SLACK = 1e-6
 rounding of the box and of the distances themselves."""
 
 
-def _boxes(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class Rollouts:
+    """Every candidate's position at each step, steps major: x and y (K, N), contiguous.
+
+    A step's reduction over the candidates (the boxes) and a candidate's over its steps
+    (least clearance, blocked) then run along contiguous rows or as elementwise minima of
+    rows; over the short inner axis of (N, K, 2), or along a strided one, the same
+    reductions took 5 to 50 times as long (the candidates' boxes: 540 us against 14 us)."""
+
+    x: np.ndarray
+    y: np.ndarray
+
+    def runs(self, k0: int, k1: int, every: int) -> Rollouts:
+        """Steps k0..k1 of every `every`-th candidate."""
+        return Rollouts(self.x[k0:k1, ::every], self.y[k0:k1, ::every])
+
+    def path(self, candidate: int) -> np.ndarray:
+        """(K, 2) one candidate's positions."""
+        return np.column_stack([self.x[:, candidate], self.y[:, candidate]])
+
+
+def _boxes(rollouts: Rollouts) -> tuple[np.ndarray, np.ndarray]:
     """Centre and half size (K, 2) of the box around every candidate's position at each step."""
-    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    x, y = rollouts.x, rollouts.y
+    lo = np.column_stack([x.min(axis=1), y.min(axis=1)])
+    hi = np.column_stack([x.max(axis=1), y.max(axis=1)])
     return 0.5 * (lo + hi), 0.5 * (hi - lo)
 
 
@@ -151,7 +174,7 @@ def _box_distance(box: tuple[np.ndarray, np.ndarray], centres: np.ndarray, halve
     a lower bound on the distance from any candidate at that step to anything inside them."""
     centre, half = box
     gap = np.maximum(np.abs(centres - centre[:, None, :]) - half[:, None, :] - halves, 0.0)
-    return np.hypot(gap[..., 0], gap[..., 1])
+    return hypot(gap[..., 0], gap[..., 1])
 
 
 class OraclePlanner(Planner):
@@ -196,21 +219,20 @@ class OraclePlanner(Planner):
     def debug(self) -> dict:
         return {"local_plan": self._last} if self._last is not None else {}
 
-    def _rollout(self, pose: np.ndarray) -> np.ndarray:
-        """(N, K, 3) poses of every two-segment candidate."""
+    def _rollout(self, pose: np.ndarray) -> Rollouts:
+        """Positions of every two-segment candidate at each step."""
         dt, v = self.cfg.dt, self._v
         sin_u, cos_u = sincos((pose[2] + self._turned) - self._half_step)  # the same bits on every CPU
         shape = v.shape
         sin_mid, cos_mid = sin_u[self._heading_of].reshape(shape), cos_u[self._heading_of].reshape(shape)
-        x = pose[0] + np.cumsum(v * cos_mid * dt, axis=1)
-        y = pose[1] + np.cumsum(v * sin_mid * dt, axis=1)
-        th = pose[2] + self._turned[self._heading_of].reshape(shape)
-        return np.stack([x, y, th], axis=-1)
+        x = pose[0] + np.cumsum(v * cos_mid * dt, axis=0)
+        y = pose[1] + np.cumsum(v * sin_mid * dt, axis=0)
+        return Rollouts(x, y)
 
     def _obstacle_clearance(
-        self, xy: np.ndarray, future: np.ndarray, radii: np.ndarray, box: tuple | None = None
+        self, rollouts: Rollouts, future: np.ndarray, radii: np.ndarray, box: tuple | None = None
     ) -> np.ndarray:
-        """(N, K) clearance of every candidate pose from the obstacles `future` (K, n, 2) of
+        """(K, N) clearance of every candidate pose from the obstacles `future` (K, n, 2) of
         radii (n,) or (K, n): the least distance beyond touching (inf without obstacles).
 
         Measured in runs of steps (`_runs`): the first segment's poses are those of the
@@ -224,15 +246,19 @@ class OraclePlanner(Planner):
             if box is not None:
                 near = self._near((box[0][k0:k1], box[1][k0:k1]), f, r)
                 f, r = f[:, near], r[..., near]
-            rows = xy[::every, k0:k1]
-            part = self._clearance(rows, f, r) if f.shape[1] else np.full(rows.shape[:2], np.inf)
-            parts.append(np.repeat(part, every, axis=0) if every > 1 else part)
-        return np.concatenate(parts, axis=1)
+            run = rollouts.runs(k0, k1, every)
+            part = self._clearance(run, f, r) if f.shape[1] else np.full(run.x.shape, np.inf)
+            parts.append(np.repeat(part, every, axis=1) if every > 1 else part)
+        return np.concatenate(parts, axis=0)
 
-    def _clearance(self, xy: np.ndarray, future: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        d = np.hypot(xy[:, :, None, 0] - future[None, :, :, 0], xy[:, :, None, 1] - future[None, :, :, 1])
-        radii = radii[None, None, :] if radii.ndim == 1 else radii[None]
-        return (d - radii).min(axis=2) - self.radius
+    def _clearance(self, rollouts: Rollouts, future: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """(K, N) least distance beyond touching from the candidates to obstacles (K, n, 2).
+        The obstacles are the outer axis, so the least is an elementwise minimum over n
+        slabs of (K, N) (a reduction over a short inner axis took as long as the distances)."""
+        ahead = future.transpose(1, 0, 2)[:, :, None]  # (n, K, 1, 2)
+        d = hypot(rollouts.x[None] - ahead[..., 0], rollouts.y[None] - ahead[..., 1])  # (n, K, N)
+        d -= radii[:, None, None] if radii.ndim == 1 else radii.T[:, :, None]
+        return np.minimum.reduce(d, axis=0) - self.radius
 
     def _near(self, box: tuple[np.ndarray, np.ndarray], future: np.ndarray, radii: np.ndarray) -> np.ndarray:
         """(n,) which obstacles can come within `comfort` of some candidate: at each step,
@@ -252,20 +278,21 @@ class OraclePlanner(Planner):
         near = bound - self.radius <= self.cfg.comfort + BOUND_SLACK
         return [wall for wall, keep in zip(self.info.walls, near, strict=True) if keep]
 
-    def _wall_distance(self, xy: np.ndarray, walls) -> np.ndarray:
-        d = np.full(xy.shape[:-1], np.inf)
+    def _wall_distance(self, rollouts: Rollouts, walls) -> np.ndarray:
+        """(K, N) distance from each candidate's position to the nearest of `walls`."""
+        d = np.full(rollouts.x.shape, np.inf)
         for cx, cy, sx, sy in walls:
-            dx = np.maximum(np.abs(xy[..., 0] - cx) - sx / 2, 0.0)
-            dy = np.maximum(np.abs(xy[..., 1] - cy) - sy / 2, 0.0)
-            d = np.minimum(d, np.hypot(dx, dy))
+            dx = np.maximum(np.abs(rollouts.x - cx) - sx / 2, 0.0)
+            dy = np.maximum(np.abs(rollouts.y - cy) - sy / 2, 0.0)
+            d = np.minimum(d, hypot(dx, dy))
         return d
 
-    def _cost_to_go(self, xy: np.ndarray) -> np.ndarray:
+    def _cost_to_go(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         f = self.global_planner.field
         res = self.global_planner.resolution
-        cost = f.cost[grid_indices(xy[..., 0], xy[..., 1], res, f.nx, f.ny)]
+        cost = f.cost[grid_indices(x, y, res, f.nx, f.ny)]
         # Unreachable cells (inside inflated walls): fall back to the straight-line distance.
-        straight = np.hypot(xy[..., 0] - self.info.goal[0], xy[..., 1] - self.info.goal[1]) + 5.0
+        straight = hypot(x - self.info.goal[0], y - self.info.goal[1]) + 5.0
         return np.where(np.isfinite(cost), cost, straight)
 
     def obstacle_future(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
@@ -282,31 +309,32 @@ class OraclePlanner(Planner):
 
     def act(self, obs: Observation) -> tuple[float, float]:
         c = self.cfg
-        traj = self._rollout(obs.pose)  # (N, K, 3)
-        xy = traj[..., :2]
+        rollouts = self._rollout(obs.pose)
+        x, y = rollouts.x, rollouts.y  # (K, N)
         future, radii = self.obstacle_future(obs)  # (K, n, 2), (n,) or (K, n)
-        box = _boxes(xy)
-        walls = self._wall_distance(xy, self._near_walls(box)) - self.radius
-        clear = np.minimum(self._obstacle_clearance(xy, future, radii, box), walls)
-        min_clear = clear.min(axis=1)
-        blocked = clear <= c.safety  # (N, K)
-        static_ok = np.ones(len(xy), dtype=bool)
+        box = _boxes(rollouts)
+        walls = self._wall_distance(rollouts, self._near_walls(box)) - self.radius
+        clear = np.minimum(self._obstacle_clearance(rollouts, future, radii, box), walls)
+        min_clear = np.minimum.reduce(clear, axis=0)
+        blocked = clear <= c.safety  # (K, N)
+        static_ok = np.ones(x.shape[1], dtype=bool)
         if self._static is not None:  # static cylinders: known exactly, so a smaller margin
-            static_blocked = self._static.lookup(xy) - self.radius <= c.static_safety
-            static_ok = ~static_blocked.any(axis=1)
+            static_blocked = self._static.at(x, y) - self.radius <= c.static_safety
+            static_ok = ~np.logical_or.reduce(static_blocked, axis=0)
             blocked |= static_blocked
-        ok = ~blocked.any(axis=1)
+        ok = ~np.logical_or.reduce(blocked, axis=0)
+        first_end = self._n_first - 1
         cost = (
-            self._cost_to_go(xy[:, -1])
-            + c.first_segment_weight * self._cost_to_go(xy[:, self._n_first - 1])
+            self._cost_to_go(x[-1], y[-1])
+            + c.first_segment_weight * self._cost_to_go(x[first_end], y[first_end])
             + c.clearance_weight * np.maximum(0.0, c.comfort - min_clear)
         )
         # Reaching the goal beats any cost-to-go; reaching it sooner beats later. (Measured
         # only where the candidates' box comes within reach of it.)
         goal = obs.goal_in_world
         if _box_distance(box, goal[None, :2]).min() < GOAL_REACH + BOUND_SLACK:
-            at_goal = np.hypot(xy[..., 0] - goal[0], xy[..., 1] - goal[1]) < GOAL_REACH
-            cost = np.where(at_goal.any(axis=1), -10.0 + 0.01 * np.argmax(at_goal, axis=1), cost)
+            at_goal = hypot(x - goal[0], y - goal[1]) < GOAL_REACH
+            cost = np.where(np.logical_or.reduce(at_goal, axis=0), -10.0 + 0.01 * np.argmax(at_goal, axis=0), cost)
         if ok.any():
             cost = np.where(ok, cost, np.inf)
             # Ties in exact arithmetic stay ties on every CPU; the first candidate wins.
@@ -316,15 +344,15 @@ class OraclePlanner(Planner):
             # never run into a static cylinder to get away from a mover if avoidable. Here
             # every clearance counts, the far obstacles' too.
             # (Rare: these ticks pay for measuring everything.)
-            walls = self._wall_distance(xy, self.info.walls) - self.radius
-            clear = np.minimum(self._obstacle_clearance(xy, future, radii), walls)
-            min_clear = clear.min(axis=1)
+            walls = self._wall_distance(rollouts, self.info.walls) - self.radius
+            clear = np.minimum(self._obstacle_clearance(rollouts, future, radii), walls)
+            min_clear = np.minimum.reduce(clear, axis=0)
             blocked = clear <= c.safety
             if self._static is not None:
                 blocked |= static_blocked
-            first_hit = np.where(blocked, np.arange(clear.shape[1])[None, :], clear.shape[1]).min(axis=1)
+            first_hit = np.where(blocked, np.arange(clear.shape[0])[:, None], clear.shape[0]).min(axis=0)
             best = int(np.argmax(snap_array(static_ok * 1e6 + first_hit * 1000.0 + min_clear, SCORE_RESOLUTION)))
-        self._last = xy[best]
+        self._last = rollouts.path(best)
         return float(self._v1[best]), float(self._w1[best])
 
 
