@@ -237,15 +237,16 @@ def test_the_distance_to_the_plan_has_the_bits_of_the_whole_array_form():
     """`distance_to_polyline` in chunks of points, x and y apart: the same bits as the form
     that built every (point, segment) pair in one array, on random plans and points
     (zero-length segments, a single point, more points than a chunk)."""
+    from dynabarn.determinism import hypot
     from dynabarn.planners.dwa import POLYLINE_CHUNK, distance_to_polyline
 
     def whole(points, path):
         if len(path) == 1:
-            return np.hypot(*(points - path[0]).T)
+            return hypot(*(points - path[0]).T)
         a, ab = path[:-1][None], (path[1:] - path[:-1])[None]
         ap = points[:, None, :] - a
         u = np.clip((ap * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12), 0.0, 1.0)
-        return np.hypot(*(points[:, None, :] - (a + u[..., None] * ab)).transpose(2, 0, 1)).min(axis=1)
+        return hypot(*(points[:, None, :] - (a + u[..., None] * ab)).transpose(2, 0, 1)).min(axis=1)
 
     rng = np.random.default_rng(7)
     for trial in range(200):

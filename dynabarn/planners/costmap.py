@@ -18,7 +18,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
-from dynabarn.determinism import exp
+from dynabarn.determinism import exp, hypot
 
 LETHAL = 254
 INSCRIBED = 253
@@ -133,7 +133,7 @@ class LocalCostmap:
         cy = (self.origin[1] + self._index + 0.5) * res - ly  # (n,) along rows
         fx = c * cx[None, :] + s * cy[:, None]
         fy = -s * cx[None, :] + c * cy[:, None]
-        rng = np.hypot(fx, fy)
+        rng = hypot(fx, fy)
         bearing = np.arctan2(fy, fx)
         a0 = angles[0]
         da = (angles[-1] - angles[0]) / (len(angles) - 1)
@@ -161,8 +161,11 @@ class LocalCostmap:
         self.distance = d
         # Whole numbers, as costmap_2d's unsigned char costs: the same on every CPU, so
         # equal costs tie exactly in the planners' comparisons and Dijkstra.
-        cost = np.rint(252.0 * exp(-cfg.cost_scaling * (d - cfg.inscribed_radius)))
-        cost[d > cfg.inflation_radius] = 0.0
+        # The decay only where it is kept (within the inflation radius): elementwise, so the
+        # same bits there as over the whole grid.
+        inflated = d <= cfg.inflation_radius
+        cost = np.zeros_like(d)
+        cost[inflated] = np.rint(252.0 * exp(-cfg.cost_scaling * (d[inflated] - cfg.inscribed_radius)))
         cost[d <= cfg.inscribed_radius] = INSCRIBED
         cost[self.occupied] = LETHAL
         self.cost = cost

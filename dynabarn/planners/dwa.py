@@ -30,7 +30,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.determinism import SCORE_RESOLUTION, sincos, snap_array
+from dynabarn.determinism import SCORE_RESOLUTION, hypot, sincos, snap_array
 from dynabarn.interfaces import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
@@ -143,7 +143,7 @@ def distance_to_polyline(points: np.ndarray, path: np.ndarray) -> np.ndarray:
     pair is evaluated alone, in x and y separately (a sum over an axis of two is the one
     addition written out), so the chunking changes no bit."""
     if len(path) == 1:
-        return np.hypot(*(points - path[0]).T)
+        return hypot(points[:, 0] - path[0, 0], points[:, 1] - path[0, 1])
     ax, ay = path[:-1, 0], path[:-1, 1]
     abx, aby = path[1:, 0] - ax, path[1:, 1] - ay
     denom = np.maximum(abx * abx + aby * aby, 1e-12)
@@ -152,7 +152,7 @@ def distance_to_polyline(points: np.ndarray, path: np.ndarray) -> np.ndarray:
         px, py = points[i : i + POLYLINE_CHUNK, 0, None], points[i : i + POLYLINE_CHUNK, 1, None]
         apx, apy = px - ax, py - ay
         u = np.clip((apx * abx + apy * aby) / denom, 0.0, 1.0)
-        out[i : i + POLYLINE_CHUNK] = np.hypot(px - (ax + u * abx), py - (ay + u * aby)).min(axis=1)
+        out[i : i + POLYLINE_CHUNK] = hypot(px - (ax + u * abx), py - (ay + u * aby)).min(axis=1)
     return out
 
 
@@ -258,13 +258,13 @@ class DWAPlanner(Planner):
         path_cost = distance_to_polyline(end, near) / res
         if goal_latched:
             align_cost = 0.0
-            goal_cost = np.hypot(*(end - self.info.goal).T) / res
+            goal_cost = hypot(end[:, 0] - self.info.goal[0], end[:, 1] - self.info.goal[1]) / res
         elif at_end:
             align_cost = 0.0
-            goal_cost = np.hypot(*(end - goal).T) / res
+            goal_cost = hypot(end[:, 0] - goal[0], end[:, 1] - goal[1]) / res
         else:
             align_cost = distance_to_polyline(front, near) / res
-            goal_cost = np.hypot(*(front - goal).T) / res
+            goal_cost = hypot(front[:, 0] - goal[0], front[:, 1] - goal[1]) / res
         occ_cost = self.costmap.lookup(xy).max(axis=1)
         total = (
             cfg.path_distance_bias * (path_cost + align_cost)
