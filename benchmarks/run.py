@@ -5,8 +5,10 @@ Measures, on one core:
 2. the runner with `straight` and `stop` on a hard world, without and with MCAP recording,
    and where a recorded episode spends its time (`recording_cost.py`);
 3. world generation (300 worlds) and MCAP recovery;
-4. the planners' compute time per call over six worlds of all difficulties, and where the
-   search planners' time goes (`planner_breakdown.py`: each part their `act` calls);
+4. every shipped planner's compute time per call over six worlds of all difficulties, where
+   the search planners' time goes (`planner_breakdown.py`: each part their `act` calls),
+   and a fixed 60-episode sweep per planner with 2 workers (`sweep_speed.py`: wall time
+   and x real time);
 5. converting a 60 s recording to a rerun .rrd (and its ratio to the recording's length);
 6. the Gymnasium environment's control steps per second (with the learn extra);
 7. the speed-up of a 2-worker benchmark sweep over 1 worker;
@@ -35,6 +37,7 @@ import mujoco
 import numpy as np
 from planner_breakdown import print_breakdown
 from recording_cost import fixed_costs, recording_breakdown
+from sweep_speed import SHIPPED, print_sweep_speeds
 
 from dynabarn.planners import get_planner, planner_spec
 from dynabarn.protocol import get_protocol
@@ -398,10 +401,11 @@ def main(argv: list[str] | None = None) -> int:
         slow, fast = scan_cost(path, closed_form=False), scan_cost(path)
         print(f"{'  its scan with every cylinder in mj_multiRay [ms]':<52}{slow:>11.2f}{'':>11}{slow / fast:>8.1f}x")
     print(f"{'planner compute per call':<44}{'mean [ms]':>11}{'p95 [ms]':>11}{'calls':>8}")
-    for planner in ("dwa", "teb", "dwa@dwa_dynamic", "teb@teb_dynamic", "predictive", "oracle"):
+    for planner in SHIPPED[1:]:
         mean, p95, calls = planner_compute(planner)
         print(f"{planner:<44}{mean:>11.2f}{p95:>11.2f}{calls:>8}")
-    print_breakdown(("oracle", "predictive", "dwa@dwa_dynabarn_authors", "teb"))
+    print_breakdown(("oracle", "predictive", "dwa@dwa_dynabarn_authors", "teb", "dagger"))
+    print_sweep_speeds()
     mean, p95, n_obstacles = min(tracker_cost() for _ in range(args.repeat))
     label = f"laser tracker, one scan of world_{HARD_WORLD:03d} ({n_obstacles} obstacles)"
     print(f"{label:<44}{mean:>11.2f}{p95:>11.2f}{300:>8}")

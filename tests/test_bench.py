@@ -299,3 +299,24 @@ def test_summary_marks_privileged_planners_and_summarises_tracking():
     table = format_table(list(by.values()))
     assert "oracle (privileged)" in table and "predictive (privileged)" not in table
     assert "0.950" in tracking_table([p])
+
+
+def test_the_sweep_speed_benchmark_times_every_shipped_planner(monkeypatch):
+    """`benchmarks/sweep_speed.py` (make bench's sweep rows): each shipped planner and preset
+    builds, and a short sweep is timed from its own results (episodes, simulated seconds,
+    the planner's time per call)."""
+    import sys
+    from pathlib import Path
+
+    from dynabarn.planners import planner_spec
+
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from sweep_speed import SHIPPED, sweep_speed
+
+    for planner in SHIPPED:
+        name, config, _ = planner_spec(planner)
+        get_planner(name, **config)
+    speed = sweep_speed("dwa", jobs=1, ids=[0, 150])
+    assert speed.episodes == 2 and speed.sim_s > 1.0 and speed.wall_s > 0.0
+    assert speed.real_time_factor == speed.sim_s / speed.wall_s and 0.05 < speed.planner_ms < 1000.0
+    assert "sweep_speed" in sys.modules
