@@ -43,7 +43,7 @@ from dynabarn.interfaces import EpisodeInfo, Observation, Planner, config_from_k
 from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.planners.levenberg_marquardt import Evaluation, Pairs, minimise
+from dynabarn.planners.levenberg_marquardt import Evaluation, minimise
 from dynabarn.planners.tracking import track_moving, with_tracker
 
 
@@ -143,8 +143,6 @@ class _Structure:
     """Residual of each entry of the Jacobian that can be nonzero."""
     cols: np.ndarray
     """Variable of each such entry."""
-    pairs: Pairs
-    """Entries (i <= j) of J^T J that can be nonzero: i and j move a residual in common."""
 
     @classmethod
     def of(cls, moves: np.ndarray) -> _Structure:
@@ -160,9 +158,7 @@ class _Structure:
                 colours[i] = len(taken)
                 taken.append(residuals.copy())
         cols, rows = np.nonzero(moves)
-        shared = (moves[:, None, :] & moves[None, :, :]).any(axis=-1)
-        upper, lower = np.nonzero(np.triu(shared))
-        return cls(colours, len(taken), rows, cols, (upper, lower))
+        return cls(colours, len(taken), rows, cols)
 
 
 def _headings(d: np.ndarray) -> np.ndarray:
@@ -361,9 +357,9 @@ class TEBPlanner(Planner):
 
         def jacobian() -> np.ndarray:
             rows, cols = structure.rows, structure.cols
-            transposed = np.zeros((len(z), r.shape[1]))
-            transposed[cols, rows] = (r[1 + structure.colours[cols], rows] - r[0, rows]) / h[cols]
-            return transposed.T
+            j = np.zeros((r.shape[1], len(z)))
+            j[rows, cols] = (r[1 + structure.colours[cols], rows] - r[0, rows]) / h[cols]
+            return j
 
         return r[0], jacobian
 
@@ -430,7 +426,6 @@ class TEBPlanner(Planner):
             lambda z: self._evaluate(z, start, goal, obstacles, moving),
             z0,
             max_nfev=cfg.max_iterations,
-            pairs=self._structure(z0, start, goal, obstacles, moving).pairs,
         )
         band, dts = self._unpack(sol.x, start, goal)
         # The band on a fixed grid, so the warm start and the command drawn from it stay on
