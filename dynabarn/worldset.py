@@ -89,9 +89,13 @@ def generate_worlds(
     static_field: StaticField | None = None,
     behavior: str = SCRIPTED,
     behavior_params: Mapping[str, float] | None = None,
+    profile_source: Mapping | None = None,
     progress: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> Path:
     """Generate and write the benchmark's worlds; returns the index path.
+
+    `profile_source` (a user's profile: the file's name and sha256, or the options that
+    made it) is recorded in `index.json` beside the profile set.
 
     `shapes`, `static_field` and `behavior` make the variants beyond the paper (obstacle
     shapes, mixed static and moving worlds, reactive obstacles); the motions stay those of
@@ -117,6 +121,10 @@ def generate_worlds(
         **{d.value: [i for i in ids if difficulty_of(*branch_of(i)) is d] for d in Difficulty},
     }
     meta = {"generator": "dynabarn", "profile_set": profile_set.to_dict(), "base_seed": base_seed}
+    if profile_source is not None:
+        meta["profile_source"] = dict(profile_source)
+        if profile_set.description:
+            meta["profile_description"] = profile_set.description
     if shapes is not None and not shapes.cylinders_only:
         meta["shapes"] = shapes.to_dict()
     if static_field is not None:

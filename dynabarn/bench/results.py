@@ -214,17 +214,23 @@ def write_worlds(out_dir: Path, jobs: list[Job]) -> Path:
     """`OUT/worlds.json`: each world of the sweep with its index entry's difficulty class,
     obstacle count and measured difficulty, and whether its provenance is the paper's
     (`worldset.paper_world_ids`), so results can be related to the worlds without their
-    folder (the imported release worlds are not part of a checkout)."""
+    folder (the imported release worlds are not part of a checkout); and under `profiles`
+    each profile set the worlds were drawn from, as their index records it (with its
+    file's name and sha256, or the options, for a user's profile)."""
     from dynabarn.worldset import paper_world_ids, read_index
 
     path = Path(out_dir) / WORLDS
-    old = {}
+    old: dict = {}
+    old_profiles: dict = {}
     if path.is_file():
         try:
-            old = {w["name"]: w for w in json.loads(path.read_text())["worlds"]}
-        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError, KeyError, TypeError):
-            old = {}
+            stored = json.loads(path.read_text())
+            old = {w["name"]: w for w in stored["worlds"]}
+            old_profiles = dict(stored.get("profiles", {}))
+        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError, KeyError, TypeError, ValueError):
+            old, old_profiles = {}, {}
     worlds = dict(old)
+    profiles = dict(old_profiles)
     files = {(Path(j.spec.world).parent, Path(j.spec.world).name) for j in jobs}  # once, not per entry
     for folder in sorted({folder for folder, _ in files}):
         try:
@@ -232,6 +238,11 @@ def write_worlds(out_dir: Path, jobs: list[Job]) -> Path:
         except DynabarnError:
             continue
         entries, paper = index["worlds"], paper_world_ids(index)
+        drawn_from = index.get("profile_set")
+        if isinstance(drawn_from, dict) and isinstance(drawn_from.get("name"), str):
+            profiles[drawn_from["name"]] = {"profile_set": drawn_from} | (
+                {"source": index["profile_source"]} if "profile_source" in index else {}
+            )
         for e in entries:
             name = e.get("name") or Path(e["file"]).stem
             if (folder, e["file"]) in files:
@@ -243,9 +254,11 @@ def write_worlds(out_dir: Path, jobs: list[Job]) -> Path:
                     "measured": e.get("measured"),
                     "sha256": e.get("sha256"),
                     "paper": e["id"] in paper,
+                    **({"profile_set": e["profile_set"]} if e.get("profile_set") else {}),
                 }
-    if worlds != old:
-        text = json.dumps({"worlds": [worlds[k] for k in sorted(worlds)]}, indent=1, sort_keys=True) + "\n"
+    if worlds != old or profiles != old_profiles:
+        stored = {"worlds": [worlds[k] for k in sorted(worlds)]} | ({"profiles": profiles} if profiles else {})
+        text = json.dumps(stored, indent=1, sort_keys=True) + "\n"
         write_atomically(path, text)
     return path
 
