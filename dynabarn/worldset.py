@@ -19,7 +19,7 @@ from dynabarn.mjcf import write_world
 from dynabarn.provenance import WORLDS_ENV, worlds_dir
 from dynabarn.worlds.difficulty import difficulty_scores
 from dynabarn.worlds.generate import DEFAULT_BASE_SEED, N_WORLDS, PAPER60, branch_of, generate_world
-from dynabarn.worlds.profiles import Difficulty, ProfileSet, ShapeMix, StaticField, difficulty_of
+from dynabarn.worlds.profiles import Difficulty, ProfileSet, ShapeMix, StaticField, difficulty_of, get_profile_set
 from dynabarn.worlds.spec import SCRIPTED, EndBehavior, Interpolation, WorldSpec
 
 INDEX_NAME = "index.json"
@@ -244,15 +244,16 @@ PAPER_SET = "paper60"
 def paper_world_ids(index: dict) -> set[int]:
     """Ids of an index's worlds whose provenance is the paper's, the only ones compared with
     the paper's Fig. 5: the `paper60` subset of worlds generated with the paper's Table I
-    profiles and nothing beyond the paper (shapes, static fields, behaviours), or imported
+    profiles (all of them, not a user's profile of the same name) and nothing beyond the
+    paper (shapes, static fields, behaviours), or imported
     worlds the importer recognised as the release's (it lists them as `paper60`)."""
     ids = set(index.get("sets", {}).get(PAPER_SET, []))
     generator = index.get("generator")
     if generator == "dynabarn import":
         return ids
     profile_set = index.get("profile_set")
-    plain = not any(k in index for k in ("shapes", "static_field", "behavior"))
-    if generator == "dynabarn" and isinstance(profile_set, dict) and profile_set.get("name") == "table1" and plain:
+    plain = not any(k in index for k in ("shapes", "static_field", "behavior", "profile_source"))
+    if generator == "dynabarn" and plain and profile_set == get_profile_set("table1").to_dict():
         return ids
     return set()
 

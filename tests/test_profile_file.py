@@ -88,7 +88,12 @@ def test_options_make_the_same_worlds_as_the_same_profile_in_a_file(tmp_path):
 def test_a_custom_profile_never_lands_in_the_shipped_folder_by_default(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert worlds_main(["generate", "--easy-speed", "0.6,0.9"]) == 0
-    assert (tmp_path / "table1_worlds" / "index.json").is_file() and not (tmp_path / "generated_worlds").exists()
+    index = json.loads((tmp_path / "table1-custom_worlds" / "index.json").read_text())
+    assert index["profile_set"]["name"] == "table1-custom" and not (tmp_path / "generated_worlds").exists()
+    # Not the paper's worlds, though drawn from Table I changed by an option: no paper column.
+    from dynabarn.worldset import paper_world_ids
+
+    assert paper_world_ids(index) == set() and len(index["sets"]["paper60"]) == 60
 
 
 def test_a_sweep_records_the_profile_its_worlds_were_drawn_from(tmp_path):

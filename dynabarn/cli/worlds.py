@@ -225,6 +225,8 @@ def generation_profile(args: argparse.Namespace):
         data["behavior"] = args.behavior
     if changed:
         source = {**source, "options": {name: getattr(args, name) for name in changed}}
+        if args.profile_name is None and args.profile_file is None:
+            data["name"] = f"{args.profiles}-custom"  # never mistaken for the shipped set of that name
     try:
         profile = profile_from_dict(data, default_name=args.profiles, source=source)
     except ProfileError as exc:
