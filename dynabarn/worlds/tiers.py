@@ -1,0 +1,52 @@
+"""Tiers beyond the paper's hard (issue 43): named world sets, each drawn from a profile
+file shipped with the package (`tier_profiles/`), its own base seed and the ids of the
+paper's 60 (20 easy, 20 medium, 20 hard by Fig. 2's branches).
+
+The definitions were committed before any planner ran on them, and no world is chosen,
+dropped or redrawn because of a planner's result. `dynabarn-worlds generate --tier NAME`
+(and `make worlds`) writes one to `generated_tiers/NAME/`; `--set NAME` runs it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from dynabarn.errors import WorldError, unknown_choice
+from dynabarn.worlds.generate import PAPER60
+from dynabarn.worlds.profile_file import GenerationProfile, read_profile_file
+
+PROFILES_DIR = Path(__file__).resolve().parent / "tier_profiles"
+
+
+@dataclass(frozen=True)
+class Tier:
+    """One tier: its profile file, its base seed and its world ids."""
+
+    name: str
+    profile_file: str
+    """File name in `tier_profiles/`."""
+    base_seed: int
+    """Its own seed namespace: world i draws from SeedSequence([base_seed, i])."""
+    ids: tuple[int, ...] = PAPER60
+
+    def profile(self) -> GenerationProfile:
+        return read_profile_file(PROFILES_DIR / self.profile_file)
+
+
+TIERS: dict[str, Tier] = {
+    t.name: t
+    for t in (
+        Tier("tier-dense", "dense.toml", 4301),
+        Tier("tier-fast", "fast.toml", 4302),
+        Tier("tier-mixed", "mixed.toml", 4303),
+        Tier("tier-combined", "combined.toml", 4304),
+    )
+}
+"""The tiers by name, easiest first (the seeds: issue 43, tier 1 to 4)."""
+
+
+def get_tier(name: str) -> Tier:
+    if name not in TIERS:
+        raise WorldError(unknown_choice("tier", name, list(TIERS)))
+    return TIERS[name]
