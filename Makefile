@@ -95,6 +95,7 @@ ros-teb: $(STAMP) ros-deps ros-nav-deps ros-teb-deps
 
 worlds: $(STAMP)
 	$(BIN)/dynabarn-worlds generate
+	$(BIN)/dynabarn-worlds generate --tier all
 
 demo: $(STAMP)
 	$(BIN)/dynabarn-run --world 137 --planner dwa

@@ -16,11 +16,12 @@ from pathlib import Path
 from dynabarn.errors import WorldError
 from dynabarn.files import write_atomically
 from dynabarn.mjcf import write_world
-from dynabarn.provenance import WORLDS_ENV, worlds_dir
+from dynabarn.provenance import WORLDS_ENV, work_root, worlds_dir
 from dynabarn.worlds.difficulty import difficulty_scores
 from dynabarn.worlds.generate import DEFAULT_BASE_SEED, N_WORLDS, PAPER60, branch_of, generate_world
 from dynabarn.worlds.profiles import Difficulty, ProfileSet, ShapeMix, StaticField, difficulty_of, get_profile_set
 from dynabarn.worlds.spec import SCRIPTED, EndBehavior, Interpolation, WorldSpec
+from dynabarn.worlds.tiers import TIERS, get_tier
 
 INDEX_NAME = "index.json"
 
@@ -132,6 +133,41 @@ def generate_worlds(
     if behavior != SCRIPTED:
         meta["behavior"] = behavior
     return write_worlds(worlds, out_dir, meta=meta, sets=sets, progress=progress)
+
+
+TIERS_FOLDER = "generated_tiers"
+"""Where the tiers' worlds are generated, under the work root (the checkout, or the cache)."""
+
+
+def generate_tier(name: str, out_dir: Path | None = None, *, progress: Callable = lambda it: it) -> Path:
+    """Write tier NAME's worlds (`worlds.tiers`) to `out_dir` (default: its folder under the
+    work root); returns the index path. The same bytes on every run and machine."""
+    tier = get_tier(name)
+    profile = tier.profile()
+    return generate_worlds(
+        profile.profile_set,
+        Path(out_dir) if out_dir is not None else tier_dir(name),
+        base_seed=tier.base_seed,
+        world_ids=tier.ids,
+        shapes=profile.shapes,
+        static_field=profile.static_field,
+        behavior=profile.behavior,
+        behavior_params=profile.behavior_params,
+        profile_source={"tier": name, **profile.source},
+        progress=progress,
+    )
+
+
+def tier_dir(name: str) -> Path:
+    return work_root() / TIERS_FOLDER / get_tier(name).name
+
+
+def tier_worlds(name: str) -> Path:
+    """Tier NAME's folder, its worlds generated there first when absent (a few seconds)."""
+    folder = tier_dir(name)
+    if not (folder / INDEX_NAME).is_file():
+        generate_tier(name, folder)
+    return folder
 
 
 MAX_INDEX_WORLDS = 100_000
@@ -259,15 +295,21 @@ def paper_world_ids(index: dict) -> set[int]:
 
 
 def world_set(name: str, ids: list[int] | None = None) -> list[tuple[int, str, str]]:
-    """(world id, file, difficulty) for `paper60`, `dynabarn300`, or a folder/index.json."""
+    """(world id, file, difficulty) for `paper60`, `dynabarn300`, a tier (`worlds.tiers`,
+    generated on first use) or a folder/index.json."""
     if name in ("paper60", "dynabarn300"):
         index_dir = worlds_dir()
         chosen = list(PAPER60) if name == "paper60" else list(range(300))
+    elif name in TIERS:
+        index_dir, chosen = tier_worlds(name), None
     else:
         p = Path(name)
         index_dir = p.parent if p.name == "index.json" else p
         if not (index_dir / "index.json").is_file():
-            raise WorldError(f"unknown world set {name!r}: use paper60, dynabarn300, or a folder with index.json")
+            raise WorldError(
+                f"unknown world set {name!r}: use paper60, dynabarn300, a tier ({', '.join(TIERS)}), "
+                "or a folder with index.json"
+            )
         chosen = None
     index = read_index(index_dir)  # checks the format tag; one clear line when malformed
     entries = {e["id"]: e for e in index["worlds"]}

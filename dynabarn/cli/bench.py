@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
+    SET_HELP,
     add_jobs,
     add_protocol,
     add_sim_settings,
@@ -73,7 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --planner ros: a stack of ours instead of --ros-launch (move_base from `make ros-nav`; "
         "move_base_teb also needs `make ros-teb`)",
     )
-    parser.add_argument("--set", default="paper60", help="world set: paper60, dynabarn300, or a folder with index.json")
+    parser.add_argument("--set", default="paper60", help=SET_HELP)
     parser.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
     parser.add_argument("--trials", type=ranged(int, 1, 10_000), default=10, help="trials (seeds 0..N-1) per world")
     add_protocol(parser)

@@ -21,6 +21,11 @@ from dynabarn.errors import DynabarnError, ImportFormatError, Terminated
 from dynabarn.limits import MAX_JOBS, MAX_SEED
 from dynabarn.processes import ignore_interrupts
 
+SET_HELP = (
+    "world set: paper60, dynabarn300, a tier beyond the paper's hard (tier-dense, tier-fast, tier-mixed, "
+    "tier-combined; generated on first use), or a folder with index.json"
+)
+"""--set's help, one text for every command that takes a world set."""
 WORLD_HELP = (
     "a world by id or name (137, world_137, world_137.xml; from $DYNABARN_WORLDS, else the shipped 300) "
     "or the path of a world .xml"

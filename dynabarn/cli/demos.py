@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
+    SET_HELP,
     add_jobs,
     add_protocol,
     command,
@@ -45,7 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="record oracle demonstrations at scale (synthetic, marked so)",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    co.add_argument("--set", default="paper60", help="world set: paper60, dynabarn300, or a folder with index.json")
+    co.add_argument("--set", default="paper60", help=SET_HELP)
     co.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
     co.add_argument("--trials", type=ranged(int, 1, 10_000), default=1, help="seeds 0..N-1 per world")
     add_protocol(co)

@@ -3,35 +3,28 @@
 from __future__ import annotations
 
 import argparse
-import time
 from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
-    MAX_SEED,
     WORLD_HELP,
     command,
     make_parser,
     progress_bar,
-    ranged,
     run_command,
     subcommands,
 )
+from dynabarn.cli.worlds_generate import add_generate_arguments, worlds_generate
 from dynabarn.errors import DynabarnError, ImportFormatError
 from dynabarn.files import file_name_part
 
 
-# Over 80 lines on purpose: the declarations of the four subcommands' options, one after
-# the other, as `--help` shows them.
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-worlds`'s parser (its `--help`, and the documentation's page of the command)."""
     parser = make_parser("dynabarn-worlds", "Generate, import and inspect DynaBARN worlds.")
     # Imported once the parser exists: make_parser chose MuJoCo's OpenGL platform, which
     # MuJoCo reads when first imported (these modules import it).
     from dynabarn.provenance import WORLDS_ENV
-    from dynabarn.sim.behaviors import available_behaviors, get_behavior
-    from dynabarn.worlds.generate import DEFAULT_BASE_SEED
-    from dynabarn.worlds.profiles import PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS
 
     sub = subcommands(parser)
 
@@ -40,88 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="generate the 300 benchmark worlds (what `make worlds` runs)",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    g.add_argument(
-        "--out",
-        type=Path,
-        default=None,
-        help="output directory (default: ./generated_worlds for the paper's worlds, ./mixed_worlds when "
-        "--shapes, --static or --behavior is given; never into an installed package); outside the "
-        "repository the folder carries the robot the worlds name, in DIR/assets/jackal/",
-    )
-    g.add_argument(
-        "--seed",
-        type=ranged(int, 0, MAX_SEED),
-        default=DEFAULT_BASE_SEED,
-        help="base seed; world i uses SeedSequence([seed, i])",
-    )
-    g.add_argument(
-        "--profiles",
-        choices=PROFILE_SETS.names(),
-        default="table1",
-        help="motion profile set: table1 = the paper's Table I; release2022 = measured from the 2022 release "
-        "(the base the options below change; not used with --profile-file)",
-    )
-    g.add_argument(
-        "--profile-file",
-        type=Path,
-        default=None,
-        help="your own profile (TOML or JSON): each motion branch's profiles (order, speed and std "
-        "ranges), Fig. 2's count ranges, optionally shapes, a static field and a behaviour; see the "
-        "tutorial 'Motion profiles of your own'",
-    )
-    g.add_argument("--profile-name", default=None, help="name of the profile set (default: the file's or the base's)")
-    for branch in ("easy", "hard"):
-        for key, unit in (("order", "polynomial order, whole numbers"), ("speed", "m/s"), ("std", "m/s")):
-            g.add_argument(
-                f"--{branch}-{key}",
-                metavar="MIN,MAX",
-                default=None,
-                help=f"{key} range ({unit}) of every profile of Fig. 2's {branch} motion branch "
-                "(default: the profile file's, else --profiles')",
-            )
-    for branch in ("low", "high"):
-        g.add_argument(
-            f"--{branch}-count",
-            metavar="MIN,MAX",
-            default=None,
-            help=f"obstacle count range of Fig. 2's {branch} branch (default: the profile file's, else 5,9 / 10,19)",
-        )
-    g.add_argument(
-        "--waypoints",
-        choices=["integer", "release"],
-        default=None,
-        help="where waypoints lie along each path: integer = every integer x (the paper); release = as "
-        "the 2022 release (default: the profile file's, else --profiles')",
-    )
-    g.add_argument(
-        "--interpolation",
-        choices=["linear", "spline"],
-        default="linear",
-        help="playback between waypoints: linear (the paper) or spline (Gazebo's PoseAnimation)",
-    )
-    g.add_argument("--end", choices=["loop", "hold"], default="loop", help="after the last waypoint")
-    g.add_argument(
-        "--shapes",
-        choices=SHAPE_MIXES.names(),
-        default=None,
-        help="obstacle shapes (beyond the paper): cylinder = the paper's; mixed = cylinders, boxes and "
-        "capsules in equal shares, sizes drawn per obstacle (default: the profile file's, else cylinder)",
-    )
-    g.add_argument(
-        "--static",
-        choices=["none", *STATIC_FIELDS.names()],
-        default=None,
-        help="static obstacles beside the moving ones (beyond the paper): barn-grid = a BARN-style "
-        "cellular-automaton field of r 0.075 m cylinders across the arena's middle, always crossable "
-        "(default: the profile file's, else none)",
-    )
-    g.add_argument(
-        "--behavior",
-        choices=available_behaviors(),
-        default=None,
-        help="every obstacle's behaviour (beyond the paper; default: the profile file's, else scripted): "
-        + "; ".join(f"{name} = {get_behavior(name).summary()}" for name in available_behaviors()),
-    )
+    add_generate_arguments(g)
 
     im = sub.add_parser(
         "import", help="import worlds from another format", formatter_class=argparse.ArgumentDefaultsHelpFormatter
@@ -174,112 +86,6 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     return run_command(_WORLD_COMMANDS[args.command], args)
-
-
-PROFILE_OPTIONS = (
-    "easy_order",
-    "easy_speed",
-    "easy_std",
-    "hard_order",
-    "hard_speed",
-    "hard_std",
-    "low_count",
-    "high_count",
-    "waypoints",
-    "profile_name",
-)
-"""Options that change the motion profiles or counts: with any, the set is a profile of its own."""
-
-
-def generation_profile(args: argparse.Namespace):
-    """The `GenerationProfile` `generate` draws from: --profile-file, else --profiles, changed by
-    the options; every value checked where a profile file's is (one line, exit 2)."""
-    from dynabarn.errors import ProfileError
-    from dynabarn.sim.behaviors import available_behaviors, get_behavior
-    from dynabarn.worlds.profile_file import load_profile_data, profile_from_dict
-    from dynabarn.worlds.profiles import get_profile_set
-
-    if args.profile_file is not None:
-        data, source = load_profile_data(args.profile_file)
-        where = f"{args.profile_file}: "
-    else:
-        data, source, where = get_profile_set(args.profiles).to_dict(), {"profiles": args.profiles}, ""
-    changed = [name for name in PROFILE_OPTIONS if getattr(args, name) is not None]
-    data = dict(data)
-    for branch in ("easy", "hard"):
-        for key in ("order", "speed", "std"):
-            value = getattr(args, f"{branch}_{key}")
-            if value is not None:
-                pair = _pair_option(f"--{branch}-{key}", value)
-                data[f"{branch}_motion"] = [dict(p, **{key: pair}) for p in data.get(f"{branch}_motion", [])]
-    for branch in ("low", "high"):
-        value = getattr(args, f"{branch}_count")
-        if value is not None:
-            data[f"{branch}_count"] = _pair_option(f"--{branch}-count", value)
-    for option, key in (("waypoints", "waypoints"), ("profile_name", "name"), ("shapes", "shapes")):
-        if getattr(args, option) is not None:
-            data[key] = getattr(args, option)
-    if args.static is not None:
-        data["static"] = args.static
-    if args.behavior is not None:
-        data["behavior"] = args.behavior
-    if changed:
-        source = {**source, "options": {name: getattr(args, name) for name in changed}}
-        if args.profile_name is None and args.profile_file is None:
-            data["name"] = f"{args.profiles}-custom"  # never mistaken for the shipped set of that name
-    try:
-        profile = profile_from_dict(data, default_name=args.profiles, source=source)
-    except ProfileError as exc:
-        raise ProfileError(f"{where}{exc}") from None
-    if profile.behavior not in available_behaviors():
-        raise ProfileError(f"{where}behavior {profile.behavior!r}: not one of {', '.join(available_behaviors())}")
-    defaults = get_behavior(profile.behavior).defaults()
-    unknown = sorted(set(profile.behavior_params) - set(defaults))
-    if unknown:
-        raise ProfileError(f"{where}behavior.params: {profile.behavior} has no parameter {unknown[0]!r}")
-    custom = args.profile_file is not None or bool(changed)
-    return profile, defaults | profile.behavior_params, custom
-
-
-def _pair_option(option: str, value: str) -> list[float]:
-    from dynabarn.errors import ProfileError
-
-    parts = value.split(",")
-    try:
-        if len(parts) != 2:
-            raise ValueError
-        return [float(p) for p in parts]
-    except ValueError:
-        raise ProfileError(f"{option} {value!r}: expected MIN,MAX (two numbers)") from None
-
-
-def _worlds_generate(args: argparse.Namespace) -> int:
-    from dynabarn.provenance import WORLDS_ENV, worlds_dir
-    from dynabarn.worlds.generate import N_WORLDS
-    from dynabarn.worldset import generate_worlds
-
-    profile, behavior_params, custom = generation_profile(args)
-    variant = profile.shapes is not None or profile.static_field is not None or profile.behavior != "scripted"
-    default_out = f"{file_name_part(profile.profile_set.name)}_worlds" if custom else None
-    out = args.out or Path(default_out or ("mixed_worlds" if variant else "generated_worlds"))
-    t0 = time.perf_counter()
-    index = generate_worlds(
-        profile.profile_set,
-        out,
-        base_seed=args.seed,
-        interpolation=args.interpolation,
-        end_behavior=args.end,
-        shapes=profile.shapes,
-        static_field=profile.static_field,
-        behavior=profile.behavior,
-        behavior_params=behavior_params,
-        profile_source=profile.source if custom else None,
-        progress=progress_bar("generating", N_WORLDS),
-    )
-    print(f"wrote {N_WORLDS} worlds and {index} in {time.perf_counter() - t0:.1f} s")
-    if Path(out).resolve() != worlds_dir().resolve():
-        print(f"ids (--world 137, --set paper60) refer to them with {WORLDS_ENV}={Path(out).resolve()}")
-    return 0
 
 
 def _worlds_import(args: argparse.Namespace) -> int:
@@ -453,7 +259,7 @@ def _worlds_stats(args: argparse.Namespace) -> int:
 
 
 _WORLD_COMMANDS = {
-    "generate": _worlds_generate,
+    "generate": worlds_generate,
     "import": _worlds_import,
     "show": _worlds_show,
     "stats": _worlds_stats,

@@ -52,7 +52,7 @@ paced to real time (needs a display). `camera`: `top` (the arena) or `follow`.
 ## Arguments
 | parameter | type | default | description |
 |---|---|---|---|
-| world_set | str | "paper60" | paper60, dynabarn300, or a folder with index.json |
+| world_set | str | "paper60" | paper60, dynabarn300, a tier, or a folder with index.json |
 | split | str or None | None | "train" or "validation": worlds drawn on the fly |
 | split_seed | int | 0 | the split's seed (the same worlds for the same seed) |
 | split_profile_sets | tuple[str] | ("table1", "release2022") | profile sets of the split |

@@ -6,9 +6,8 @@ intervals dT_i between them. The first pose is the robot's, the last the local g
 (`lookahead` metres along the Dijkstra global plan, heading along the plan); the poses in
 between and all dT_i (as log dT, so intervals stay positive) are optimised with
 Levenberg-Marquardt (`levenberg_marquardt.py`: the same bits on every CPU) against teb_local_planner's
-soft constraints, each a weighted residual. The Jacobian is banded (each residual touches
-one or two neighbouring poses); it is computed by forward differences in a single
-batched evaluation of all residuals:
+soft constraints, each a weighted residual. Each residual touches one to three neighbouring
+poses, so the forward-difference Jacobian takes a dozen batched rows (`coloured_jacobian`):
 
 - time optimality: dT_i (`weight_optimaltime` 1);
 - non-holonomic kinematics: (cos th_i + cos th_i+1) dy_i - (sin th_i + sin th_i+1) dx_i
@@ -24,10 +23,8 @@ batched evaluation of all residuals:
 Laser returns within `obstacle_range` (one in `obstacle_stride` beams) are the obstacles,
 as teb_local_planner sees costmap cells without a costmap converter; like the paper's
 TEB it does not predict obstacle motion. The band is warm-started from the previous tick
-(resampled to start at the robot). The command is the first segment's velocity:
-v = |s_1 - s_0| / dT_0 (signed by direction), w = (theta_1 - theta_0) / dT_0. When the band's
-first poses stay in collision after optimisation, the planner backs up away from the
-nearest obstacle (recovery), as move_base would.
+(resampled to start at the robot); the command is its first segment's velocity. When the
+band's first poses stay in collision, the planner backs up (recovery), as move_base would.
 """
 
 from __future__ import annotations
@@ -41,6 +38,7 @@ import numpy as np
 from dynabarn.determinism import STATE_RESOLUTION, exp, sincos, snap_array
 from dynabarn.interfaces import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
+from dynabarn.planners.coloured_jacobian import Colouring, residuals_and_jacobian
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.levenberg_marquardt import Evaluation, minimise
@@ -125,40 +123,7 @@ class TEBConfig:
 
     @classmethod
     def from_kwargs(cls, **kwargs) -> TEBConfig:
-        cfg = config_from_kwargs(cls, with_tracker(with_costmap(kwargs, "TEB"), "TEB"), "TEB")
-        if cfg.n_poses < 3:
-            raise TypeError("n_poses must be at least 3")
-        return cfg
-
-
-@dataclass(frozen=True)
-class _Structure:
-    """Which residuals each of the band's variables moves, and what follows from it."""
-
-    colours: np.ndarray
-    """(n_var,) the batch row each variable is stepped in: no two variables of a colour move
-    the same residual (greedy colouring in variable order)."""
-    n_colours: int
-    rows: np.ndarray
-    """Residual of each entry of the Jacobian that can be nonzero."""
-    cols: np.ndarray
-    """Variable of each such entry."""
-
-    @classmethod
-    def of(cls, moves: np.ndarray) -> _Structure:
-        """From `moves` (n_var, n_res): whether variable i moves residual k."""
-        colours = np.empty(len(moves), dtype=np.int64)
-        taken: list[np.ndarray] = []  # per colour: the residuals its variables move
-        for i, residuals in enumerate(moves):
-            free = [c for c, t in enumerate(taken) if not (t & residuals).any()]
-            if free:
-                colours[i] = free[0]
-                taken[free[0]] |= residuals
-            else:
-                colours[i] = len(taken)
-                taken.append(residuals.copy())
-        cols, rows = np.nonzero(moves)
-        return cls(colours, len(taken), rows, cols)
+        return config_from_kwargs(cls, with_tracker(with_costmap(kwargs, "TEB"), "TEB"), "TEB")
 
 
 def _headings(d: np.ndarray) -> np.ndarray:
@@ -197,7 +162,7 @@ class TEBPlanner(Planner):
         )
         self._band: np.ndarray | None = None  # (n, 3)
         self._dts: np.ndarray | None = None  # (n - 1,)
-        self._structures: dict[tuple, _Structure] = {}
+        self._colourings: dict[tuple, Colouring] = {}
 
     def config(self) -> dict:
         return asdict(self.cfg)
@@ -344,38 +309,16 @@ class TEBPlanner(Planner):
     def _evaluate(
         self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray, moving: Tracks | None
     ) -> Evaluation:
-        """The residuals at z and, from the same batched evaluation, the forward-difference
-        Jacobian: variables that move no residual in common are stepped together (one row
-        of the batch for each colour of `_structure`), so about a dozen rows give what one
-        row per variable gave, with the same bits (a residual sees only its own variables'
-        steps, each the same value as alone)."""
-        structure = self._structure(z, start, goal, obstacles, moving)
-        h = 1e-6 * np.maximum(1.0, np.abs(z))
-        steps = np.zeros((structure.n_colours, len(z)))
-        steps[structure.colours, np.arange(len(z))] = h
-        r = self._residuals(np.vstack([z[None], z[None, :] + steps]), start, goal, obstacles, moving)
+        """The residuals at z and their Jacobian from one batched evaluation (`coloured_jacobian`);
+        which residuals each variable moves depends on whether there are points and tracks only."""
 
-        def jacobian() -> np.ndarray:
-            rows, cols = structure.rows, structure.cols
-            j = np.zeros((r.shape[1], len(z)))
-            j[rows, cols] = (r[1 + structure.colours[cols], rows] - r[0, rows]) / h[cols]
-            return j
+        def residuals(batch: np.ndarray) -> np.ndarray:
+            return self._residuals(batch, start, goal, obstacles, moving)
 
-        return r[0], jacobian
-
-    def _structure(
-        self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray, moving: Tracks | None
-    ) -> _Structure:
-        """Which residuals each variable moves, found once per kind of call (with or without
-        laser points and tracks) by setting each variable to NaN in turn: NaN flows through
-        every operation of `_residuals` (none of them compares or clips it away)."""
         key = (len(obstacles) > 0, None if moving is None else len(moving) > 0)
-        if key not in self._structures:
-            with np.errstate(invalid="ignore"):
-                probe = z[None, :] + np.diag(np.full(len(z), np.nan))
-                moves = np.isnan(self._residuals(probe, start, goal, obstacles, moving))  # (variable, residual)
-            self._structures[key] = _Structure.of(moves)
-        return self._structures[key]
+        if key not in self._colourings:
+            self._colourings[key] = Colouring.probe(residuals, z)
+        return residuals_and_jacobian(residuals, z, self._colourings[key])
 
     def _obstacle_points(self, obs: Observation, moving_beams: np.ndarray | None = None) -> np.ndarray:
         """Laser returns within `obstacle_range` (one in `obstacle_stride` beams), world

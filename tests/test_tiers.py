@@ -1,0 +1,67 @@
+"""The tiers beyond the paper's hard (issue 43): definitions, byte-for-byte regeneration, `--set NAME`."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from dynabarn.cli import bench_main, worlds_main
+from dynabarn.worlds.generate import PAPER60
+from dynabarn.worlds.tiers import TIERS, get_tier
+from dynabarn.worldset import generate_tier, world_set
+
+
+def test_the_tiers_are_what_the_issue_defines():
+    """A denser tier (20-40 obstacles), a faster and more erratic one (speeds up to the
+    Jackal's 2 m/s and a named step beyond, higher orders and variation than Table I), a
+    mixed one (static BARN field, mixed shapes) and one that combines them; each on the
+    paper's 60 ids with a seed of its own."""
+    dense, fast, mixed, combined = (get_tier(n).profile() for n in TIERS)
+    assert dense.profile_set.low_count[0] >= 20 and dense.profile_set.high_count == (30, 40)
+    hard = {p.name: p for p in fast.profile_set.hard_motion}
+    assert hard["jackal"].speed[1] == 2.0 and hard["beyond"].speed == (2.0, 2.5)
+    assert min(p.order[1] for p in hard.values()) > 4 and min(p.std[1] for p in hard.values()) > 0.2
+    assert mixed.static_field is not None and mixed.shapes is not None and not mixed.shapes.cylinders_only
+    assert combined.static_field is not None and combined.shapes is not None
+    assert combined.profile_set.hard_motion == fast.profile_set.hard_motion
+    assert combined.profile_set.high_count[0] > 19
+    assert all(get_tier(n).ids == PAPER60 for n in TIERS)
+    assert len({get_tier(n).base_seed for n in TIERS}) == len(TIERS)
+
+
+@pytest.mark.parametrize("name", list(TIERS))
+def test_each_tier_regenerates_byte_for_byte(tmp_path, name):
+    first, second = generate_tier(name, tmp_path / "a").parent, generate_tier(name, tmp_path / "b").parent
+    files = sorted(p.name for p in first.iterdir() if p.is_file())
+    assert len(files) == 61 and files == sorted(p.name for p in second.iterdir() if p.is_file())
+    for f in files:
+        assert (first / f).read_bytes() == (second / f).read_bytes(), f
+    index = json.loads((first / "index.json").read_text())
+    assert index["profile_set"]["name"] == name and index["base_seed"] == get_tier(name).base_seed
+    assert index["profile_source"]["tier"] == name and len(index["profile_source"]["sha256"]) == 64
+    counts = {d: [e["n_obstacles"] for e in index["worlds"] if e["difficulty"] == d] for d in ("easy", "hard")}
+    assert len(index["worlds"]) == 60 and len(counts["easy"]) == 20 and len(counts["hard"]) == 20
+    assert np.mean(counts["hard"]) >= np.mean(counts["easy"])
+
+
+def test_a_tier_is_a_set_by_its_name(tmp_path, monkeypatch):
+    """`--set tier-fast` generates the tier on first use and runs it; the sweep's worlds.json
+    names the tier's profile."""
+    monkeypatch.setattr("dynabarn.worldset.work_root", lambda: tmp_path)
+    chosen = world_set("tier-fast", [200, 201])
+    assert [w[0] for w in chosen] == [200, 201] and all(w[2] == "hard" for w in chosen)
+    assert (tmp_path / "generated_tiers" / "tier-fast" / "index.json").is_file()
+    out = tmp_path / "results"
+    argv = ["--planner", "straight", "--no-floor", "--set", "tier-fast", "--worlds", "0,200", "--trials", "1"]
+    assert bench_main([*argv, "--jobs", "1", "--out", str(out)]) == 0
+    recorded = json.loads((out / "worlds.json").read_text())
+    assert recorded["profiles"]["tier-fast"]["source"]["tier"] == "tier-fast"
+
+
+def test_tier_generation_refuses_profile_options(tmp_path, capsys):
+    assert worlds_main(["generate", "--tier", "tier-dense", "--hard-speed", "1,2", "--out", str(tmp_path / "x")]) == 2
+    assert "--tier takes its profile from its own file" in capsys.readouterr().err
+    assert worlds_main(["generate", "--tier", "all", "--out", str(tmp_path / "x")]) == 2
+    assert not (tmp_path / "x").exists()
