@@ -19,6 +19,7 @@ from dynabarn.mjcf import write_world
 from dynabarn.provenance import WORLDS_ENV, work_root, worlds_dir
 from dynabarn.worlds.difficulty import difficulty_scores
 from dynabarn.worlds.generate import DEFAULT_BASE_SEED, N_WORLDS, PAPER60, branch_of, generate_world
+from dynabarn.worlds.profile_file import GenerationProfile
 from dynabarn.worlds.profiles import Difficulty, ProfileSet, ShapeMix, StaticField, difficulty_of, get_profile_set
 from dynabarn.worlds.spec import SCRIPTED, EndBehavior, Interpolation, WorldSpec
 from dynabarn.worlds.tiers import TIERS, get_tier
@@ -144,17 +145,34 @@ def generate_tier(name: str, out_dir: Path | None = None, *, progress: Callable 
     work root); returns the index path. The same bytes on every run and machine."""
     tier = get_tier(name)
     profile = tier.profile()
-    return generate_worlds(
-        profile.profile_set,
+    return generate_profile_worlds(
+        profile,
         Path(out_dir) if out_dir is not None else tier_dir(name),
         base_seed=tier.base_seed,
         world_ids=tier.ids,
+        profile_source={"tier": name, **profile.source},
+        progress=progress,
+    )
+
+
+def generate_profile_worlds(
+    profile: GenerationProfile,
+    out_dir: Path,
+    *,
+    behavior_params: Mapping[str, float] | None = None,
+    **options,
+) -> Path:
+    """`generate_worlds` with everything a `GenerationProfile` says: its profile set, shapes,
+    static field and behaviour, with `behavior_params` (default: the profile's own) and the
+    rest of `generate_worlds`' options."""
+    return generate_worlds(
+        profile.profile_set,
+        out_dir,
         shapes=profile.shapes,
         static_field=profile.static_field,
         behavior=profile.behavior,
-        behavior_params=profile.behavior_params,
-        profile_source={"tier": name, **profile.source},
-        progress=progress,
+        behavior_params=profile.behavior_params if behavior_params is None else behavior_params,
+        **options,
     )
 
 

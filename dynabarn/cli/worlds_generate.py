@@ -191,7 +191,7 @@ def _pair_option(option: str, value: str) -> list[float]:
 def worlds_generate(args: argparse.Namespace) -> int:
     from dynabarn.provenance import WORLDS_ENV, worlds_dir
     from dynabarn.worlds.generate import N_WORLDS
-    from dynabarn.worldset import generate_worlds
+    from dynabarn.worldset import generate_profile_worlds
 
     if args.tier is not None:
         return _generate_tiers(args)
@@ -200,16 +200,13 @@ def worlds_generate(args: argparse.Namespace) -> int:
     default_out = f"{file_name_part(profile.profile_set.name)}_worlds" if custom else None
     out = args.out or Path(default_out or ("mixed_worlds" if variant else "generated_worlds"))
     t0 = time.perf_counter()
-    index = generate_worlds(
-        profile.profile_set,
+    index = generate_profile_worlds(
+        profile,
         out,
+        behavior_params=behavior_params,
         base_seed=args.seed,
         interpolation=args.interpolation,
         end_behavior=args.end,
-        shapes=profile.shapes,
-        static_field=profile.static_field,
-        behavior=profile.behavior,
-        behavior_params=behavior_params,
         profile_source=profile.source if custom else None,
         progress=progress_bar("generating", N_WORLDS),
     )

@@ -79,18 +79,11 @@ Evaluation = tuple[np.ndarray, Callable[[], np.ndarray]]
 
 
 def levenberg_marquardt(
-    fun: Callable[[np.ndarray], np.ndarray],
-    jac: Callable[[np.ndarray], np.ndarray],
-    x0: np.ndarray,
-    *,
-    max_nfev: int,
-    mu0: float = 1e-3,
-    gtol: float = 1e-8,
-    xtol: float = 1e-8,
+    fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, **options
 ) -> LMResult:
-    """Minimise 1/2 |fun(x)|^2 from x0, with the Jacobian `jac(x)` (m, n): `minimise` with
-    the two given apart."""
-    return minimise(lambda x: (fun(x), lambda: jac(x)), x0, max_nfev=max_nfev, mu0=mu0, gtol=gtol, xtol=xtol)
+    """Minimise 1/2 |fun(x)|^2 from x0, with the Jacobian `jac(x)` (m, n): `minimise` (and
+    its options) with the two given apart."""
+    return minimise(lambda x: (fun(x), lambda: jac(x)), x0, **options)
 
 
 def minimise(
