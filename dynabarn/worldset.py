@@ -9,7 +9,10 @@ reproduces the committed files byte for byte.
 from __future__ import annotations
 
 import json
+import os
 import re
+import secrets
+import shutil
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
@@ -181,10 +184,22 @@ def tier_dir(name: str) -> Path:
 
 
 def tier_worlds(name: str) -> Path:
-    """Tier NAME's folder, its worlds generated there first when absent (a few seconds)."""
+    """Tier NAME's folder, its worlds generated there first when absent (a few seconds):
+    into a folder of this process's own, renamed into place whole, so that workers starting
+    together never read a half-written tier (the first rename wins; the others' copies,
+    the same bytes, are removed)."""
     folder = tier_dir(name)
     if not (folder / INDEX_NAME).is_file():
-        generate_tier(name, folder)
+        staging = folder.with_name(f".{folder.name}.{os.getpid()}.{secrets.token_hex(4)}")
+        try:
+            generate_tier(name, staging)
+            try:
+                staging.rename(folder)
+            except OSError:
+                if not (folder / INDEX_NAME).is_file():
+                    raise
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
     return folder
 
 

@@ -65,3 +65,20 @@ def test_tier_generation_refuses_profile_options(tmp_path, capsys):
     assert "--tier takes its profile from its own file" in capsys.readouterr().err
     assert worlds_main(["generate", "--tier", "all", "--out", str(tmp_path / "x")]) == 2
     assert not (tmp_path / "x").exists()
+
+
+def test_workers_starting_together_never_see_half_a_tier(tmp_path, monkeypatch):
+    """Four processes ask for the same tier at once: each gets the whole tier, one folder,
+    no staging copy left behind."""
+    import multiprocessing as mp
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.setattr("dynabarn.worldset.work_root", lambda: tmp_path)
+    with mp.get_context("fork").Pool(4) as pool:
+        counts = pool.map(_count_tier_worlds, ["tier-dense"] * 4)
+    assert counts == [60] * 4
+    assert [p.name for p in (tmp_path / "generated_tiers").iterdir()] == ["tier-dense"]
+
+
+def _count_tier_worlds(name: str) -> int:
+    return len(world_set(name))
