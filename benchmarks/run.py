@@ -36,10 +36,11 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 import mujoco
 import numpy as np
 from planner_breakdown import print_breakdown
+from planner_scaling import planner_compute
 from recording_cost import fixed_costs, recording_breakdown
 from sweep_speed import SHIPPED, print_sweep_speeds
 
-from dynabarn.planners import get_planner, planner_spec
+from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, read_recording
 from dynabarn.runner import EpisodeSpec, run_spec
@@ -89,25 +90,6 @@ def runner(world_id: int, planner: str, seeds: range, *, record: bool, in_proces
             wall += time.perf_counter() - t0
             sim_time += r.sim_time
     return sim_time / wall, sim_time
-
-
-def planner_compute(planner: str, worlds: tuple[int, ...] = (0, 15, 105, 155, 205, 215)) -> tuple[float, float, int]:
-    """(mean, p95 [ms], calls) of `planner.act` over episodes in easy, medium and hard worlds."""
-    times: list[float] = []
-
-    class Timer:
-        def on_start(self, start): ...
-        def on_tick(self, tick):
-            times.append(tick.planner_ms)
-
-        def on_poses(self, t, p): ...
-        def on_end(self, result): ...
-
-    name, config, _ = planner_spec(planner)
-    for w in worlds:
-        run_episode(resolve_world(w), get_planner(name, **config), get_protocol("barn"), seed=0, observers=[Timer()])
-    arr = np.array(times)
-    return float(arr.mean()), float(np.percentile(arr, 95)), len(arr)
 
 
 def tracker_cost(world_id: int = HARD_WORLD, n_scans: int = 300) -> tuple[float, float, int]:

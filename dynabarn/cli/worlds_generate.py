@@ -191,12 +191,13 @@ def _pair_option(option: str, value: str) -> list[float]:
 def worlds_generate(args: argparse.Namespace) -> int:
     from dynabarn.provenance import WORLDS_ENV, worlds_dir
     from dynabarn.worlds.generate import N_WORLDS
+    from dynabarn.worlds.spec import SCRIPTED
     from dynabarn.worldset import generate_profile_worlds
 
     if args.tier is not None:
         return _generate_tiers(args)
     profile, behavior_params, custom = generation_profile(args)
-    variant = profile.shapes is not None or profile.static_field is not None or profile.behavior != "scripted"
+    variant = profile.shapes is not None or profile.static_field is not None or profile.behavior != SCRIPTED
     default_out = f"{file_name_part(profile.profile_set.name)}_worlds" if custom else None
     out = args.out or Path(default_out or ("mixed_worlds" if variant else "generated_worlds"))
     t0 = time.perf_counter()

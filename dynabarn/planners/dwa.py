@@ -281,7 +281,7 @@ class DWAPlanner(Planner):
         future = tracks.predict(now + times)  # (K, n, 2)
         ex = xy[:, :, None, 0] - future[None, :, :, 0]
         ey = xy[:, :, None, 1] - future[None, :, :, 1]
-        return (np.sqrt(ex * ex + ey * ey) - tracks.sizes).min(axis=(1, 2))
+        return (hypot(ex, ey) - tracks.sizes).min(axis=(1, 2))
 
     def _escape(self, obs: Observation) -> tuple[float, float]:
         """Nothing admissible: back up turning to the freer side, else rotate in place."""

@@ -17,11 +17,10 @@ fixed order and no threads, in the one library binary whose physics every episod
 already rests on (a machine where MuJoCo rounds differently steps differently anyway).
 They replaced a Cholesky factorisation written in numpy column by column (the same bits
 on every CPU too, but 45 times slower: 210 against 4.6 us for 41 variables, most of
-TEB's time per tick). The algorithm is
-Marquardt's, as in Madsen, Nielsen and Tingleff (2004), "Methods for non-linear least
-squares problems", Algorithm 3.16: damping mu * diag(scale) with `scale` the largest
-diagonal of J^T J seen so far (MINPACK's internal scaling), mu updated from the gain ratio
-(Nielsen's rule).
+TEB's time per tick). The algorithm is Marquardt's, as in Madsen, Nielsen and Tingleff
+(2004), "Methods for non-linear least squares problems", Algorithm 3.16: damping
+mu * diag(scale) with `scale` the largest diagonal of J^T J seen so far (MINPACK's
+internal scaling), mu updated from the gain ratio (Nielsen's rule).
 """
 
 from __future__ import annotations

@@ -94,7 +94,6 @@ class _CandidateGrid:
     v2: np.ndarray
     w2: np.ndarray
     steps: np.ndarray  # (K,) rollout times after now [s]
-    in_first: np.ndarray  # (K,) the steps of the first segment
     v: np.ndarray  # (K, N) each step's speed
     turned: np.ndarray  # (P,) distinct (turn so far, half a step's turn) pairs
     half_step: np.ndarray
@@ -120,7 +119,7 @@ def _candidate_grid(v_samples: tuple, w_samples: tuple, t1: float, t2: float, dt
     turn_rate = np.where(in_first[:, None], w1[None, :], w2[None, :])
     turned, half_step = np.cumsum(turn_rate * dt, axis=0), 0.5 * turn_rate * dt
     pairs, heading_of = np.unique(np.stack([turned.ravel(), half_step.ravel()]), axis=1, return_inverse=True)
-    arrays = (v1, w1, v2, w2, steps, in_first, speed, pairs[0].copy(), pairs[1].copy(), heading_of.ravel())
+    arrays = (v1, w1, v2, w2, steps, speed, pairs[0].copy(), pairs[1].copy(), heading_of.ravel())
     for a in arrays:
         a.flags.writeable = False
     return _CandidateGrid(*arrays, n_first=n1, per_first=len(v) * len(w))
@@ -189,8 +188,8 @@ class OraclePlanner(Planner):
         c = self.cfg
         grid = _candidate_grid(tuple(c.v_samples), tuple(c.w_samples), c.t1, c.t2, c.dt)
         self._v1, self._w1, self._v2, self._w2 = grid.v1, grid.w1, grid.v2, grid.w2
-        self._steps, self._in_first, self._v = grid.steps, grid.in_first, grid.v
-        self._turned, self._half_step, self._heading_of = grid.turned, grid.half_step, grid.heading_of
+        self._steps, self._v = grid.steps, grid.v
+        self._turned, self._half_step = grid.turned, grid.half_step
         self._n_first, self._per_first = grid.n_first, grid.per_first
         n1, k = grid.n_first, len(grid.steps)
         heading = grid.heading_of.reshape(grid.v.shape)

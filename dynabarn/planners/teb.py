@@ -35,7 +35,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.determinism import STATE_RESOLUTION, exp, sincos, snap_array
+from dynabarn.determinism import STATE_RESOLUTION, exp, hypot, sincos, snap_array
 from dynabarn.interfaces import EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
 from dynabarn.planners.coloured_jacobian import Colouring, residuals_and_jacobian
@@ -304,7 +304,7 @@ class TEBPlanner(Planner):
         ox = moving.positions[:, 0] + moving.velocities[:, 0] * t
         oy = moving.positions[:, 1] + moving.velocities[:, 1] * t
         ex, ey = x[..., None] - ox, y[..., None] - oy
-        return (np.sqrt(ex * ex + ey * ey) - moving.sizes).min(axis=-1)
+        return (hypot(ex, ey) - moving.sizes).min(axis=-1)
 
     def _evaluate(
         self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray, moving: Tracks | None

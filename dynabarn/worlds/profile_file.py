@@ -57,11 +57,11 @@ from dynabarn.worlds.profiles import (
     StaticField,
     WaypointScheme,
 )
+from dynabarn.worlds.spec import SCRIPTED
 
 MAX_PROFILE_BYTES = 1 << 20
 """A profile file is a few hundred bytes; anything over a megabyte is not one."""
 MAX_PROFILES_PER_BRANCH = 16
-SCRIPTED = "scripted"
 
 _TOP = {
     "name",
@@ -75,7 +75,7 @@ _TOP = {
     "static",
     "behavior",
 }
-_MOTION = {"name", "order", "speed", "std", "speed_step", "speed_limit"}
+_MOTION = {f.name for f in fields(MotionProfile)}
 _BEHAVIOR = {"name", "params"}
 
 
@@ -91,20 +91,8 @@ class GenerationProfile:
     behavior_params: dict[str, float] = field(default_factory=dict)
     """Overrides of the behaviour's defaults (checked against them where the behaviours live)."""
     source: dict = field(default_factory=dict)
-    """Where it came from: {"file": name, "sha256": ...} or {"options": [...]}, recorded."""
-
-    def to_dict(self) -> dict:
-        """What a set's `index.json` records (`profile`)."""
-        out: dict = {"profile_set": self.profile_set.to_dict(), "source": dict(self.source)}
-        if self.profile_set.description:
-            out["description"] = self.profile_set.description
-        if self.shapes is not None:
-            out["shapes"] = self.shapes.to_dict()
-        if self.static_field is not None:
-            out["static_field"] = self.static_field.to_dict()
-        if self.behavior != SCRIPTED:
-            out["behavior"] = {"name": self.behavior, "params": dict(self.behavior_params)}
-        return out
+    """Where it came from ({"file": name, "sha256": ...}, or the base set and the options),
+    recorded in the set's `index.json` as `profile_source`."""
 
 
 def read_profile_file(path: Path | str) -> GenerationProfile:
