@@ -4,10 +4,27 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from dynabarn.errors import DynabarnError
 
 MAX_CLOCK_OFFSET = 5.0
 """Trials start the obstacles' clocks at a seeded offset in [0, 5) s."""
+
+
+def episode_rng(seed: int) -> np.random.Generator:
+    """A trial's random stream: its first draw is the clock offset, then the laser noise."""
+    return np.random.default_rng(np.random.SeedSequence(seed))
+
+
+def draw_clock_offset(rng: np.random.Generator) -> float:
+    """The obstacles' clock offset [s]: the first draw of a trial's stream."""
+    return float(rng.uniform(0.0, MAX_CLOCK_OFFSET))
+
+
+def trial_clock_offset(seed: int) -> float:
+    """The clock offset of trial `seed` [s], as its episode draws it (certificates use it)."""
+    return draw_clock_offset(episode_rng(seed))
 
 
 @dataclass(frozen=True, slots=True)

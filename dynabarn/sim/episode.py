@@ -21,7 +21,7 @@ from dynabarn.metrics import Outcome
 from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL, to_robot_frame
 from dynabarn.sim.behaviors import ReactiveObstacles
-from dynabarn.sim.config import MAX_CLOCK_OFFSET
+from dynabarn.sim.config import draw_clock_offset, episode_rng
 from dynabarn.sim.period_record import TickFacts, tick_from
 from dynabarn.sim.simulation import Simulation
 from dynabarn.sim.track_scoring import MIN_BEAMS, TrackScorer, beams_per_obstacle
@@ -56,8 +56,8 @@ class Episode:
         self.seed = seed
         self.privileged = privileged
         config = sim.config
-        self.rng = np.random.default_rng(np.random.SeedSequence(seed))
-        self.clock_offset = float(self.rng.uniform(0.0, MAX_CLOCK_OFFSET))
+        self.rng = episode_rng(seed)
+        self.clock_offset = draw_clock_offset(self.rng)
         self.player = SchedulePlayer(sim.world, clock_offset=self.clock_offset)
         self.info = sim.episode_info(protocol, seed)
         self.dt = config.dt

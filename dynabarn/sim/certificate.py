@@ -1,0 +1,327 @@
+"""A world's solvability certificate: a search in space-time against the exact schedules.
+
+Whether a world can be solved at all decides what a planner's failure there means. This
+module answers it constructively, for one world and one trial (its clock offset): a
+time-expanded search over the Jackal's own motions either returns a witness, a command
+for every control tick that drives the robot from its spawn into the goal region without
+touching anything, or says that none exists at its resolution.
+
+The search (`certify`):
+- States are poses with the last command (x, y, yaw, v, w) at control ticks. Each tick
+  every state tries every command of a fixed set (`CertificateConfig.speeds` x
+  `turn_rates`), limited as the runner limits it (the command space, the acceleration
+  limits per tick); the pose is integrated over the tick with the actuator's first-order
+  lag (`JackalParams.velocity_gain`) at `substeps` points.
+- Safety: the robot is the disc around its footprint (radius: the footprint's farthest
+  corner), each obstacle the disc around its shape. At every substep point the gap between
+  the discs must be at least the most they can close in half a substep (the robot's top
+  speed plus the obstacles' `SchedulePlayer.max_speed`), a whole substep where a looping
+  schedule jumps back, plus the occupancy grid's lookup error and a tracking margin for
+  the replay. So the continuous motion between the points is collision-free too.
+- The obstacles and the static geometry are stamped into occupancy grids (`grid` metres)
+  for the tick's substep times; states look their points up.
+- Pruning: of the states that end a tick in the same cell (`cell` metres, `heading_bins`
+  headings), the first is kept. That bounds the work; it can lose a solution, which is
+  what "at its resolution" means. The search is breadth-first in time, so the first
+  state to reach the goal gives the earliest arrival at this resolution.
+- Clock: the protocol's limit is counted from t = 0 (it starts at the first 0.1 m of
+  motion in the episode): a certificate holds under either reading.
+
+The witness is replayed in MuJoCo by `dynabarn.sim.witness` (a tracking controller
+around its commands): only a replay that reaches the goal without contact certifies.
+Every number is computed with IEEE operations or snapped (`dynabarn.determinism`), so the
+same world gives the same certificate on every machine.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from dynabarn.determinism import STATE_RESOLUTION, sincos, snap_array
+from dynabarn.protocol import EvalProtocol
+from dynabarn.robot import JACKAL
+from dynabarn.sim.config import SimConfig
+from dynabarn.worlds.schedule import SchedulePlayer
+from dynabarn.worlds.spec import SCRIPTED, WorldSpec
+
+ROBOT_RADIUS = math.hypot(JACKAL.length / 2, JACKAL.width / 2)
+"""[m] The disc around the Jackal's footprint: safe at any heading."""
+
+
+@dataclass(frozen=True)
+class CertificateConfig:
+    """The search's resolution (recorded with every certificate)."""
+
+    cell: float = 0.2
+    """[m] Pruning cell: one state per cell and heading bin per tick."""
+    heading_bins: int = 8
+    substeps: int = 4
+    """Collision checks per control tick."""
+    grid: float = 0.05
+    """[m] Occupancy grid the obstacles are stamped into."""
+    tracking_margin: float = 0.05
+    """[m] Room for the replay's tracking error (the replay checks it)."""
+    speeds: tuple[float, ...] = (2.0, 1.5, 1.0, 0.5, 0.0, -0.5)
+    """[m/s] Forward speeds tried each tick (fastest first: first kept in a cell)."""
+    turn_rates: tuple[float, ...] = (0.0, 1.5, -1.5, 3.0, -3.0)
+    """[rad/s] Yaw rates tried each tick."""
+    VERSION: ClassVar[int] = 1
+
+    def to_dict(self) -> dict:
+        return {"version": self.VERSION, **asdict(self)}
+
+
+@dataclass(frozen=True)
+class Witness:
+    """A certified way through: the command of every tick and the poses it gives."""
+
+    period: float
+    commands: np.ndarray
+    """(K, 2) v [m/s], w [rad/s] for ticks 0..K-1."""
+    poses: np.ndarray
+    """(K + 1, 3) the search's poses at the ticks' starts (and the last one's end)."""
+    arrival: float
+    """[s] When the search's robot enters the goal region."""
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """The search's answer for one world and clock offset."""
+
+    certified: bool
+    reason: str
+    clock_offset: float
+    arrival: float | None = None
+    """[s] The witness's arrival (None without a witness)."""
+    expanded: int = 0
+    """States expanded: the search's work."""
+    witness: Witness | None = None
+
+    def to_dict(self) -> dict:
+        d = {"certified": self.certified, "reason": self.reason, "clock_offset": self.clock_offset}
+        if self.arrival is not None:
+            d["arrival"] = self.arrival
+        return d
+
+
+class _Occupancy:
+    """Occupancy grids of one world: the static part once, the obstacles per tick."""
+
+    def __init__(self, world: WorldSpec, player: SchedulePlayer, protocol: EvalProtocol, config: CertificateConfig):
+        g = config.grid
+        half = world.layout.arena_half_size
+        sx = protocol.spawn[0]
+        self.x0, self.y0 = min(-half, sx) - 1.0, -half - 1.0
+        self.nx = math.ceil((max(half, sx) + 2.0 - self.x0) / g) + 1
+        self.ny = math.ceil((half + 1.0 - self.y0) / g) + 1
+        self.g, self.player, self.substeps = g, player, config.substeps
+        lookup = g * math.sqrt(0.5)  # a point's distance to its cell's centre
+        self.base = ROBOT_RADIUS + config.tracking_margin + lookup
+        self.static = self._static(world)
+        obstacles = world.obstacles
+        self.radii = np.array([o.radius + math.hypot(o.half_length, o.half_width) for o in obstacles])
+        self.obstacle_speed = player.max_speed() if obstacles else 0.0
+        self.now = np.empty((config.substeps, self.ny, self.nx), dtype=bool)
+
+    def _centres(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.x0 + self.g * np.arange(self.nx), self.y0 + self.g * np.arange(self.ny)
+
+    def _static(self, world: WorldSpec) -> np.ndarray:
+        xs, ys = self._centres()
+        X, Y = np.meshgrid(xs, ys)
+        blocked = np.zeros(X.shape, dtype=bool)
+        blocked[[0, -1], :] = blocked[:, [0, -1]] = True  # the edge: where points beyond it look
+        blocked[[0, -1], :] = blocked[:, [0, -1]] = True  # the edge: where points beyond it look
+        for wall in world.layout.walls:  # boxes: the distance to a box, against the disc
+            dx = np.maximum(np.abs(X - wall.centre[0]) - wall.size[0] / 2, 0.0)
+            dy = np.maximum(np.abs(Y - wall.centre[1]) - wall.size[1] / 2, 0.0)
+            blocked |= dx * dx + dy * dy < self.base**2
+        for cx, cy, r in world.layout.cylinders:
+            blocked |= (X - cx) ** 2 + (Y - cy) ** 2 < (self.base + r) ** 2
+        return blocked
+
+    def stamp(self, times: np.ndarray, margins: np.ndarray) -> np.ndarray:
+        """The grids (substeps, ny, nx) at `times` (substeps,): the static part and every
+        obstacle grown by the robot's disc and `margins` (substeps,) [m]."""
+        now = self.now
+        now[:] = self.static
+        if len(self.radii) == 0:
+            return now
+        xy, _ = self.player.positions_at(times)  # (S, n, 2)
+        reach = self.base + self.radii[None, :] + margins[:, None]  # (S, n)
+        w = math.ceil(float(reach.max()) / self.g)
+        off = np.arange(-w, w + 1)
+        cx = np.rint((xy[..., 0] - self.x0) / self.g).astype(np.int64)  # (S, n)
+        cy = np.rint((xy[..., 1] - self.y0) / self.g).astype(np.int64)
+        ix = cx[..., None, None] + off[None, None, None, :]  # (S, n, 1, W)
+        iy = cy[..., None, None] + off[None, None, :, None]  # (S, n, W, 1)
+        px = self.x0 + self.g * ix - xy[..., 0, None, None]
+        py = self.y0 + self.g * iy - xy[..., 1, None, None]
+        inside = (px * px + py * py < (reach**2)[..., None, None]) & (ix >= 0) & (ix < self.nx) & (iy >= 0)
+        inside &= iy < self.ny
+        s = np.broadcast_to(np.arange(len(times))[:, None, None, None], inside.shape)
+        now[s[inside], np.broadcast_to(iy, inside.shape)[inside], np.broadcast_to(ix, inside.shape)[inside]] = True
+        return now
+
+    def free(self, sub: int, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Whether the points (x, y) are free at substep `sub`; beyond the grid is its
+        edge, which is blocked (`_static`)."""
+        ix = np.clip(np.rint((x - self.x0) / self.g), 0, self.nx - 1).astype(np.int64)
+        iy = np.clip(np.rint((y - self.y0) / self.g), 0, self.ny - 1).astype(np.int64)
+        return ~self.now[sub].ravel()[iy * self.nx + ix]
+
+
+class _Motion:
+    """One control tick of the Jackal: the runner's command limits, then the actuator's
+    first-order lag, integrated at the substep points (IEEE operations only).
+
+    A tick's motion in the robot's own frame depends only on the last command and the
+    new one, a few dozen pairs: `table` integrates those once and every state composes
+    them with its pose (one rotation), instead of each state integrating alone."""
+
+    def __init__(self, config: CertificateConfig, sim: SimConfig) -> None:
+        self.period = sim.control_period
+        self.substeps = config.substeps
+        self.ds = self.period / config.substeps
+        self.dv, self.dw = sim.max_linear_accel * self.period, sim.max_angular_accel * self.period
+        gain = JACKAL.velocity_gain
+        edges = np.exp(-gain * self.ds * np.arange(config.substeps + 1))  # fixed numbers, computed once
+        # The lagging velocity's mean over substep j is c + (prev - c) * lag[j].
+        self.lag = np.array([float(x) for x in (edges[:-1] - edges[1:]) / (gain * self.ds)])
+        v, w = np.meshgrid(np.array(config.speeds), np.array(config.turn_rates), indexing="ij")
+        self.v_cmd = np.clip(v.ravel(), JACKAL.v_min, JACKAL.v_max)
+        self.w_cmd = np.clip(w.ravel(), -JACKAL.w_max, JACKAL.w_max)
+
+    def table(self, v0: np.ndarray, w0: np.ndarray):
+        """For last commands v0 (A,) and w0 (B,): the applied commands v, w (A, B, P) of every
+        primitive, and the displacement along and across the start heading and the turn
+        after each substep, (A, B, P, substeps) each."""
+        v = np.minimum(np.maximum(self.v_cmd, v0[:, None] - self.dv), v0[:, None] + self.dv)[:, None, :]
+        w = np.minimum(np.maximum(self.w_cmd, w0[:, None] - self.dw), w0[:, None] + self.dw)[None, :, :]
+        vm = v[..., None] + (v0[:, None, None, None] - v[..., None]) * self.lag  # (A, 1, P, S)
+        wm = w[..., None] + (w0[None, :, None, None] - w[..., None]) * self.lag  # (1, B, P, S)
+        turn = np.cumsum(wm * self.ds, axis=-1)
+        s, c = sincos(turn - 0.5 * wm * self.ds)  # the heading at each substep's middle
+        along = np.cumsum(vm * self.ds * c, axis=-1)
+        across = np.cumsum(vm * self.ds * s, axis=-1)
+        shape = (len(v0), len(w0), len(self.v_cmd), self.substeps)
+        return (
+            np.broadcast_to(v, shape[:3]),
+            np.broadcast_to(w, shape[:3]),
+            along,
+            across,
+            np.broadcast_to(turn, shape),
+        )
+
+    def advance(self, x, y, th, v0, w0, prim, parent):
+        """Every candidate (state `parent`, primitive `prim`): the applied commands, and the
+        positions (substeps, C) and heading (substeps, C) after each substep."""
+        uv, iv = np.unique(v0, return_inverse=True)
+        uw, iw = np.unique(w0, return_inverse=True)
+        v, w, along, across, turn = self.table(uv, uw)
+        n_prim = len(self.v_cmd)
+        code = (iv[parent] * len(uw) + iw[parent]) * n_prim + prim  # into the tables' (A, B, P) cells
+        rows = (self.substeps, -1)
+        a = np.take(np.moveaxis(along, -1, 0).reshape(rows), code, axis=1)  # (substeps, C)
+        b = np.take(np.moveaxis(across, -1, 0).reshape(rows), code, axis=1)
+        s, c = sincos(th)
+        s, c = s[parent], c[parent]
+        xs = x[parent] + c * a - s * b
+        ys = y[parent] + s * a + c * b
+        ths = th[parent] + np.take(np.moveaxis(turn, -1, 0).reshape(rows), code, axis=1)
+        return v.ravel()[code], w.ravel()[code], xs, ys, ths
+
+
+def certify(
+    world: WorldSpec,
+    protocol: EvalProtocol,
+    *,
+    clock_offset: float,
+    sim: SimConfig | None = None,
+    config: CertificateConfig | None = None,
+) -> Certificate:
+    """The certificate of `world` under `protocol` for obstacle clocks shifted by `clock_offset`."""
+    sim, config = sim or SimConfig(), config or CertificateConfig()
+    reactive = sorted({o.behavior for o in world.obstacles if o.behavior != SCRIPTED})
+    if reactive:
+        return Certificate(False, f"reactive obstacles ({', '.join(reactive)}) have no schedule", clock_offset)
+    player = SchedulePlayer(world, clock_offset=clock_offset)
+    occupancy = _Occupancy(world, player, protocol, config)
+    if not math.isfinite(occupancy.obstacle_speed):
+        return Certificate(False, "a schedule has a segment without duration (unbounded speed)", clock_offset)
+    motion = _Motion(config, sim)
+    closing = max(JACKAL.v_max, -JACKAL.v_min) + occupancy.obstacle_speed
+    goal = (float(world.layout.goal[0]), float(world.layout.goal[1]))
+    spawn = tuple(float(v) for v in protocol.spawn)
+    occupancy.stamp(np.zeros(1), np.array([0.5 * closing * motion.ds]))
+    if not occupancy.free(0, np.array([spawn[0]]), np.array([spawn[1]]))[0]:
+        return Certificate(False, "an obstacle or wall covers the spawn at the start", clock_offset)
+    state = [np.array([v]) for v in (*spawn, 0.0, 0.0)]  # x, y, yaw, last v, last w
+    n_prim = len(motion.v_cmd)
+    history: list[tuple[np.ndarray, np.ndarray]] = []  # per tick: (parent state, primitive) of the kept states
+    expanded = 0
+    n_ticks = math.ceil(protocol.time_limit / motion.period - 1e-9)
+    cells_x = math.ceil(occupancy.nx * config.grid / config.cell) + 1
+    for tick in range(n_ticks):
+        t0 = tick * motion.period
+        times = t0 + motion.ds * np.arange(1, config.substeps + 1)
+        wraps = player.clock_wraps(np.concatenate([[t0], times[:-1]]), times)
+        after = np.append(wraps[1:], player.clock_wraps(times[-1:], times[-1:] + motion.ds))
+        margins = 0.5 * closing * motion.ds * np.where(wraps | after, 2.0, 1.0)
+        occupancy.stamp(times, margins)
+        # Primitive-major: candidates are ordered fastest primitive first, then by state,
+        # and the first of a kind wins everywhere below (one deterministic choice).
+        n = len(state[0])
+        parent, prim = np.tile(np.arange(n), n_prim), np.repeat(np.arange(n_prim), n)
+        expanded += len(parent)
+        v, w, xs, ys, ths = motion.advance(*state, prim, parent)
+        ok = np.ones(len(parent), dtype=bool)
+        for j in range(config.substeps):
+            ok &= occupancy.free(j, xs[j], ys[j])
+            arrived = np.flatnonzero(ok & protocol.reached(xs[j], ys[j], goal))
+            if len(arrived):
+                history.append((parent[arrived[:1]], prim[arrived[:1]]))
+                witness = _witness(history, motion, spawn, float(t0 + (j + 1) * motion.ds))
+                return Certificate(True, "witness found", clock_offset, witness.arrival, expanded, witness)
+        keep = np.flatnonzero(ok)
+        if len(keep) == 0:
+            return Certificate(False, f"no collision-free motion beyond t = {t0:g} s", clock_offset, None, expanded)
+        x, y, th = xs[-1, keep], ys[-1, keep], ths[-1, keep]
+        ix = np.floor((x - occupancy.x0) / config.cell).astype(np.int64)
+        iy = np.floor((y - occupancy.y0) / config.cell).astype(np.int64)
+        hb = np.floor(np.mod(th, 2 * math.pi) * (config.heading_bins / (2 * math.pi))).astype(np.int64)
+        key = (iy * cells_x + ix) * config.heading_bins + np.minimum(hb, config.heading_bins - 1)
+        _, first = np.unique(key, return_index=True)
+        first.sort()
+        chosen = keep[first]
+        history.append((parent[chosen], prim[chosen]))
+        state = [snap_array(a[first], STATE_RESOLUTION) for a in (x, y, th)] + [v[chosen], w[chosen]]
+    reason = f"no witness within the time limit {protocol.time_limit:g} s"
+    return Certificate(False, reason, clock_offset, None, expanded)
+
+
+def _witness(history: list, motion: _Motion, spawn: tuple, arrival: float) -> Witness:
+    """Walk back through the kept states from the arrival, then integrate the chosen
+    primitives forward again (the same operations): the commands and poses of the witness."""
+    prims = []
+    index = 0
+    for parent, prim in reversed(history):
+        prims.append(int(prim[index]))
+        index = int(parent[index])
+    prims.reverse()
+    state = [np.array([v]) for v in (*spawn, 0.0, 0.0)]
+    poses, commands = [spawn], []
+    zero = np.zeros(1, dtype=np.int64)
+    for k, p in enumerate(prims):
+        v, w, xs, ys, ths = motion.advance(*state, np.array([p]), zero)
+        x, y, th = xs[-1], ys[-1], ths[-1]
+        if k < len(prims) - 1:  # the search snapped the states it kept
+            x, y, th = (snap_array(a, STATE_RESOLUTION) for a in (x, y, th))
+        commands.append((float(v[0]), float(w[0])))
+        poses.append((float(x[0]), float(y[0]), float(th[0])))
+        state = [x, y, th, v, w]
+    return Witness(motion.period, np.array(commands), np.array(poses), arrival)

@@ -1,0 +1,115 @@
+"""The solvability certificate (issue 43): known answers, and witnesses the simulator drives."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from helpers import crafted_world, obstacle
+
+from dynabarn.mjcf import read_world
+from dynabarn.protocol import get_protocol
+from dynabarn.sim import Episode, Simulation
+from dynabarn.sim.certificate import ROBOT_RADIUS, certify
+from dynabarn.sim.config import trial_clock_offset
+from dynabarn.sim.witness import replay_witness
+from dynabarn.worldset import resolve_world
+
+BARN = get_protocol("barn")
+STRAIGHT = (20.0 - BARN.goal_tolerance) / 2.0
+"""[s] Spawn (11, 0) to the goal disc around (-9, 0) at the Jackal's 2 m/s."""
+
+
+def _ring(centre=(11.0, 0.0), radius=2.0, n=12, opening_at=None):
+    """Parked obstacles in a ring around `centre` (no gap the robot's disc fits through);
+    with `opening_at` [s] the one straight ahead (towards -x) leaves then, sideways at 4 m/s."""
+    out = []
+    for k in range(n):
+        a = math.pi + 2 * math.pi * k / n
+        x, y = centre[0] + radius * math.cos(a), centre[1] + radius * math.sin(a)
+        if k == 0 and opening_at is not None:
+            leaves = [[0, x, y], [opening_at, x, y], [opening_at + 2.5, x, y + 10], [200, x, y + 10]]
+            out.append(obstacle(f"o{k}", leaves))
+        else:
+            out.append(obstacle(f"o{k}", [[0, x, y], [200, x, y]]))
+    return out
+
+
+def test_ring_gaps_are_closed():
+    gap = 2 * 2.0 * math.sin(math.pi / 12) - 2 * 0.5  # between neighbouring discs
+    assert gap < 2 * ROBOT_RADIUS
+    opened = 2 * 2.0 * math.sin(2 * math.pi / 12) - 2 * 0.5  # one of them gone
+    assert opened > 2 * ROBOT_RADIUS + 0.3
+
+
+def test_an_empty_arena_is_certified_at_the_straight_line_time(tmp_path):
+    path = crafted_world(tmp_path / "empty.xml")
+    cert = certify(read_world(path), BARN, clock_offset=0.0)
+    assert cert.certified and cert.witness is not None
+    # The actuator's lag costs a substep or two (25 ms each) on top of the straight line.
+    assert STRAIGHT <= cert.arrival <= STRAIGHT + 0.05
+    result, error = replay_witness(path, cert.witness, BARN, seed=0)
+    assert result.outcome.value == "success"
+    assert error < 0.05
+
+
+def test_an_obstacle_parked_on_the_spawn_is_not_certified(tmp_path):
+    path = crafted_world(tmp_path / "parked.xml", [obstacle("parked", [[0, 11.0, 0.0], [50, 11.0, 0.0]])])
+    cert = certify(read_world(path), BARN, clock_offset=0.0)
+    assert not cert.certified and cert.witness is None
+    assert "spawn" in cert.reason
+
+
+def test_a_closed_ring_is_not_certified_and_one_that_opens_is_later(tmp_path):
+    closed = crafted_world(tmp_path / "closed.xml", _ring())
+    cert = certify(read_world(closed), BARN, clock_offset=0.0)
+    assert not cert.certified
+    assert "time limit" in cert.reason
+    opens = crafted_world(tmp_path / "opens.xml", _ring(opening_at=6.0))
+    cert = certify(read_world(opens), BARN, clock_offset=0.0)
+    assert cert.certified
+    assert cert.arrival > 6.0 + (STRAIGHT - 2.0 / 2.0)  # not through the ring before it opens
+    result, _ = replay_witness(opens, cert.witness, BARN, seed=0)
+    assert result.outcome.value == "success"
+    # The clock offset shifts the opening: 2 s later on the obstacles' clocks is 2 s sooner.
+    sooner = certify(read_world(opens), BARN, clock_offset=2.0)
+    assert sooner.certified and sooner.arrival == pytest.approx(cert.arrival - 2.0, abs=0.3)
+
+
+@pytest.mark.parametrize("world_id, seed", [(299, 0), (250, 1)])
+def test_a_witness_replayed_in_the_simulator_is_collision_free(world_id, seed):
+    path = resolve_world(world_id)
+    cert = certify(read_world(path), BARN, clock_offset=trial_clock_offset(seed))
+    assert cert.certified
+    result, error = replay_witness(path, cert.witness, BARN, seed=seed)
+    assert result.outcome.value == "success"
+    assert result.min_clearance > 0.0
+    assert error < 0.05  # inside the search's tracking margin
+    # The episode ends within a tick of the witness's arrival (its clock starts at 0.1 m).
+    assert result.time <= cert.arrival + 0.1
+
+
+def test_certificates_are_the_same_bits_every_time():
+    world = read_world(resolve_world(250))
+    a = certify(world, BARN, clock_offset=trial_clock_offset(3))
+    b = certify(world, BARN, clock_offset=trial_clock_offset(3))
+    assert a.arrival == b.arrival and a.expanded == b.expanded
+    assert np.array_equal(a.witness.commands, b.witness.commands)
+    assert np.array_equal(a.witness.poses, b.witness.poses)
+
+
+def test_the_trial_clock_offset_is_the_episodes(tmp_path):
+    sim = Simulation(crafted_world(tmp_path / "w.xml"))
+    for seed in (0, 7, 123):
+        assert Episode(sim, BARN, seed=seed).clock_offset == trial_clock_offset(seed)
+
+
+def test_reactive_obstacles_are_not_certified():
+    world = read_world(resolve_world(0))
+    reactive = dataclasses.replace(
+        world, obstacles=tuple(dataclasses.replace(o, behavior="yield") for o in world.obstacles)
+    )
+    cert = certify(reactive, BARN, clock_offset=0.0)
+    assert not cert.certified and "reactive" in cert.reason
