@@ -56,11 +56,36 @@ def _entry(world: WorldSpec, file: str, sha256: str) -> dict:
 
 
 def write_index(out_dir: Path, entries: list[dict], *, meta: dict, sets: dict[str, list[int]]) -> Path:
+    """Write the index; certificates already in the folder's index are kept for the worlds
+    whose files are still the same bytes (`bench.certify`: computing them takes minutes)."""
+    meta = {**meta, **_kept_certificates(Path(out_dir), entries)}
     # The format tag goes last: `meta` must not override it.
     index = {**meta, "format": "dynabarn-index", "format_version": 1, "sets": sets, "worlds": entries}
     path = Path(out_dir) / INDEX_NAME
     write_atomically(path, json.dumps(index, indent=1, sort_keys=True) + "\n")
     return path
+
+
+def _kept_certificates(out_dir: Path, entries: list[dict]) -> dict:
+    """Copy into `entries` the certificates the folder's current index holds for the same
+    files (by sha256); the index's `certification` facts when any were kept."""
+    try:
+        old = read_index(out_dir)
+    except WorldError:
+        return {}
+    by_file = {e.get("file"): e for e in old["worlds"]}
+    kept = False
+    for entry in entries:
+        before = by_file.get(entry["file"], {})
+        certificates = {
+            name: record
+            for name, record in (before.get("certificates") or {}).items()
+            if isinstance(record, dict) and record.get("sha256") == entry["sha256"]
+        }
+        if certificates:
+            entry["certificates"] = certificates
+            kept = True
+    return {"certification": old["certification"]} if kept and "certification" in old else {}
 
 
 def write_worlds(
@@ -327,23 +352,27 @@ def paper_world_ids(index: dict) -> set[int]:
     return set()
 
 
+def set_folder(name: str) -> tuple[Path, list[int] | None]:
+    """The folder of world set `name` (`paper60`, `dynabarn300`, a tier, generated on first
+    use, or a folder/index.json) and the ids the name selects there (None: all)."""
+    if name in ("paper60", "dynabarn300"):
+        return worlds_dir(), list(PAPER60) if name == "paper60" else list(range(300))
+    if name in TIERS:
+        return tier_worlds(name), None
+    p = Path(name)
+    index_dir = p.parent if p.name == INDEX_NAME else p
+    if not (index_dir / INDEX_NAME).is_file():
+        raise WorldError(
+            f"unknown world set {name!r}: use paper60, dynabarn300, a tier ({', '.join(TIERS)}), "
+            "or a folder with index.json"
+        )
+    return index_dir, None
+
+
 def world_set(name: str, ids: list[int] | None = None) -> list[tuple[int, str, str]]:
     """(world id, file, difficulty) for `paper60`, `dynabarn300`, a tier (`worlds.tiers`,
     generated on first use) or a folder/index.json."""
-    if name in ("paper60", "dynabarn300"):
-        index_dir = worlds_dir()
-        chosen = list(PAPER60) if name == "paper60" else list(range(300))
-    elif name in TIERS:
-        index_dir, chosen = tier_worlds(name), None
-    else:
-        p = Path(name)
-        index_dir = p.parent if p.name == "index.json" else p
-        if not (index_dir / "index.json").is_file():
-            raise WorldError(
-                f"unknown world set {name!r}: use paper60, dynabarn300, a tier ({', '.join(TIERS)}), "
-                "or a folder with index.json"
-            )
-        chosen = None
+    index_dir, chosen = set_folder(name)
     index = read_index(index_dir)  # checks the format tag; one clear line when malformed
     entries = {e["id"]: e for e in index["worlds"]}
     chosen = chosen if chosen is not None else sorted(entries)

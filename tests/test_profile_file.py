@@ -105,6 +105,8 @@ def test_a_sweep_records_the_profile_its_worlds_were_drawn_from(tmp_path):
     assert {w["profile_set"] for w in recorded["worlds"]} == {"sprint"}
     assert recorded["profiles"]["sprint"]["source"]["file"] == "sprint.toml"
     assert recorded["profiles"]["sprint"]["profile_set"]["hard_motion"][0]["speed"] == [2.0, 3.0]
+    rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert len(rows) == 2 and {r["profile_set"] for r in rows} == {"sprint"}  # every row names it
 
 
 BAD_PROFILES = [

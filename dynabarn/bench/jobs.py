@@ -93,6 +93,8 @@ def run_job(job: Job) -> dict:
             )  # written as rec_path.part, renamed when whole
         result = run_spec(spec, factory=job.factory, sim=sim, record_to=rec_path, on_recorder=recorders.append)
         row.update(result.to_dict())
+        # The profile the world was drawn from (the sweep's worlds.json has its numbers).
+        row["profile_set"] = sim.world.profile_set
         if recorders and recorders[0].stopped:  # disk nearly full: the result stands, run it again
             row.update({"retry": True, "recording_error": recorders[0].stopped})
         if rec_path is not None:

@@ -255,12 +255,47 @@ def write_worlds(out_dir: Path, jobs: list[Job]) -> Path:
                     "sha256": e.get("sha256"),
                     "paper": e["id"] in paper,
                     **({"profile_set": e["profile_set"]} if e.get("profile_set") else {}),
+                    **_certificates(e),
                 }
     if worlds != old or profiles != old_profiles:
         stored = {"worlds": [worlds[k] for k in sorted(worlds)]} | ({"profiles": profiles} if profiles else {})
         text = json.dumps(stored, indent=1, sort_keys=True) + "\n"
         write_atomically(path, text)
     return path
+
+
+def _certificates(entry: dict) -> dict:
+    """An index entry's certificates, short: per protocol, whether every trial is certified,
+    the seeds that are, and the witnesses' slack (`bench.certify`)."""
+    records = entry.get("certificates")
+    if not isinstance(records, dict):
+        return {}
+    short = {
+        protocol: {
+            "certified": bool(r.get("certified")),
+            "seeds": [t["seed"] for t in r.get("trials", [])],
+            "certified_seeds": [t["seed"] for t in r.get("trials", []) if t.get("certified")],
+            **({"slack": r["slack"]} if "slack" in r else {}),
+        }
+        for protocol, r in records.items()
+        if isinstance(r, dict) and r.get("sha256") == entry.get("sha256")
+    }
+    return {"certificates": short} if short else {}
+
+
+def certified_episodes(out_dir: Path) -> dict[tuple[str, str], tuple[set[int], set[int]]]:
+    """(world name, protocol) -> (seeds certified, seeds with a certificate), from the
+    results folder's worlds.json; empty when no world of it has a certificate."""
+    path = Path(out_dir) / WORLDS
+    try:
+        worlds = json.loads(path.read_text())["worlds"]
+        return {
+            (w["name"], protocol): (set(c["certified_seeds"]), set(c["seeds"]))
+            for w in worlds
+            for protocol, c in w.get("certificates", {}).items()
+        }
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError, RecursionError, KeyError, TypeError, AttributeError):
+        return {}
 
 
 def paper_worlds(out_dir: Path) -> set[str]:

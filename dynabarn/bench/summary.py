@@ -135,10 +135,35 @@ def privileged(planner: str) -> bool:
         return False
 
 
-def summarise(rows: list[dict], paper_worlds: set[str] = frozenset()) -> list[dict]:
+def certified_success(rows: list[dict], certified: dict) -> dict:
+    """Success over the episodes whose world and trial are certified solvable
+    (`results.certified_episodes`), with its interval; None where no episode has a certificate."""
+    known = [r for r in rows if r.get("seed") in certified.get((r.get("world"), r.get("protocol")), ((), ()))[1]]
+    if not known:
+        return {
+            "certified_episodes": None,
+            "certificate_known": 0,
+            "success_certified": None,
+            "certified_lo": None,
+            "certified_hi": None,
+        }
+    sure = [r for r in known if r["seed"] in certified[(r["world"], r["protocol"])][0]]
+    k = sum(r["outcome"] == "success" for r in sure)
+    lo, hi = wilson_interval(k, len(sure)) if sure else (math.nan, math.nan)
+    return {
+        "certified_episodes": len(sure),
+        "certificate_known": len(known),
+        "success_certified": k / len(sure) if sure else None,
+        "certified_lo": lo,
+        "certified_hi": hi,
+    }
+
+
+def summarise(rows: list[dict], paper_worlds: set[str] = frozenset(), certified: dict | None = None) -> list[dict]:
     """One summary row per (planner, difficulty), plus 'all' per planner. The paper's Fig. 5
     value is given only where every episode ran under one of the paper's protocols in a
-    world of `paper_worlds` (whose provenance is the paper's: `results.paper_worlds`)."""
+    world of `paper_worlds` (whose provenance is the paper's: `results.paper_worlds`). With
+    `certified` (`results.certified_episodes`), success over the certified episodes too."""
     groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
     for r in rows:
         groups[(r["planner"], r["difficulty"])].append(r)
@@ -177,6 +202,7 @@ def summarise(rows: list[dict], paper_worlds: set[str] = frozenset()) -> list[di
                     else none
                 ),
                 **tracking_summary(rs),
+                **(certified_success(rs, certified) if certified else {}),
             }
         )
     return out
@@ -208,6 +234,26 @@ def format_table(summary: list[dict]) -> str:
     tracked = [s for s in summary if s.get("track_recall") is not None]
     if tracked:
         lines += ["", tracking_table(tracked, markdown=False)]
+    if any(s.get("certified_episodes") is not None for s in summary):
+        lines += ["", certified_table(summary)]
+    return "\n".join(lines)
+
+
+def certified_table(summary: list[dict]) -> str:
+    """Success over all episodes beside success over the certified ones (`dynabarn-worlds
+    certify`): a failure where no witness exists is not the planner's."""
+    wp = max([10, *(len(_label(s)) + 2 for s in summary)])
+    head = f"{'planner':<{wp}}{'difficulty':<11}{'n':>5}{'success':>9}{'certified n':>13}"
+    head += f"{'success [95% CI] on certified':>32}"
+    lines = [head, "-" * len(head)]
+    for s in summary:
+        if s.get("certified_episodes") is None:
+            continue
+        on = "-"
+        if s["success_certified"] is not None:
+            on = f"{s['success_certified']:.2f} [{s['certified_lo']:.2f}, {s['certified_hi']:.2f}]"
+        n_c = f"{s['certified_episodes']}/{s['certificate_known']}"
+        lines.append(f"{_label(s):<{wp}}{s['difficulty']:<11}{s['episodes']:>5}{s['success']:>9.2f}{n_c:>13}{on:>32}")
     return "\n".join(lines)
 
 
@@ -281,6 +327,15 @@ def write_summary(summary: list[dict], out_dir: Path, *, title: str = "") -> dic
             "Tracking quality (planners with a laser tracker; medians over episodes):",
             "",
             tracking_table(summary),
+        ]
+    if any(s.get("certified_episodes") is not None for s in summary):
+        md += [
+            "",
+            "Success over the episodes whose world and trial are certified solvable (`dynabarn-worlds certify`):",
+            "",
+            "```",
+            certified_table(summary),
+            "```",
         ]
     write_atomically(paths["md"], (f"# {title}\n\n" if title else "") + "\n".join(md) + "\n")
     plot_fig5(summary, paths["png"], title=title)

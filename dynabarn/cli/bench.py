@@ -233,7 +233,11 @@ def _bench(args: argparse.Namespace) -> int:
             raise type(exc)(f"finished episodes are in {args.out / bench.RESULTS}; rerun to resume") from None
     # The folder's whole sweep (every planner run into it, same worlds and protocol), so a
     # planner added later is summarised beside the others and the floor.
-    summary = bench.summarise(bench.read_results(args.out / bench.RESULTS), bench.paper_worlds(args.out))
+    summary = bench.summarise(
+        bench.read_results(args.out / bench.RESULTS),
+        bench.paper_worlds(args.out),
+        bench.certified_episodes(args.out),
+    )
     title = f"{args.set}, protocol {protocol.name}, {args.trials} trials"
     paths = bench.write_summary(summary, args.out, title=title)
     print(bench.format_table(summary))

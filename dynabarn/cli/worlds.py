@@ -14,6 +14,7 @@ from dynabarn.cli.common import (
     run_command,
     subcommands,
 )
+from dynabarn.cli.worlds_certify import add_certify_arguments, worlds_certify
 from dynabarn.cli.worlds_generate import add_generate_arguments, worlds_generate
 from dynabarn.errors import DynabarnError, ImportFormatError
 from dynabarn.files import file_name_part
@@ -57,6 +58,14 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="use the plugins the world files name instead of `effective_obstacles` (what Gazebo ran)",
     )
+
+    c = sub.add_parser(
+        "certify",
+        help="certify every world solvable or not: a space-time search against the exact schedules, its "
+        "witness driven in MuJoCo; recorded in the set's index.json",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    add_certify_arguments(c)
 
     sh = sub.add_parser(
         "show", help="summarise a world and optionally plot it", formatter_class=argparse.ArgumentDefaultsHelpFormatter
@@ -261,6 +270,7 @@ def _worlds_stats(args: argparse.Namespace) -> int:
 _WORLD_COMMANDS = {
     "generate": worlds_generate,
     "import": _worlds_import,
+    "certify": worlds_certify,
     "show": _worlds_show,
     "stats": _worlds_stats,
 }

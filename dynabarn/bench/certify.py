@@ -1,0 +1,172 @@
+"""Certify a world set: every world and trial's certificate, recorded in its `index.json`.
+
+For each world and each trial seed 0..trials-1 (the seeds a sweep's trials use, so each
+certificate holds for the clock offset that trial runs), `sim.certificate.certify`
+searches and `sim.witness.replay_witness` drives the witness in MuJoCo. A trial is
+certified only if both succeed. Each world's index entry gets, under
+`certificates.<protocol>`, the trials' answers, `certified` (every trial certified),
+`certified_trials` and the witnesses' `slack` (median arrival minus the unobstructed
+arrival, the same search in an empty arena); the index gets the search's resolution.
+
+Certificates are kept by the world file's sha256 and the resolution's version: running it
+again only computes what is missing (a stopped run resumes), and a world regenerated to
+the same bytes keeps its certificate (`worldset.write_worlds`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from dynabarn.files import write_atomically
+from dynabarn.protocol import EvalProtocol
+from dynabarn.sim.certificate import CertificateConfig, certify
+from dynabarn.sim.config import trial_clock_offset
+from dynabarn.worlds.spec import Layout, WorldSpec
+from dynabarn.worldset import INDEX_NAME, entry_path, read_index
+
+CHECKPOINT_EVERY = 10
+"""Worlds between rewrites of index.json during a run (a stopped run loses at most these)."""
+
+
+@dataclass(frozen=True)
+class Job:
+    path: str
+    sha256: str
+    protocol: dict
+    seeds: tuple[int, ...]
+
+
+def unobstructed_arrival(protocol: EvalProtocol, config: CertificateConfig | None = None) -> float:
+    """The search's arrival in an empty arena [s]: what a witness's slack is measured from."""
+    empty = WorldSpec(name="empty", world_id=None, difficulty="easy", obstacles=(), layout=Layout())
+    cert = certify(empty, protocol, clock_offset=0.0, config=config)
+    assert cert.arrival is not None, "an empty arena is always certified"
+    return cert.arrival
+
+
+def certify_world(job: Job) -> tuple[str, list[dict]]:
+    """Every trial of one world: the search, then the witness's replay in MuJoCo."""
+    from dynabarn.mjcf import read_world
+    from dynabarn.sim import Simulation
+    from dynabarn.sim.witness import replay_witness
+
+    protocol = EvalProtocol.from_dict(job.protocol)
+    world = read_world(job.path)
+    sim = None
+    trials = []
+    for seed in job.seeds:
+        cert = certify(world, protocol, clock_offset=trial_clock_offset(seed))
+        row = {"seed": seed, **cert.to_dict()}
+        if cert.witness is not None:
+            sim = sim or Simulation(job.path)
+            result, error = replay_witness(sim, cert.witness, protocol, seed=seed)
+            row["replay"] = {
+                "outcome": result.outcome.value,
+                "min_clearance": round(float(result.min_clearance), 4),
+                "tracking_error": round(error, 4),
+            }
+            if result.outcome.value != "success":
+                row["certified"] = False
+                row["reason"] = f"the witness's replay ended in {result.outcome.value}"
+        trials.append(row)
+    return job.path, trials
+
+
+def world_record(trials: list[dict], unobstructed: float) -> dict:
+    """A world's record: its trials, whether all are certified, and the witnesses' slack."""
+    arrivals = [t["arrival"] for t in trials if t["certified"]]
+    record = {
+        "trials": trials,
+        "certified": all(t["certified"] for t in trials),
+        "certified_trials": sum(t["certified"] for t in trials),
+    }
+    if arrivals:
+        record["slack"] = round(statistics.median(arrivals) - unobstructed, 4)
+    return record
+
+
+def certify_set(
+    index_dir: Path,
+    protocol: EvalProtocol,
+    *,
+    trials: int = 10,
+    ids: list[int] | None = None,
+    jobs: int = 1,
+    progress: Callable = lambda it: it,
+) -> dict:
+    """Certify the worlds `ids` (default: all) of the set in `index_dir`; returns the
+    updated index (also written to its index.json)."""
+    index = read_index(index_dir)
+    config = CertificateConfig()
+    resolution = config.to_dict()
+    seeds = tuple(range(trials))
+    unobstructed = unobstructed_arrival(protocol, config)
+    wanted = set(ids) if ids is not None else None
+    todo: list[Job] = []
+    for entry in index["worlds"]:
+        if wanted is not None and entry["id"] not in wanted:
+            continue
+        if not _current(entry, protocol.name, resolution, seeds):
+            path = entry_path(Path(index_dir), entry)
+            todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds))
+    by_path = {Path(entry_path(Path(index_dir), e)).name: e for e in index["worlds"]}
+    for done, (path, rows) in enumerate(progress(_results(todo, jobs)), start=1):
+        entry = by_path[Path(path).name]
+        record = world_record(rows, unobstructed)
+        entry.setdefault("certificates", {})[protocol.name] = {
+            "sha256": entry["sha256"],
+            "resolution_version": config.VERSION,
+            **record,
+        }
+        if done % CHECKPOINT_EVERY == 0:
+            _write(index_dir, index, protocol, resolution, unobstructed)
+    _write(index_dir, index, protocol, resolution, unobstructed)
+    return index
+
+
+def _current(entry: dict, protocol: str, resolution: dict, seeds: tuple[int, ...]) -> bool:
+    record = entry.get("certificates", {}).get(protocol)
+    return (
+        isinstance(record, dict)
+        and record.get("sha256") == entry.get("sha256")
+        and record.get("resolution_version") == resolution["version"]
+        and [t.get("seed") for t in record.get("trials", [])][: len(seeds)] == list(seeds)
+    )
+
+
+def _results(todo: list[Job], jobs: int) -> Iterator[tuple[str, list[dict]]]:
+    if jobs <= 1 or len(todo) <= 1:
+        yield from map(certify_world, todo)
+        return
+    import multiprocessing as mp
+
+    from dynabarn.processes import one_thread_per_worker, safe_path_for_children, worker_start
+
+    safe_path_for_children()
+    one_thread_per_worker()
+    with mp.get_context("spawn").Pool(min(jobs, len(todo)), initializer=worker_start, initargs=(os.getpid(),)) as pool:
+        yield from pool.imap_unordered(certify_world, todo)
+
+
+def _write(index_dir: Path, index: dict, protocol: EvalProtocol, resolution: dict, unobstructed: float) -> None:
+    index.setdefault("certification", {})[protocol.name] = {
+        "resolution": resolution,
+        "unobstructed_arrival": unobstructed,
+        "protocol": protocol.to_dict(),
+    }
+    write_atomically(Path(index_dir) / INDEX_NAME, json.dumps(index, indent=1, sort_keys=True) + "\n")
+
+
+def certified_counts(index: dict, protocol: str, ids: list[int] | None = None) -> tuple[int, int] | None:
+    """(certified worlds, worlds with a certificate) among `ids`, or None without any."""
+    entries = [e for e in index["worlds"] if ids is None or e["id"] in set(ids)]
+    records = [e.get("certificates", {}).get(protocol) for e in entries]
+    records = [r for r in records if isinstance(r, dict)]
+    if not records:
+        return None
+    return sum(bool(r.get("certified")) for r in records), len(records)

@@ -1,0 +1,79 @@
+"""`dynabarn-worlds certify SET`: every world's solvability certificate, into its index.json."""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+
+from dynabarn.cli.common import SET_HELP, add_jobs, progress_bar, ranged
+
+MAX_CERTIFY_TRIALS = 100
+
+
+def add_certify_arguments(c: argparse.ArgumentParser) -> None:
+    """`certify`'s options, in the order `--help` shows them."""
+    c.add_argument("set", help=SET_HELP)
+    c.add_argument(
+        "--protocol",
+        default="barn",
+        help="the protocol whose spawn, goal region and time limit the certificates hold for "
+        "(a registered name or a protocol JSON file)",
+    )
+    c.add_argument(
+        "--trials",
+        type=ranged(int, 1, MAX_CERTIFY_TRIALS),
+        default=10,
+        help="certify the clock offsets of trial seeds 0..N-1 (those a sweep of N trials runs)",
+    )
+    c.add_argument("--worlds", default=None, help="only these world ids, e.g. 0-19,200-219 (None: all)")
+    add_jobs(c)
+
+
+def worlds_certify(args: argparse.Namespace) -> int:
+    from dynabarn.bench.certify import certify_set
+    from dynabarn.protocol import get_protocol
+    from dynabarn.worldset import parse_ids, set_folder
+
+    protocol = get_protocol(args.protocol)
+    folder, chosen = set_folder(args.set)
+    ids = parse_ids(args.worlds)
+    if chosen is not None:
+        ids = [i for i in chosen if ids is None or i in set(ids)]
+    total = len(ids) if ids is not None else None
+    index = certify_set(
+        folder,
+        protocol,
+        trials=args.trials,
+        ids=ids,
+        jobs=args.jobs,
+        progress=progress_bar(f"certifying {args.set}", total),
+    )
+    entries = [e for e in index["worlds"] if ids is None or e["id"] in set(ids)]
+    print_certificates(args.set, entries, protocol.name)
+    return 0
+
+
+def print_certificates(name: str, entries: list[dict], protocol: str) -> None:
+    """The summary: certified worlds (every trial) and trials per difficulty, the witnesses'
+    slack, and each world that is not certified with its first reason."""
+    records = {e["id"]: (e, e["certificates"][protocol]) for e in entries if protocol in e.get("certificates", {})}
+    print(f"certificates of {name} under protocol {protocol} (a world is certified when every trial is)")
+    print(f"{'difficulty':<11}{'worlds':>7}{'certified':>10}{'trials':>8}{'certified':>10}{'slack s':>9}")
+    for difficulty in ("easy", "medium", "hard", "all"):
+        rows = [r for e, r in records.values() if difficulty in ("all", e.get("difficulty"))]
+        if not rows:
+            continue
+        n_trials = sum(len(r["trials"]) for r in rows)
+        slacks = [r["slack"] for r in rows if "slack" in r]
+        slack = f"{statistics.median(slacks):>9.2f}" if slacks else f"{'-':>9}"
+        print(
+            f"{difficulty:<11}{len(rows):>7}{sum(r['certified'] for r in rows):>10}{n_trials:>8}"
+            f"{sum(r['certified_trials'] for r in rows):>10}{slack}"
+        )
+    for world_id, (_, record) in sorted(records.items()):
+        if not record["certified"]:
+            failed = [t for t in record["trials"] if not t["certified"]]
+            print(
+                f"  world {world_id}: {len(failed)} of {len(record['trials'])} trials not certified "
+                f"(seed {failed[0]['seed']}: {failed[0]['reason']})"
+            )

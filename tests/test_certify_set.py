@@ -1,0 +1,68 @@
+"""`dynabarn-worlds certify SET`: certificates into a set's index.json, kept when the set is
+regenerated to the same bytes, and read by the sweep's summaries."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from dynabarn.cli.bench import bench_main
+from dynabarn.cli.worlds import worlds_main
+from dynabarn.provenance import REPO_ROOT
+
+EXAMPLE = REPO_ROOT / "examples" / "profiles" / "sprint.toml"
+
+
+@pytest.fixture(scope="module")
+def certified(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("certified") / "w"
+    assert worlds_main(["generate", "--out", str(out), "--profile-file", str(EXAMPLE)]) == 0
+    argv = ["certify", str(out), "--worlds", "0,250", "--trials", "2", "--jobs", "1"]
+    assert worlds_main(argv) == 0
+    return out
+
+
+def test_certificates_are_recorded_per_world_and_trial(certified, capsys):
+    index = json.loads((certified / "index.json").read_text())
+    entries = {e["id"]: e for e in index["worlds"]}
+    assert "certificates" not in entries[1]  # only the worlds asked for
+    for world_id in (0, 250):
+        record = entries[world_id]["certificates"]["barn"]
+        assert record["sha256"] == entries[world_id]["sha256"]
+        assert [t["seed"] for t in record["trials"]] == [0, 1]
+        for trial in record["trials"]:
+            assert trial["certified"] == ("arrival" in trial and trial["replay"]["outcome"] == "success")
+            assert 0.0 <= trial["clock_offset"] < 5.0
+        assert record["certified_trials"] == sum(t["certified"] for t in record["trials"])
+    facts = index["certification"]["barn"]
+    assert facts["resolution"]["cell"] > 0 and 9.5 <= facts["unobstructed_arrival"] <= 9.55
+    # Asked again, nothing is computed again (the same file, byte for byte).
+    before = (certified / "index.json").read_bytes()
+    assert worlds_main(["certify", str(certified), "--worlds", "0,250", "--trials", "2", "--jobs", "1"]) == 0
+    assert (certified / "index.json").read_bytes() == before
+    assert "certified" in capsys.readouterr().out
+
+
+def test_regenerating_the_same_worlds_keeps_their_certificates(certified):
+    before = (certified / "index.json").read_bytes()
+    assert worlds_main(["generate", "--out", str(certified), "--profile-file", str(EXAMPLE)]) == 0
+    assert (certified / "index.json").read_bytes() == before
+
+
+def test_the_sweep_reports_success_over_certified_worlds(certified, tmp_path, capsys):
+    out = tmp_path / "results"
+    argv = ["--planner", "straight", "--no-floor", "--set", str(certified), "--worlds", "0,250", "--trials", "2"]
+    assert bench_main([*argv, "--jobs", "1", "--out", str(out)]) == 0
+    worlds = {w["id"]: w for w in json.loads((out / "worlds.json").read_text())["worlds"]}
+    assert set(worlds[0]["certificates"]["barn"]["seeds"]) == {0, 1}
+    printed = capsys.readouterr().out
+    assert "on certified" in printed
+    assert "certified solvable" in (out / "summary.md").read_text()
+
+
+def test_an_unknown_set_is_one_line_and_exit_2(tmp_path, capsys):
+    assert worlds_main(["certify", str(tmp_path / "nowhere")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "unknown world set" in err
