@@ -10,7 +10,8 @@ import pytest
 from dynabarn.cli import bench_main, worlds_main
 from dynabarn.worlds.generate import PAPER60
 from dynabarn.worlds.tiers import TIERS, get_tier
-from dynabarn.worldset import generate_tier, world_set
+from dynabarn.worldset import world_set
+from dynabarn.worldset.tiers import generate_tier
 
 
 def test_the_tiers_are_what_the_issue_defines():
@@ -49,7 +50,7 @@ def test_each_tier_regenerates_byte_for_byte(tmp_path, name):
 def test_a_tier_is_a_set_by_its_name(tmp_path, monkeypatch):
     """`--set tier-fast` generates the tier on first use and runs it; the sweep's worlds.json
     names the tier's profile."""
-    monkeypatch.setattr("dynabarn.worldset.work_root", lambda: tmp_path)
+    monkeypatch.setattr("dynabarn.worldset.tiers.work_root", lambda: tmp_path)
     chosen = world_set("tier-fast", [200, 201])
     assert [w[0] for w in chosen] == [200, 201] and all(w[2] == "hard" for w in chosen)
     assert (tmp_path / "generated_tiers" / "tier-fast" / "index.json").is_file()
@@ -73,7 +74,7 @@ def test_workers_starting_together_never_see_half_a_tier(tmp_path, monkeypatch):
     import multiprocessing as mp
 
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    monkeypatch.setattr("dynabarn.worldset.work_root", lambda: tmp_path)
+    monkeypatch.setattr("dynabarn.worldset.tiers.work_root", lambda: tmp_path)
     with mp.get_context("fork").Pool(4) as pool:
         counts = pool.map(_count_tier_worlds, ["tier-dense"] * 4)
     assert counts == [60] * 4
@@ -82,3 +83,16 @@ def test_workers_starting_together_never_see_half_a_tier(tmp_path, monkeypatch):
 
 def _count_tier_worlds(name: str) -> int:
     return len(world_set(name))
+
+
+def test_a_redraw_is_the_next_seed_of_the_worlds_own_sequence():
+    from dynabarn.worlds.generate import generate_world
+    from dynabarn.worlds.profiles import get_profile_set
+
+    table1 = get_profile_set("table1")
+    first, again = generate_world(250, table1), generate_world(250, table1, draw=0)
+    redrawn = generate_world(250, table1, draw=1)
+    assert first == again and "draw" not in first.provenance
+    assert redrawn != first and redrawn.provenance["draw"] == 1
+    assert redrawn == generate_world(250, table1, draw=1)  # byte for byte, every time
+    assert redrawn != generate_world(250, table1, draw=2) and redrawn != generate_world(251, table1, draw=1)

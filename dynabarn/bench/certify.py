@@ -22,6 +22,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
 from dynabarn.protocol import EvalProtocol
 from dynabarn.sim.certificate import CertificateConfig, certify
@@ -170,3 +171,59 @@ def certified_counts(index: dict, protocol: str, ids: list[int] | None = None) -
     if not records:
         return None
     return sum(bool(r.get("certified")) for r in records), len(records)
+
+
+MAX_DRAWS = 50
+"""Redraws of one tier world before giving up: a profile whose worlds are so rarely
+solvable is a profile to change, not to draw from."""
+
+
+def certify_tier(
+    name: str,
+    protocol: EvalProtocol,
+    *,
+    trials: int = 10,
+    jobs: int = 1,
+    progress: Callable = lambda it: it,
+    say: Callable[[str], None] = print,
+) -> dict:
+    """Certify tier `name` from its first draws, redrawing every world that is not certified
+    for every trial from the next seed of its own sequence until all are; write the draws
+    and certificates beside its profile (`Tier.certified_file`) and regenerate its folder
+    with them. Nothing here looks at a planner. Returns the record written."""
+    from dynabarn.worlds.tiers import get_tier
+    from dynabarn.worldset.tiers import generate_tier, tier_dir
+
+    tier = get_tier(name)
+    folder = tier_dir(name).with_name(f".{name}.certifying")  # kept: a stopped run resumes from it
+    draws: dict[int, int] = {}
+    pending = list(tier.ids)
+    while True:
+        generate_tier(name, folder, draws=draws)  # unchanged files keep their certificates
+        index = certify_set(folder, protocol, trials=trials, ids=pending, jobs=jobs, progress=progress)
+        entries = {e["id"]: e for e in index["worlds"]}
+        failed = [i for i in pending if not entries[i]["certificates"][protocol.name]["certified"]]
+        if not failed:
+            break
+        say(f"{name}: {len(failed)} world(s) not certified, drawn again: {failed}")
+        for i in failed:
+            draws[i] = draws.get(i, 0) + 1
+            if draws[i] > MAX_DRAWS:
+                raise DynabarnError(f"{name}: world {i} was not certified in {MAX_DRAWS} draws; change the profile")
+        pending = failed
+    record = {
+        "tier": name,
+        "protocol": protocol.name,
+        "trials": trials,
+        "draws": {str(i): k for i, k in sorted(draws.items())},
+        "certificates": {str(e["id"]): e["certificates"] for e in index["worlds"]},
+        "certification": index["certification"],
+    }
+    try:
+        write_atomically(tier.certified_file, json.dumps(record, indent=1, sort_keys=True) + "\n")
+    except OSError as exc:
+        raise DynabarnError(
+            f"cannot write {tier.certified_file}: {exc.strerror or exc} (certify tiers in a checkout)"
+        ) from None
+    generate_tier(name, tier_dir(name))
+    return record

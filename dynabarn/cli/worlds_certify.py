@@ -6,6 +6,7 @@ import argparse
 import statistics
 
 from dynabarn.cli.common import SET_HELP, add_jobs, progress_bar, ranged
+from dynabarn.errors import DynabarnError
 
 MAX_CERTIFY_TRIALS = 100
 
@@ -26,6 +27,13 @@ def add_certify_arguments(c: argparse.ArgumentParser) -> None:
         help="certify the clock offsets of trial seeds 0..N-1 (those a sweep of N trials runs)",
     )
     c.add_argument("--worlds", default=None, help="only these world ids, e.g. 0-19,200-219 (None: all)")
+    c.add_argument(
+        "--redraw",
+        action="store_true",
+        help="for a tier: from its first draws, draw every world that is not certified for every trial again "
+        "from the next seed of its own sequence until all are, and write the draws and certificates beside "
+        "its profile (dynabarn/worlds/tier_profiles/*.certified.json, committed)",
+    )
     add_jobs(c)
 
 
@@ -35,6 +43,18 @@ def worlds_certify(args: argparse.Namespace) -> int:
     from dynabarn.worldset import parse_ids, set_folder
 
     protocol = get_protocol(args.protocol)
+    if args.redraw:
+        from dynabarn.bench.certify import certify_tier
+        from dynabarn.worlds.tiers import TIERS
+
+        if args.set not in TIERS or args.worlds is not None:
+            raise DynabarnError(
+                f"--redraw certifies a whole tier ({', '.join(TIERS)}), not {args.set!r} or some worlds"
+            )
+        record = certify_tier(
+            args.set, protocol, trials=args.trials, jobs=args.jobs, progress=progress_bar(f"certifying {args.set}")
+        )
+        print(f"wrote {len(record['certificates'])} certificates, {len(record['draws'])} world(s) redrawn")
     folder, chosen = set_folder(args.set)
     ids = parse_ids(args.worlds)
     if chosen is not None:

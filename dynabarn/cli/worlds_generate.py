@@ -219,7 +219,7 @@ def worlds_generate(args: argparse.Namespace) -> int:
 
 def _generate_tiers(args: argparse.Namespace) -> int:
     from dynabarn.worlds.tiers import TIERS, get_tier
-    from dynabarn.worldset import generate_tier
+    from dynabarn.worldset.tiers import generate_tier
 
     variants = ("profile_file", "shapes", "static", "behavior")
     others = [name for name in (*PROFILE_OPTIONS, *variants) if getattr(args, name)]

@@ -53,8 +53,14 @@ PAPER60: tuple[int, ...] = (*range(0, 20), *range(100, 110), *range(150, 160), *
 """The fixed 60-world subset of the paper's baselines: 20 per difficulty."""
 
 
-def world_rng(base_seed: int, world_id: int) -> np.random.Generator:
-    return np.random.default_rng(np.random.SeedSequence([base_seed, world_id]))
+def world_rng(base_seed: int, world_id: int, stream: int = 0, draw: int = 0) -> np.random.Generator:
+    """World `world_id`'s random stream: 0 its motions, 1 its shapes, 2 its static field.
+    `draw` k > 0 is the k-th redraw of a world that was not certified solvable (the next
+    seed of its own sequence: SeedSequence([seed, id, stream, k]))."""
+    key = [base_seed, world_id] if stream == 0 else [base_seed, world_id, stream]
+    if draw:
+        key = [base_seed, world_id, stream, draw]
+    return np.random.default_rng(np.random.SeedSequence(key))
 
 
 def generate_world(
@@ -68,6 +74,7 @@ def generate_world(
     static_field: StaticField | None = None,
     behavior: str = SCRIPTED,
     behavior_params: Mapping[str, float] | None = None,
+    draw: int = 0,
 ) -> WorldSpec:
     """Alg. 2 for world `world_id` of the 300: count, then one Alg. 1 trajectory each.
 
@@ -76,10 +83,10 @@ def generate_world(
     obstacle reactive (e.g. `yield` with `sim.behaviors.get_behavior("yield").defaults()`).
     Each draws from its own stream (SeedSequence([seed, id, 1]) and [seed, id, 2]), so the
     motions are the same as in the
-    plain world of the same id and seed.
+    plain world of the same id and seed. `draw` > 0 redraws all of them (`world_rng`).
     """
     count_class, motion_class = branch_of(world_id)
-    rng = world_rng(base_seed, world_id)
+    rng = world_rng(base_seed, world_id, 0, draw)
     lo, hi = profile_set.count_range(count_class)
     n_obstacles = int(rng.integers(lo, hi + 1))
     profiles = profile_set.motion_profiles(motion_class)
@@ -88,14 +95,16 @@ def generate_world(
         profile = profiles[int(rng.integers(len(profiles)))] if len(profiles) > 1 else profiles[0]
         trajectories.append(generate_trajectory(rng, profile, scheme=profile_set.waypoints))
     provenance: dict = {"generator": "dynabarn", "profiles": profile_set.to_dict()}
+    if draw:
+        provenance["draw"] = draw
     shape_kwargs: list[dict] = [{} for _ in trajectories]
     if shapes is not None and not shapes.cylinders_only:
-        shape_rng = np.random.default_rng(np.random.SeedSequence([base_seed, world_id, 1]))
+        shape_rng = world_rng(base_seed, world_id, 1, draw)
         shape_kwargs = [draw_shape(shape_rng, shapes) for _ in trajectories]
         provenance["shapes"] = shapes.to_dict()
     layout = Layout()
     if static_field is not None:
-        static_rng = np.random.default_rng(np.random.SeedSequence([base_seed, world_id, 2]))
+        static_rng = world_rng(base_seed, world_id, 2, draw)
         layout = Layout(cylinders=generate_static_field(static_rng, static_field))
         provenance["static_field"] = static_field.to_dict()
     if behavior != SCRIPTED:

@@ -3,12 +3,16 @@ file shipped with the package (`tier_profiles/`), its own base seed and the ids 
 paper's 60 (20 easy, 20 medium, 20 hard by Fig. 2's branches).
 
 The definitions were committed before any planner ran on them, and no world is chosen,
-dropped or redrawn because of a planner's result. `dynabarn-worlds generate --tier NAME`
+dropped or redrawn because of a planner's result: only a world that is not certified
+solvable for every trial (`dynabarn-worlds certify NAME --redraw`) is redrawn, from the
+next seed of its own sequence; the draws and certificates are committed beside the
+profile (`<profile>.certified.json`). `dynabarn-worlds generate --tier NAME`
 (and `make worlds`) writes one to `generated_tiers/NAME/`; `--set NAME` runs it.
 """
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,6 +36,26 @@ class Tier:
 
     def profile(self) -> GenerationProfile:
         return read_profile_file(PROFILES_DIR / self.profile_file)
+
+    @property
+    def certified_file(self) -> Path:
+        """Its certificates, committed after `dynabarn-worlds certify NAME --redraw`."""
+        return PROFILES_DIR / f"{Path(self.profile_file).stem}.certified.json"
+
+    def certified(self) -> dict | None:
+        """The committed certificates: {"draws": {id: k}, "certificates": {id: {protocol:
+        record}}, "certification": {protocol: facts}}; None before the tier was certified."""
+        try:
+            return json.loads(self.certified_file.read_text())
+        except FileNotFoundError:
+            return None
+        except (ValueError, UnicodeDecodeError) as exc:
+            raise WorldError(f"{self.certified_file}: not valid JSON ({exc})") from None
+
+    def draws(self) -> dict[int, int]:
+        """{world id: k} for the worlds redrawn k times because a draw was not certified."""
+        record = self.certified() or {}
+        return {int(i): int(k) for i, k in record.get("draws", {}).items()}
 
 
 TIERS: dict[str, Tier] = {

@@ -9,23 +9,20 @@ reproduces the committed files byte for byte.
 from __future__ import annotations
 
 import json
-import os
 import re
-import secrets
-import shutil
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 from dynabarn.errors import WorldError
 from dynabarn.files import write_atomically
 from dynabarn.mjcf import write_world
-from dynabarn.provenance import WORLDS_ENV, work_root, worlds_dir
+from dynabarn.provenance import WORLDS_ENV, worlds_dir
 from dynabarn.worlds.difficulty import difficulty_scores
 from dynabarn.worlds.generate import DEFAULT_BASE_SEED, N_WORLDS, PAPER60, branch_of, generate_world
 from dynabarn.worlds.profile_file import GenerationProfile
 from dynabarn.worlds.profiles import Difficulty, ProfileSet, ShapeMix, StaticField, difficulty_of, get_profile_set
 from dynabarn.worlds.spec import SCRIPTED, EndBehavior, Interpolation, WorldSpec
-from dynabarn.worlds.tiers import TIERS, get_tier
+from dynabarn.worlds.tiers import TIERS
 
 INDEX_NAME = "index.json"
 
@@ -52,6 +49,7 @@ def _entry(world: WorldSpec, file: str, sha256: str) -> dict:
         "end_behavior": world.end_behavior.value,
         "sha256": sha256,
         "measured": difficulty_scores(world),
+        **({"draw": world.provenance["draw"]} if world.provenance.get("draw") else {}),
     }
 
 
@@ -120,6 +118,7 @@ def generate_worlds(
     behavior: str = SCRIPTED,
     behavior_params: Mapping[str, float] | None = None,
     profile_source: Mapping | None = None,
+    draws: Mapping[int, int] | None = None,
     progress: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> Path:
     """Generate and write the benchmark's worlds; returns the index path.
@@ -129,8 +128,10 @@ def generate_worlds(
 
     `shapes`, `static_field` and `behavior` make the variants beyond the paper (obstacle
     shapes, mixed static and moving worlds, reactive obstacles); the motions stay those of
-    the plain worlds."""
+    the plain worlds. `draws` {id: k} redraws world id for the k-th time (a tier's worlds
+    that were not certified solvable: `worlds.generate.world_rng`)."""
     ids = list(world_ids)
+    draws = {int(i): int(k) for i, k in (draws or {}).items() if k}
     worlds = (
         generate_world(
             i,
@@ -142,6 +143,7 @@ def generate_worlds(
             static_field=static_field,
             behavior=behavior,
             behavior_params=behavior_params,
+            draw=draws.get(i, 0),
         )
         for i in ids
     )
@@ -161,26 +163,9 @@ def generate_worlds(
         meta["static_field"] = static_field.to_dict()
     if behavior != SCRIPTED:
         meta["behavior"] = behavior
+    if draws:
+        meta["draws"] = {str(i): k for i, k in sorted(draws.items())}
     return write_worlds(worlds, out_dir, meta=meta, sets=sets, progress=progress)
-
-
-TIERS_FOLDER = "generated_tiers"
-"""Where the tiers' worlds are generated, under the work root (the checkout, or the cache)."""
-
-
-def generate_tier(name: str, out_dir: Path | None = None, *, progress: Callable = lambda it: it) -> Path:
-    """Write tier NAME's worlds (`worlds.tiers`) to `out_dir` (default: its folder under the
-    work root); returns the index path. The same bytes on every run and machine."""
-    tier = get_tier(name)
-    profile = tier.profile()
-    return generate_profile_worlds(
-        profile,
-        Path(out_dir) if out_dir is not None else tier_dir(name),
-        base_seed=tier.base_seed,
-        world_ids=tier.ids,
-        profile_source={"tier": name, **profile.source},
-        progress=progress,
-    )
 
 
 def generate_profile_worlds(
@@ -202,30 +187,6 @@ def generate_profile_worlds(
         behavior_params=profile.behavior_params if behavior_params is None else behavior_params,
         **options,
     )
-
-
-def tier_dir(name: str) -> Path:
-    return work_root() / TIERS_FOLDER / get_tier(name).name
-
-
-def tier_worlds(name: str) -> Path:
-    """Tier NAME's folder, its worlds generated there first when absent (a few seconds):
-    into a folder of this process's own, renamed into place whole, so that workers starting
-    together never read a half-written tier (the first rename wins; the others' copies,
-    the same bytes, are removed)."""
-    folder = tier_dir(name)
-    if not (folder / INDEX_NAME).is_file():
-        staging = folder.with_name(f".{folder.name}.{os.getpid()}.{secrets.token_hex(4)}")
-        try:
-            generate_tier(name, staging)
-            try:
-                staging.rename(folder)
-            except OSError:
-                if not (folder / INDEX_NAME).is_file():
-                    raise
-        finally:
-            shutil.rmtree(staging, ignore_errors=True)
-    return folder
 
 
 MAX_INDEX_WORLDS = 100_000
@@ -358,6 +319,8 @@ def set_folder(name: str) -> tuple[Path, list[int] | None]:
     if name in ("paper60", "dynabarn300"):
         return worlds_dir(), list(PAPER60) if name == "paper60" else list(range(300))
     if name in TIERS:
+        from dynabarn.worldset.tiers import tier_worlds
+
         return tier_worlds(name), None
     p = Path(name)
     index_dir = p.parent if p.name == INDEX_NAME else p

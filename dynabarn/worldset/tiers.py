@@ -1,0 +1,85 @@
+"""Tiers as world sets on disk: generated into `generated_tiers/NAME/` (on first use too),
+each world in the draw its committed certificates chose, with those certificates."""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import shutil
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+from dynabarn.files import write_atomically
+from dynabarn.provenance import work_root
+from dynabarn.worlds.tiers import get_tier
+from dynabarn.worldset import INDEX_NAME, generate_profile_worlds, read_index
+
+TIERS_FOLDER = "generated_tiers"
+"""Where the tiers' worlds are generated, under the work root (the checkout, or the cache)."""
+
+
+def generate_tier(
+    name: str,
+    out_dir: Path | None = None,
+    *,
+    draws: Mapping[int, int] | None = None,
+    progress: Callable = lambda it: it,
+) -> Path:
+    """Write tier NAME's worlds (`worlds.tiers`) to `out_dir` (default: its folder under the
+    work root), each world in the draw its committed certificates chose (`draws` instead:
+    those, without certificates); returns the index path. The same bytes on every run and
+    machine."""
+    tier = get_tier(name)
+    profile = tier.profile()
+    record = tier.certified()
+    out = Path(out_dir) if out_dir is not None else tier_dir(name)
+    index = generate_profile_worlds(
+        profile,
+        out,
+        base_seed=tier.base_seed,
+        world_ids=tier.ids,
+        profile_source={"tier": name, **profile.source},
+        draws=tier.draws() if draws is None else draws,
+        progress=progress,
+    )
+    if record and draws is None:
+        attach_certificates(out, record)
+    return index
+
+
+def attach_certificates(index_dir: Path, record: dict) -> None:
+    """Put a tier's committed certificates (`worlds.tiers.Tier.certified`) into its index,
+    each on the world whose file has the bytes it was computed for."""
+    index = read_index(index_dir)
+    by_id = record.get("certificates", {})
+    for entry in index["worlds"]:
+        for protocol, certificate in by_id.get(str(entry["id"]), {}).items():
+            if certificate.get("sha256") == entry["sha256"]:
+                entry.setdefault("certificates", {})[protocol] = certificate
+    index["certification"] = record.get("certification", {})
+    write_atomically(Path(index_dir) / INDEX_NAME, json.dumps(index, indent=1, sort_keys=True) + "\n")
+
+
+def tier_dir(name: str) -> Path:
+    return work_root() / TIERS_FOLDER / get_tier(name).name
+
+
+def tier_worlds(name: str) -> Path:
+    """Tier NAME's folder, its worlds generated there first when absent (a few seconds):
+    into a folder of this process's own, renamed into place whole, so that workers starting
+    together never read a half-written tier (the first rename wins; the others' copies,
+    the same bytes, are removed)."""
+    folder = tier_dir(name)
+    if not (folder / INDEX_NAME).is_file():
+        staging = folder.with_name(f".{folder.name}.{os.getpid()}.{secrets.token_hex(4)}")
+        try:
+            generate_tier(name, staging)
+            try:
+                staging.rename(folder)
+            except OSError:
+                if not (folder / INDEX_NAME).is_file():
+                    raise
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
+    return folder
