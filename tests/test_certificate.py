@@ -48,8 +48,9 @@ def test_an_empty_arena_is_certified_at_the_straight_line_time(tmp_path):
     path = crafted_world(tmp_path / "empty.xml")
     cert = certify(read_world(path), BARN, clock_offset=0.0)
     assert cert.certified and cert.witness is not None
-    # The actuator's lag costs a substep or two (25 ms each) on top of the straight line.
-    assert STRAIGHT <= cert.arrival <= STRAIGHT + 0.05
+    # The actuator's lag and the goal region shrunk by the tracking margin (5 cm) cost a
+    # substep or two (25 ms each) on top of the straight line.
+    assert STRAIGHT <= cert.arrival <= STRAIGHT + 0.1
     result, error = replay_witness(path, cert.witness, BARN, seed=0)
     assert result.outcome.value == "success"
     assert error < 0.05

@@ -35,6 +35,7 @@ same world gives the same certificate on every machine.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import asdict, dataclass
 from typing import ClassVar
@@ -69,7 +70,8 @@ class CertificateConfig:
     """[m/s] Forward speeds tried each tick (fastest first: first kept in a cell)."""
     turn_rates: tuple[float, ...] = (0.0, 1.5, -1.5, 3.0, -3.0)
     """[rad/s] Yaw rates tried each tick."""
-    VERSION: ClassVar[int] = 1
+    VERSION: ClassVar[int] = 2
+    """Bumped whenever the search changes what it certifies (2: the goal region shrunk by the tracking margin)."""
 
     def to_dict(self) -> dict:
         return {"version": self.VERSION, **asdict(self)}
@@ -256,6 +258,9 @@ def certify(
     motion = _Motion(config, sim)
     closing = max(JACKAL.v_max, -JACKAL.v_min) + occupancy.obstacle_speed
     goal = (float(world.layout.goal[0]), float(world.layout.goal[1]))
+    # The witness must reach the goal region shrunk by the tracking margin: the robot that
+    # drives it, within that margin of it, is then inside the region at the same time.
+    inner = dataclasses.replace(protocol, goal_tolerance=max(protocol.goal_tolerance - config.tracking_margin, 1e-3))
     spawn = tuple(float(v) for v in protocol.spawn)
     occupancy.stamp(np.zeros(1), np.array([0.5 * closing * motion.ds]))
     if not occupancy.free(0, np.array([spawn[0]]), np.array([spawn[1]]))[0]:
@@ -282,7 +287,7 @@ def certify(
         ok = np.ones(len(parent), dtype=bool)
         for j in range(config.substeps):
             ok &= occupancy.free(j, xs[j], ys[j])
-            arrived = np.flatnonzero(ok & protocol.reached(xs[j], ys[j], goal))
+            arrived = np.flatnonzero(ok & inner.reached(xs[j], ys[j], goal))
             if len(arrived):
                 history.append((parent[arrived[:1]], prim[arrived[:1]]))
                 witness = _witness(history, motion, spawn, float(t0 + (j + 1) * motion.ds))
