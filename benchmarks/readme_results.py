@@ -31,6 +31,7 @@ from dynabarn.bench.results import RESULTS, WORLDS
 from dynabarn.bench.summary import FLOOR, plot_fig5
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from certified_tables import certification_table, certified_ladder, certified_sets
 from learning_tables import dagger_training, generalisation_table
 from ros_tables import MOVE_BASE_SETS, ablation_table, move_base_table
 
@@ -304,12 +305,24 @@ BLOCKS = {
     "dagger-training": lambda f, s: dagger_training(),
     "move-base": lambda f, s: move_base_table(f),
     "dwa-ablation": lambda f, s: ablation_table(f),
+    "certification": lambda f, s: certification_table(certified_sets()),
+    "certified-ladder": lambda f, s: certified_ladder(f, certified_sets(), SETS, LADDER),
 }
 
 
 PAGES = {
     README: ("headline", "ladder", "generalisation"),
-    DOCS / "results.md": ("fig5", "skill", "floor", "ladder", "tracking", "other-worlds", "generalisation"),
+    DOCS / "results.md": (
+        "fig5",
+        "skill",
+        "floor",
+        "ladder",
+        "certification",
+        "certified-ladder",
+        "tracking",
+        "other-worlds",
+        "generalisation",
+    ),
     DOCS / "tutorials" / "training.md": ("td3-training", "dagger-training"),
     DOCS / "tutorials" / "ros.md": ("move-base", "dwa-ablation"),
 }

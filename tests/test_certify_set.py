@@ -45,6 +45,11 @@ def test_certificates_are_recorded_per_world_and_trial(certified, capsys):
     assert "certified" in capsys.readouterr().out
 
 
+def test_show_prints_a_worlds_certificate(certified, capsys):
+    assert worlds_main(["show", str(certified / "world_250.xml")]) == 0
+    assert "certified solvable (barn):" in capsys.readouterr().out
+
+
 def test_regenerating_the_same_worlds_keeps_their_certificates(certified):
     before = (certified / "index.json").read_bytes()
     assert worlds_main(["generate", "--out", str(certified), "--profile-file", str(EXAMPLE)]) == 0

@@ -170,6 +170,8 @@ def _worlds_show(args: argparse.Namespace) -> int:
         print(f"  static cylinders: {len(world.layout.cylinders)}")
     for line in count_notes([world]):
         print(f"  note: {line}")
+    for line in _certificate_lines(path):
+        print(f"  {line}")
     provenance = world.provenance or {}
     if provenance.get("source_file"):
         paper = "one of the paper's" if provenance.get("paper_set") else "not one of the paper's worlds"
@@ -201,6 +203,29 @@ def _worlds_show(args: argparse.Namespace) -> int:
 
         print(f"wrote {plot_world(world, args.plot)}")
     return 0
+
+
+def _certificate_lines(path: Path) -> list[str]:
+    """The world's certificates from its folder's index (`certify`), one line per protocol."""
+    from dynabarn.worldset import read_index
+
+    try:
+        entries = read_index(path.parent)["worlds"]
+    except DynabarnError:
+        return []
+    entry = next((e for e in entries if e.get("file") == path.name), {})
+    lines = []
+    for protocol, record in sorted((entry.get("certificates") or {}).items()):
+        if not isinstance(record, dict) or record.get("sha256") != entry.get("sha256"):
+            continue
+        trials = record.get("trials", [])
+        slack = f", the witnesses {record['slack']:.2f} s slower than in an empty arena" if "slack" in record else ""
+        failed = [t for t in trials if not t.get("certified")]
+        why = f"; seed {failed[0]['seed']}: {failed[0]['reason']}" if failed else ""
+        lines.append(
+            f"certified solvable ({protocol}): {record.get('certified_trials')} of {len(trials)} trials{slack}{why}"
+        )
+    return lines
 
 
 STATS_COLUMNS = (
