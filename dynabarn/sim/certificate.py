@@ -49,6 +49,8 @@ from dynabarn.sim.config import SimConfig
 from dynabarn.worlds.schedule import SchedulePlayer
 from dynabarn.worlds.spec import SCRIPTED, WorldSpec
 
+_NOBODY = np.iinfo(np.int64).max
+"""An unclaimed key in `certify`'s table of pruning cells."""
 ROBOT_RADIUS = math.hypot(JACKAL.length / 2, JACKAL.width / 2)
 """[m] The disc around the Jackal's footprint: safe at any heading."""
 
@@ -136,7 +138,6 @@ class _Occupancy:
         xs, ys = self._centres()
         X, Y = np.meshgrid(xs, ys)
         blocked = np.zeros(X.shape, dtype=bool)
-        blocked[[0, -1], :] = blocked[:, [0, -1]] = True  # the edge: where points beyond it look
         blocked[[0, -1], :] = blocked[:, [0, -1]] = True  # the edge: where points beyond it look
         for wall in world.layout.walls:  # boxes: the distance to a box, against the disc
             dx = np.maximum(np.abs(X - wall.centre[0]) - wall.size[0] / 2, 0.0)
@@ -264,13 +265,17 @@ def certify(
     spawn = tuple(float(v) for v in protocol.spawn)
     occupancy.stamp(np.zeros(1), np.array([0.5 * closing * motion.ds]))
     if not occupancy.free(0, np.array([spawn[0]]), np.array([spawn[1]]))[0]:
-        return Certificate(False, "an obstacle or wall covers the spawn at the start", clock_offset)
+        return Certificate(
+            False, "the spawn is within the search's margin of an obstacle or wall at the start", clock_offset
+        )
     state = [np.array([v]) for v in (*spawn, 0.0, 0.0)]  # x, y, yaw, last v, last w
     n_prim = len(motion.v_cmd)
     history: list[tuple[np.ndarray, np.ndarray]] = []  # per tick: (parent state, primitive) of the kept states
     expanded = 0
     n_ticks = math.ceil(protocol.time_limit / motion.period - 1e-9)
     cells_x = math.ceil(occupancy.nx * config.grid / config.cell) + 1
+    cells_y = math.ceil(occupancy.ny * config.grid / config.cell) + 1
+    owner = np.full(cells_x * cells_y * config.heading_bins, _NOBODY, dtype=np.int64)
     for tick in range(n_ticks):
         t0 = tick * motion.period
         times = t0 + motion.ds * np.arange(1, config.substeps + 1)
@@ -300,8 +305,12 @@ def certify(
         iy = np.floor((y - occupancy.y0) / config.cell).astype(np.int64)
         hb = np.floor(np.mod(th, 2 * math.pi) * (config.heading_bins / (2 * math.pi))).astype(np.int64)
         key = (iy * cells_x + ix) * config.heading_bins + np.minimum(hb, config.heading_bins - 1)
-        _, first = np.unique(key, return_index=True)
-        first.sort()
+        # The first candidate of each key: the least index per key, scattered into a table
+        # of every key (no sort of the candidates), then in candidate order.
+        np.minimum.at(owner, key, np.arange(len(key)))
+        first = owner[key]
+        first = first[first == np.arange(len(key))]
+        owner[key] = _NOBODY
         chosen = keep[first]
         history.append((parent[chosen], prim[chosen]))
         state = [snap_array(a[first], STATE_RESOLUTION) for a in (x, y, th)] + [v[chosen], w[chosen]]
