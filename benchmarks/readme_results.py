@@ -311,7 +311,7 @@ BLOCKS = {
 
 
 PAGES = {
-    README: ("headline", "ladder", "generalisation"),
+    README: ("headline", "ladder", "certification", "generalisation"),
     DOCS / "results.md": (
         "fig5",
         "skill",

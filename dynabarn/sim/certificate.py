@@ -42,7 +42,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.determinism import STATE_RESOLUTION, sincos, snap_array
+from dynabarn.determinism import STATE_RESOLUTION, exp, sincos, snap_array
 from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL
 from dynabarn.sim.config import SimConfig
@@ -192,7 +192,7 @@ class _Motion:
         self.ds = self.period / config.substeps
         self.dv, self.dw = sim.max_linear_accel * self.period, sim.max_angular_accel * self.period
         gain = JACKAL.velocity_gain
-        edges = np.exp(-gain * self.ds * np.arange(config.substeps + 1))  # fixed numbers, computed once
+        edges = exp(-gain * self.ds * np.arange(config.substeps + 1))  # the same bits on every machine
         # The lagging velocity's mean over substep j is c + (prev - c) * lag[j].
         self.lag = np.array([float(x) for x in (edges[:-1] - edges[1:]) / (gain * self.ds)])
         v, w = np.meshgrid(np.array(config.speeds), np.array(config.turn_rates), indexing="ij")
