@@ -11,7 +11,7 @@ from dynabarn.cli import bench_main, worlds_main
 from dynabarn.worlds.generate import PAPER60
 from dynabarn.worlds.tiers import TIERS, get_tier
 from dynabarn.worldset import world_set
-from dynabarn.worldset.tiers import generate_tier
+from dynabarn.worldset.tiers import generate_tier, tier_worlds
 
 
 def test_the_tiers_are_what_the_issue_defines():
@@ -96,3 +96,28 @@ def test_a_redraw_is_the_next_seed_of_the_worlds_own_sequence():
     assert redrawn != first and redrawn.provenance["draw"] == 1
     assert redrawn == generate_world(250, table1, draw=1)  # byte for byte, every time
     assert redrawn != generate_world(250, table1, draw=2) and redrawn != generate_world(251, table1, draw=1)
+
+
+CERTIFIED_TIERS = ("tier-dense", "tier-fast")
+"""The tiers whose every world is certified for every trial (committed records)."""
+
+
+@pytest.mark.parametrize("name", CERTIFIED_TIERS)
+def test_every_world_of_a_certified_tier_is_certified_with_its_digest(name, tmp_path, monkeypatch):
+    """Each world certified for trials 0-9, and the tier generated anywhere (here a cache
+    folder outside the checkout) has exactly the bytes the certificates were computed for:
+    the committed sha256 are the tier's golden digests."""
+    tier = get_tier(name)
+    record = tier.certified()
+    assert record is not None and record["trials"] == 10
+    assert sorted(map(int, record["certificates"])) == sorted(tier.ids)
+    for certificates in record["certificates"].values():
+        barn = certificates["barn"]
+        assert barn["certified"] and [t["seed"] for t in barn["trials"]] == list(range(10))
+    assert all(k >= 1 for k in record["draws"].values())
+    monkeypatch.setattr("dynabarn.worldset.tiers.work_root", lambda: tmp_path)
+    index = json.loads((tier_worlds(name) / "index.json").read_text())
+    for entry in index["worlds"]:
+        assert entry["sha256"] == record["certificates"][str(entry["id"])]["barn"]["sha256"]
+        assert entry["certificates"]["barn"]["certified"]
+        assert entry.get("draw", 0) == record["draws"].get(str(entry["id"]), 0)

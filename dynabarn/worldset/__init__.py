@@ -92,15 +92,17 @@ def write_worlds(
     *,
     meta: dict,
     sets: dict[str, list[int]],
+    asset_root: Path | None = None,
     progress: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> Path:
-    """Write each world as `<name>.xml` in `out_dir` and the index; returns the index path."""
+    """Write each world as `<name>.xml` in `out_dir` and the index; returns the index path.
+    `asset_root`: where the robot the worlds name is (default: `mjcf.asset_root_for`)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     entries = []
     for world in progress(worlds):
         file = f"{world.name}.xml"
-        sha = write_world(world, out_dir / file)
+        sha = write_world(world, out_dir / file, asset_root=asset_root)
         entries.append(_entry(world, file, sha))
     return write_index(out_dir, entries, meta=meta, sets=sets)
 
@@ -119,6 +121,7 @@ def generate_worlds(
     behavior_params: Mapping[str, float] | None = None,
     profile_source: Mapping | None = None,
     draws: Mapping[int, int] | None = None,
+    asset_root: Path | None = None,
     progress: Callable[[Iterable], Iterable] = lambda it: it,
 ) -> Path:
     """Generate and write the benchmark's worlds; returns the index path.
@@ -165,7 +168,7 @@ def generate_worlds(
         meta["behavior"] = behavior
     if draws:
         meta["draws"] = {str(i): k for i, k in sorted(draws.items())}
-    return write_worlds(worlds, out_dir, meta=meta, sets=sets, progress=progress)
+    return write_worlds(worlds, out_dir, meta=meta, sets=sets, asset_root=asset_root, progress=progress)
 
 
 def generate_profile_worlds(

@@ -34,6 +34,11 @@ def generate_tier(
     profile = tier.profile()
     record = tier.certified()
     out = Path(out_dir) if out_dir is not None else tier_dir(name)
+    # In the tiers' own folder (and its staging siblings) the robot is the work root's, as
+    # in the checkout: the same bytes in a checkout and in an installed package's cache, so
+    # the committed certificates' digests hold in both.
+    home = tier_dir(name).parent
+    inside = out.resolve().parent == home.resolve()
     index = generate_profile_worlds(
         profile,
         out,
@@ -41,6 +46,7 @@ def generate_tier(
         world_ids=tier.ids,
         profile_source={"tier": name, **profile.source},
         draws=tier.draws() if draws is None else draws,
+        asset_root=home.parent if inside else None,
         progress=progress,
     )
     if record and draws is None:
