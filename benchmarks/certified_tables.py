@@ -122,6 +122,27 @@ def certified_ladder(folders: dict, sets: dict[str, list[dict]], titles: dict[st
     return "\n".join(lines)
 
 
+def calibration_table() -> str:
+    """Each rung's calibration on the held-back worlds (`dynabarn/bench/calibration.json`)."""
+    from dynabarn.bench.calibration import CALIBRATION_FILE, RUNGS
+
+    if not CALIBRATION_FILE.is_file():
+        return "(no calibration)"
+    calibration = json.loads(CALIBRATION_FILE.read_text())
+    lines = [
+        "| rung | worlds | held back | success, held back | Spearman (predicted difficulty, success) | AUC "
+        "| Spearman (crossings per minute, success) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for rung in (r for r in RUNGS if r in calibration["rungs"]):
+        fit = calibration["rungs"][rung]
+        lines.append(
+            f"| `{rung}` | {fit['worlds']} | {fit['held_back']} | {fit['success']:.2f} | {fit['spearman']:+.2f} "
+            f"| {fit['auc']:.2f} | {fit['spearman_baseline']:+.2f} |"
+        )
+    return "\n".join(lines)
+
+
 def export(index_dir: Path, name: str) -> Path:
     """Write the certificates of the set in `index_dir` (e.g. the imported release) alone to
     results/certificates/NAME.json: its worlds' names, ids, difficulties and sha256 with them."""

@@ -31,7 +31,7 @@ from dynabarn.bench.results import RESULTS, WORLDS
 from dynabarn.bench.summary import FLOOR, plot_fig5
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from certified_tables import certification_table, certified_ladder, certified_sets
+from certified_tables import calibration_table, certification_table, certified_ladder, certified_sets
 from learning_tables import dagger_training, generalisation_table
 from ros_tables import MOVE_BASE_SETS, ablation_table, move_base_table
 
@@ -307,6 +307,7 @@ BLOCKS = {
     "dwa-ablation": lambda f, s: ablation_table(f),
     "certification": lambda f, s: certification_table(certified_sets()),
     "certified-ladder": lambda f, s: certified_ladder(f, certified_sets(), SETS, LADDER),
+    "calibration": lambda f, s: calibration_table(),
 }
 
 
@@ -325,6 +326,7 @@ PAGES = {
     ),
     DOCS / "tutorials" / "training.md": ("td3-training", "dagger-training"),
     DOCS / "tutorials" / "ros.md": ("move-base", "dwa-ablation"),
+    DOCS / "concepts" / "difficulty.md": ("calibration",),
 }
 """Each page and the blocks it must hold (every block of BLOCKS is on some page)."""
 

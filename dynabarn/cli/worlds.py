@@ -86,6 +86,14 @@ def build_parser() -> argparse.ArgumentParser:
         f"(default: ${WORLDS_ENV}, else the shipped 300 worlds)",
     )
     st.add_argument("--worlds", default=None, help="only these world ids, e.g. 0-19,200-219 (None: all)")
+    st.add_argument(
+        "--predict",
+        default=None,
+        metavar="RUNG",
+        help="instead: each world's predicted success for this rung of the ladder (straight, dwa, teb, "
+        "dwa@dwa_dynamic, teb@teb_dynamic, predictive, dagger, oracle_present), from the calibration shipped "
+        "in dynabarn/bench/calibration.json and the world's certificate",
+    )
 
     return parser
 
@@ -270,6 +278,8 @@ def _worlds_stats(args: argparse.Namespace) -> int:
 
     names = [str(f) for f in args.sets] or [str(worlds_dir())]
     ids = parse_ids(args.worlds)
+    if args.predict is not None:
+        return _predict(names, ids, args.predict)
     measured = {name: _set_measures(name, ids) for name in names}
     width = max(11, *(len(n) + 2 for n in names))
     print(
@@ -290,6 +300,38 @@ def _worlds_stats(args: argparse.Namespace) -> int:
             label = difficulty if k == 0 or not measured[names[0]].get(difficulty) else ""
             print(f"{label:<11}{name:<{width}}{len(rs):>7}" + cells)
     return 0
+
+
+def _predict(names: list[str], ids: list[int] | None, rung: str) -> int:
+    """Each world's predicted success for `rung` (`bench.calibration`)."""
+    from dynabarn.bench.calibration import predict, read_calibration, slack_by_world
+    from dynabarn.errors import unknown_choice
+    from dynabarn.mjcf import read_world
+    from dynabarn.worlds.difficulty import calibration_features
+    from dynabarn.worldset import read_index, set_folder, world_set
+
+    calibration = read_calibration()
+    if rung not in calibration["rungs"]:
+        raise DynabarnError(unknown_choice("calibrated rung", rung, list(calibration["rungs"])))
+    fit = calibration["rungs"][rung]
+    print(f"predicted success of {rung} (held-back worlds: Spearman {fit['spearman']:+.2f}, AUC {fit['auc']:.2f})")
+    print(f"{'set':<24}{'world':>7}{'difficulty':>12}{'predicted':>11}")
+    for name in names:
+        slack = slack_by_world([read_index(set_folder(name)[0])])
+        for world_id, file, difficulty in world_set(name, ids):
+            world = read_world(file)
+            features = calibration_features(world)
+            features["slack"] = slack.get((world.name, _sha256(file)), float("nan"))
+            print(f"{name:<24}{world_id:>7}{difficulty:>12}{predict(fit, features):>11.2f}")
+    return 0
+
+
+def _sha256(path: str) -> str:
+    import hashlib
+
+    from dynabarn.world_file import world_bytes
+
+    return hashlib.sha256(world_bytes(Path(path))).hexdigest()
 
 
 _WORLD_COMMANDS = {

@@ -72,3 +72,33 @@ def world_measures(world: WorldSpec) -> dict[str, float]:
         "y_span": float(np.mean([np.ptp(p[:, 1]) for p in paths])),
         "y_zero_crossings": float(np.mean([np.count_nonzero(np.diff(np.sign(p[:, 1]))) for p in paths])),
     }
+
+
+NEAR_BAND = 2.0
+"""[m] Half width of the band around the straight path whose obstacles `calibration_features`
+counts as near it."""
+
+
+def calibration_features(world: WorldSpec) -> dict[str, float]:
+    """What a world's difficulty is predicted from (`bench.calibration`), from its schedules
+    and static geometry alone: the obstacle count, `difficulty_scores`, the mean number of
+    obstacles within NEAR_BAND of the straight path per 10 m of it (`near_density`), how fast
+    those cut across it (`crossing_speed`, mean |v_y| [m/s]), and the share of the straight
+    path within a robot's and a cylinder's radius of a static cylinder (`static_blocked`)."""
+    features = {"n_obstacles": float(len(world.obstacles)), **difficulty_scores(world)}
+    length = CORRIDOR_X[1] - CORRIDOR_X[0]
+    if world.obstacles:
+        xy, vel = SchedulePlayer(world).positions_at(np.arange(0.0, WINDOW, STEP))
+        near = (np.abs(xy[..., 1]) <= NEAR_BAND) & (xy[..., 0] >= CORRIDOR_X[0]) & (xy[..., 0] <= CORRIDOR_X[1])
+        features["near_density"] = float(near.sum(axis=1).mean() * 10.0 / length)
+        features["crossing_speed"] = float(np.abs(vel[..., 1])[near].mean()) if near.any() else 0.0
+    else:
+        features["near_density"] = features["crossing_speed"] = 0.0
+    cylinders = np.array(world.layout.cylinders, dtype=np.float64).reshape(-1, 3)
+    blocked = 0.0
+    if len(cylinders):
+        xs = np.arange(CORRIDOR_X[0], CORRIDOR_X[1], STEP)
+        gap = np.hypot(xs[:, None] - cylinders[None, :, 0], cylinders[None, :, 1]) - cylinders[None, :, 2]
+        blocked = float((gap.min(axis=1) < JACKAL.width / 2).mean())
+    features["static_blocked"] = blocked
+    return features
