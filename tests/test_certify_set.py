@@ -71,3 +71,9 @@ def test_an_unknown_set_is_one_line_and_exit_2(tmp_path, capsys):
     assert worlds_main(["certify", str(tmp_path / "nowhere")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "unknown world set" in err
+
+
+def test_a_world_not_in_the_set_is_one_line_and_exit_2(certified, capsys):
+    assert worlds_main(["certify", str(certified), "--worlds", "0,999"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "999" in err

@@ -59,6 +59,12 @@ def worlds_certify(args: argparse.Namespace) -> int:
     ids = parse_ids(args.worlds)
     if chosen is not None:
         ids = [i for i in chosen if ids is None or i in set(ids)]
+    if ids is not None:
+        from dynabarn.worldset import read_index
+
+        missing = sorted(set(ids) - {e["id"] for e in read_index(folder)["worlds"]})
+        if missing:
+            raise DynabarnError(f"world id(s) {missing[:5]} not in set {args.set!r}")
     total = len(ids) if ids is not None else None
     index = certify_set(
         folder,

@@ -13,8 +13,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import numpy as np
-
 from dynabarn.interfaces.observation import EpisodeInfo, Observation
 from dynabarn.interfaces.planner import Planner
 from dynabarn.metrics import EpisodeResult
@@ -72,8 +70,3 @@ def replay_witness(
     follower = WitnessFollower(witness)
     result = run_episode(world, follower, protocol, seed=seed, planner_name="witness")
     return result, follower.largest_error
-
-
-def witness_path(witness: Witness) -> np.ndarray:
-    """The witness's positions (K + 1, 2), e.g. to draw it."""
-    return np.asarray(witness.poses[:, :2])
