@@ -121,3 +121,15 @@ def test_every_world_of_a_certified_tier_is_certified_with_its_digest(name, tmp_
         assert entry["sha256"] == record["certificates"][str(entry["id"])]["barn"]["sha256"]
         assert entry["certificates"]["barn"]["certified"]
         assert entry.get("draw", 0) == record["draws"].get(str(entry["id"]), 0)
+
+
+def test_a_tier_folder_from_an_older_definition_is_made_again(tmp_path, monkeypatch):
+    monkeypatch.setattr("dynabarn.worldset.tiers.work_root", lambda: tmp_path)
+    folder = tier_worlds("tier-fast")
+    index = json.loads((folder / "index.json").read_text())
+    index["profile_source"]["certified"] = "an older record"
+    (folder / "index.json").write_text(json.dumps(index))
+    (folder / "world_000.xml").write_text("stale")
+    assert tier_worlds("tier-fast") == folder
+    assert (folder / "world_000.xml").read_text() != "stale"
+    assert [p.name for p in (tmp_path / "generated_tiers").iterdir()] == ["tier-fast"]

@@ -3,6 +3,8 @@ each world in the draw its committed certificates chose, with those certificates
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import json
 import os
 import secrets
@@ -10,6 +12,7 @@ import shutil
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
+from dynabarn.errors import WorldError
 from dynabarn.files import write_atomically
 from dynabarn.provenance import work_root
 from dynabarn.worlds.tiers import get_tier
@@ -44,7 +47,7 @@ def generate_tier(
         out,
         base_seed=tier.base_seed,
         world_ids=tier.ids,
-        profile_source={"tier": name, **profile.source},
+        profile_source=tier_source(name),
         draws=tier.draws() if draws is None else draws,
         asset_root=home.parent if inside else None,
         progress=progress,
@@ -67,25 +70,52 @@ def attach_certificates(index_dir: Path, record: dict) -> None:
     write_atomically(Path(index_dir) / INDEX_NAME, json.dumps(index, indent=1, sort_keys=True) + "\n")
 
 
+def tier_source(name: str) -> dict:
+    """What a tier's folder was made from, as its index records it: the tier, its profile
+    file (name, sha256) and the sha256 of its committed certificates (None before): a folder
+    made from anything else is stale (`tier_worlds`)."""
+    tier = get_tier(name)
+    try:
+        certified = hashlib.sha256(tier.certified_file.read_bytes()).hexdigest()
+    except FileNotFoundError:
+        certified = None
+    return {"tier": name, **tier.profile().source, "certified": certified}
+
+
 def tier_dir(name: str) -> Path:
     return work_root() / TIERS_FOLDER / get_tier(name).name
 
 
 def tier_worlds(name: str) -> Path:
-    """Tier NAME's folder, its worlds generated there first when absent (a few seconds):
+    """Tier NAME's folder, its worlds generated there first when absent or made from an
+    older definition or older certificates (a few seconds):
     into a folder of this process's own, renamed into place whole, so that workers starting
     together never read a half-written tier (the first rename wins; the others' copies,
     the same bytes, are removed)."""
     folder = tier_dir(name)
-    if not (folder / INDEX_NAME).is_file():
-        staging = folder.with_name(f".{folder.name}.{os.getpid()}.{secrets.token_hex(4)}")
+    if _current(folder, name):
+        return folder
+    token = f"{os.getpid()}.{secrets.token_hex(4)}"
+    staging, stale = folder.with_name(f".{folder.name}.{token}"), folder.with_name(f".{folder.name}.stale.{token}")
+    try:
+        generate_tier(name, staging)
+        if folder.exists() and not _current(folder, name):  # made from an older definition
+            with contextlib.suppress(OSError):  # another process moved it first
+                folder.rename(stale)
         try:
-            generate_tier(name, staging)
-            try:
-                staging.rename(folder)
-            except OSError:
-                if not (folder / INDEX_NAME).is_file():
-                    raise
-        finally:
-            shutil.rmtree(staging, ignore_errors=True)
+            staging.rename(folder)
+        except OSError:
+            if not _current(folder, name):
+                raise
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+        shutil.rmtree(stale, ignore_errors=True)
     return folder
+
+
+def _current(folder: Path, name: str) -> bool:
+    """Whether `folder` holds tier NAME as its definition and certificates make it now."""
+    try:
+        return read_index(folder).get("profile_source") == tier_source(name)
+    except WorldError:
+        return False
