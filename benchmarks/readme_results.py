@@ -54,6 +54,13 @@ OTHER_SETS = {
     "avoid_hard_barn": "obstacles that steer around the robot (`--behavior avoid`), hard worlds 200-299",
 }
 """Beyond the paper's worlds: one trial per world (folders written by the commands in docs/results.md)."""
+TIER_SETS = {
+    "tier_dense_barn": "`tier-dense`: 20-29 / 30-40 obstacles",
+    "tier_fast_barn": "`tier-fast`: up to 2.5 m/s, orders up to 6",
+    "tier_mixed_barn": "`tier-mixed`: a static BARN field, mixed shapes",
+    "tier_combined_barn": "`tier-combined`: all of them",
+}
+"""The tiers beyond the paper's hard, 10 trials per world, every world certified solvable."""
 PLANNERS = {
     FLOOR: "Blind floor (`straight`)",
     "dwa": "DWA, our defaults (ROS's DWA biases, 2 m/s)",
@@ -102,7 +109,7 @@ def load(folder: str) -> tuple[list[dict], list[dict]]:
 def load_all() -> tuple[dict, dict]:
     """(folders, summaries): every results folder the pages use as (rows, summary), and the
     summaries of the paper's two world sets and the unseen worlds."""
-    folders = {folder: load(folder) for folder in (*SETS, *OTHER_SETS, *MOVE_BASE_SETS)}
+    folders = {folder: load(folder) for folder in (*SETS, *OTHER_SETS, *TIER_SETS, *MOVE_BASE_SETS)}
     return folders, {folder: s for folder, (_, s) in folders.items() if folder in SETS}
 
 
@@ -271,13 +278,13 @@ def tracking_quality(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
     return "\n".join(lines)
 
 
-def other_worlds(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
-    """Success and skill over the floor on the worlds beyond the paper's."""
+def other_worlds(folders: dict[str, tuple[list[dict], list[dict]]], sets: dict[str, str] = OTHER_SETS) -> str:
+    """Success and skill over the floor on the worlds beyond the paper's (`sets`)."""
     lines = [
         "| worlds | planner | episodes | easy | medium | hard | all | skill over floor, all |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for folder, title in OTHER_SETS.items():
+    for folder, title in sets.items():
         _, summary = folders.get(folder, ([], []))
         by = _by(summary)
         for planner in PLANNERS:
@@ -295,6 +302,7 @@ def other_worlds(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
 BLOCKS = {
     "headline": lambda f, s: headline_table(s),
     "other-worlds": lambda f, s: other_worlds(f),
+    "tiers": lambda f, s: other_worlds(f, TIER_SETS),
     "ladder": lambda f, s: ladder_table(s),
     "tracking": lambda f, s: tracking_quality(f),
     "fig5": lambda f, s: fig5_table(s),
@@ -322,6 +330,7 @@ PAGES = {
         "certified-ladder",
         "tracking",
         "other-worlds",
+        "tiers",
         "generalisation",
     ),
     DOCS / "tutorials" / "training.md": ("td3-training", "dagger-training"),
