@@ -77,3 +77,20 @@ def test_a_world_not_in_the_set_is_one_line_and_exit_2(certified, capsys):
     assert worlds_main(["certify", str(certified), "--worlds", "0,999"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "999" in err
+
+
+def test_a_full_disk_is_one_line_and_exit_2(certified, tmp_path, monkeypatch, capsys):
+    import shutil
+
+    folder = tmp_path / "full"
+    shutil.copytree(certified, folder)
+    before = (folder / "index.json").read_bytes()
+
+    def no_space(path, data):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("dynabarn.bench.certify.write_atomically", no_space)
+    assert worlds_main(["certify", str(folder), "--worlds", "1", "--trials", "1", "--jobs", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "No space left on device" in err
+    assert (folder / "index.json").read_bytes() == before

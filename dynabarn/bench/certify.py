@@ -160,7 +160,11 @@ def _write(index_dir: Path, index: dict, protocol: EvalProtocol, resolution: dic
         "unobstructed_arrival": unobstructed,
         "protocol": protocol.to_dict(),
     }
-    write_atomically(Path(index_dir) / INDEX_NAME, json.dumps(index, indent=1, sort_keys=True) + "\n")
+    try:
+        write_atomically(Path(index_dir) / INDEX_NAME, json.dumps(index, indent=1, sort_keys=True) + "\n")
+    except OSError as exc:  # a read-only install, a full disk: say so, keep the index as it was
+        why = exc.strerror or exc
+        raise DynabarnError(f"cannot write the certificates into {Path(index_dir) / INDEX_NAME}: {why}") from None
 
 
 def certified_counts(index: dict, protocol: str, ids: list[int] | None = None) -> tuple[int, int] | None:
