@@ -45,6 +45,22 @@ def test_certificates_are_recorded_per_world_and_trial(certified, capsys):
     assert "certified" in capsys.readouterr().out
 
 
+def test_verify_recomputes_and_finds_a_changed_certificate(certified, tmp_path, capsys):
+    import shutil
+
+    folder = tmp_path / "copy"
+    shutil.copytree(certified, folder)
+    argv = ["certify", str(folder), "--worlds", "0", "--verify", "--jobs", "1"]
+    assert worlds_main(argv) == 0
+    assert "2 trials checked" in capsys.readouterr().out
+    index = json.loads((folder / "index.json").read_text())
+    entry = next(e for e in index["worlds"] if e["id"] == 0)
+    entry["certificates"]["barn"]["trials"][1]["arrival"] = 1.0  # a number someone changed
+    (folder / "index.json").write_text(json.dumps(index))
+    assert worlds_main(argv) == 1
+    assert "seed 1: arrival 1.0 ->" in capsys.readouterr().out
+
+
 def test_show_prints_a_worlds_certificate(certified, capsys):
     assert worlds_main(["show", str(certified / "world_250.xml")]) == 0
     assert "certified solvable (barn):" in capsys.readouterr().out

@@ -130,6 +130,43 @@ def certify_set(
     return index
 
 
+def verify_set(
+    index_dir: Path,
+    protocol: EvalProtocol,
+    *,
+    ids: list[int] | None = None,
+    jobs: int = 1,
+    progress: Callable = lambda it: it,
+) -> tuple[list[str], int]:
+    """Compute the certificates of the worlds `ids` (default: all) that the index holds
+    again, for the trials it holds, and compare: (one line per difference, trials checked).
+    Writes nothing."""
+    index = read_index(index_dir)
+    wanted = set(ids) if ids is not None else None
+    stored: dict[str, dict] = {}
+    todo = []
+    for entry in index["worlds"]:
+        record = (entry.get("certificates") or {}).get(protocol.name)
+        if (wanted is not None and entry["id"] not in wanted) or not isinstance(record, dict):
+            continue
+        if record.get("sha256") != entry["sha256"]:
+            continue
+        path = entry_path(Path(index_dir), entry)
+        stored[path.name] = record
+        seeds = tuple(t["seed"] for t in record["trials"])
+        todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds))
+    differences, checked = [], 0
+    for path, rows in progress(_results(todo, jobs)):
+        for old, new in zip(stored[Path(path).name]["trials"], rows, strict=True):
+            checked += 1
+            for key in ("certified", "arrival", "reason"):
+                if old.get(key) != new.get(key):
+                    differences.append(
+                        f"{Path(path).name} seed {old['seed']}: {key} {old.get(key)!r} -> {new.get(key)!r}"
+                    )
+    return differences, checked
+
+
 def _current(entry: dict, protocol: str, resolution: dict, seeds: tuple[int, ...]) -> bool:
     record = entry.get("certificates", {}).get(protocol)
     return (

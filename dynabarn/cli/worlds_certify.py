@@ -34,6 +34,13 @@ def add_certify_arguments(c: argparse.ArgumentParser) -> None:
         "from the next seed of its own sequence until all are, and write the draws and certificates beside "
         "its profile (dynabarn/worlds/tier_profiles/*.certified.json, committed)",
     )
+    c.add_argument(
+        "--verify",
+        action="store_true",
+        help="compute the selected worlds' certificates again and compare them with those the index holds "
+        "(whether each trial is certified, the witness's arrival, the reason); write nothing; exit 1 on a "
+        "difference",
+    )
     add_jobs(c)
 
 
@@ -66,6 +73,16 @@ def worlds_certify(args: argparse.Namespace) -> int:
         if missing:
             raise DynabarnError(f"world id(s) {missing[:5]} not in set {args.set!r}")
     total = len(ids) if ids is not None else None
+    if args.verify:
+        from dynabarn.bench.certify import verify_set
+
+        differences, checked = verify_set(
+            folder, protocol, ids=ids, jobs=args.jobs, progress=progress_bar(f"verifying {args.set}", total)
+        )
+        for line in differences:
+            print(line)
+        print(f"{checked} trials checked against {args.set}'s index: {len(differences) or 'no'} difference(s)")
+        return 1 if differences else 0
     index = certify_set(
         folder,
         protocol,
