@@ -23,7 +23,15 @@ from dynabarn.files import write_atomically
 from dynabarn.worldset import read_index
 
 ROOT = Path(__file__).resolve().parents[1]
-FOLDERS = ("paper60_barn", "original60_barn", "unseen_barn", "mixed_hard_barn", "shaped_hard_barn")
+FOLDERS = (
+    "paper60_barn",
+    "original60_barn",
+    "unseen_barn",
+    "mixed_hard_barn",
+    "shaped_hard_barn",
+    "tier_dense_barn",
+    "tier_fast_barn",
+)
 FIGURE = ROOT / "docs" / "assets" / "calibration.png"
 
 

@@ -110,3 +110,25 @@ def test_a_full_disk_is_one_line_and_exit_2(certified, tmp_path, monkeypatch, ca
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "No space left on device" in err
     assert (folder / "index.json").read_bytes() == before
+
+
+def test_where_the_search_finds_no_witness_the_oracles_episode_is_tried(tmp_path):
+    """A spawn with an obstacle parked on it: the search says why it has no witness, the
+    exact oracle's episode of the trial is run and fails too, so it stays uncertified."""
+    from helpers import obstacle
+
+    from dynabarn.worlds.spec import WorldSpec
+    from dynabarn.worldset import write_worlds
+
+    parked = WorldSpec(
+        name="world_000",
+        world_id=0,
+        difficulty="easy",
+        obstacles=(obstacle("parked", [[0, 11.0, 0.0], [50, 11.0, 0.0]]),),
+    )
+    folder = tmp_path / "parked"
+    write_worlds([parked], folder, meta={"generator": "test"}, sets={"all": [0]})
+    assert worlds_main(["certify", str(folder), "--trials", "1", "--jobs", "1"]) == 0
+    (trial,) = json.loads((folder / "index.json").read_text())["worlds"][0]["certificates"]["barn"]["trials"]
+    assert not trial["certified"] and "spawn" in trial["reason"]
+    assert trial["oracle"]["outcome"] == "collision" and "by" not in trial
