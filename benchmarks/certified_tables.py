@@ -27,9 +27,11 @@ PROTOCOL = "barn"
 
 
 def _entries_of(index: dict) -> list[dict]:
+    from dynabarn.worldset import own_certificates
+
     return [
         {"name": e.get("name"), "id": e["id"], "difficulty": e.get("difficulty"), "sha256": e.get("sha256")}
-        | ({"certificates": e["certificates"]} if "certificates" in e else {})
+        | ({"certificates": own_certificates(e)} if own_certificates(e) else {})
         for e in index["worlds"]
     ]
 

@@ -154,9 +154,7 @@ def _scores(fit: dict, test: list[WorldOutcomes], rung: str) -> dict:
     rate = np.array([w.outcomes[rung][0] / w.outcomes[rung][1] for w in test])
     baseline = np.array([w.features[BASELINE] for w in test])
     episodes = np.repeat(p, [w.outcomes[rung][1] for w in test])
-    won = np.concatenate(
-        [[True] * w.outcomes[rung][0] + [False] * (w.outcomes[rung][1] - w.outcomes[rung][0]) for w in test]
-    )
+    won = np.concatenate([np.arange(w.outcomes[rung][1]) < w.outcomes[rung][0] for w in test])
     # Difficulty is 1 - predicted success: a negative correlation with success ranks well
     # (the convention of the single measure before it).
     return {
@@ -192,21 +190,15 @@ def read_calibration(path: Path = CALIBRATION_FILE) -> dict:
 
 def slack_by_world(indexes: list[dict]) -> dict[tuple[str, str], float]:
     """{(world name, sha256): the certificate's slack} from world indexes (barn protocol)."""
+    from dynabarn.worldset import own_certificates
+
     out: dict[tuple[str, str], float] = {}
     for index in indexes:
         for e in index.get("worlds", []):
-            record = (e.get("certificates") or {}).get("barn") or {}
-            if record.get("sha256") == e.get("sha256") and "slack" in record:
+            record = own_certificates(e).get("barn", {})
+            if "slack" in record:
                 out[(e.get("name"), e["sha256"])] = float(record["slack"])
     return out
-
-
-def per_rung_summary(calibration: dict) -> list[tuple[str, int, int, float | None, float | None, float | None]]:
-    """(rung, worlds, held back, Spearman, AUC, Spearman of crossings per minute) per rung."""
-    rows = []
-    for rung, fit in calibration["rungs"].items():
-        rows.append((rung, fit["worlds"], fit["held_back"], fit["spearman"], fit["auc"], fit["spearman_baseline"]))
-    return rows
 
 
 def by_rung(worlds: list[WorldOutcomes]) -> dict[str, int]:

@@ -30,7 +30,7 @@ from dynabarn.protocol import EvalProtocol
 from dynabarn.sim.certificate import CertificateConfig, certify
 from dynabarn.sim.config import trial_clock_offset
 from dynabarn.worlds.spec import Layout, WorldSpec
-from dynabarn.worldset import INDEX_NAME, entry_path, read_index
+from dynabarn.worldset import INDEX_NAME, entry_path, own_certificates, read_index
 
 ORACLE = "oracle"
 """The planner whose successful episode certifies a trial the search could not: the exact
@@ -172,10 +172,8 @@ def verify_set(
     stored: dict[str, dict] = {}
     todo = []
     for entry in index["worlds"]:
-        record = (entry.get("certificates") or {}).get(protocol.name)
-        if (wanted is not None and entry["id"] not in wanted) or not isinstance(record, dict):
-            continue
-        if record.get("sha256") != entry["sha256"]:
+        record = own_certificates(entry).get(protocol.name)
+        if (wanted is not None and entry["id"] not in wanted) or record is None:
             continue
         path = entry_path(Path(index_dir), entry)
         stored[path.name] = record
@@ -194,10 +192,9 @@ def verify_set(
 
 
 def _current(entry: dict, protocol: str, resolution: dict, seeds: tuple[int, ...]) -> bool:
-    record = entry.get("certificates", {}).get(protocol)
+    record = own_certificates(entry).get(protocol)
     return (
-        isinstance(record, dict)
-        and record.get("sha256") == entry.get("sha256")
+        record is not None
         and record.get("resolution_version") == resolution["version"]
         and [t.get("seed") for t in record.get("trials", [])][: len(seeds)] == list(seeds)
         # Records from before the oracle's stage: their uncertified trials have not had it.
@@ -230,16 +227,6 @@ def _write(index_dir: Path, index: dict, protocol: EvalProtocol, resolution: dic
     except OSError as exc:  # a read-only install, a full disk: say so, keep the index as it was
         why = exc.strerror or exc
         raise DynabarnError(f"cannot write the certificates into {Path(index_dir) / INDEX_NAME}: {why}") from None
-
-
-def certified_counts(index: dict, protocol: str, ids: list[int] | None = None) -> tuple[int, int] | None:
-    """(certified worlds, worlds with a certificate) among `ids`, or None without any."""
-    entries = [e for e in index["worlds"] if ids is None or e["id"] in set(ids)]
-    records = [e.get("certificates", {}).get(protocol) for e in entries]
-    records = [r for r in records if isinstance(r, dict)]
-    if not records:
-        return None
-    return sum(bool(r.get("certified")) for r in records), len(records)
 
 
 MAX_DRAWS = 50

@@ -267,9 +267,8 @@ def write_worlds(out_dir: Path, jobs: list[Job]) -> Path:
 def _certificates(entry: dict) -> dict:
     """An index entry's certificates, short: per protocol, whether every trial is certified,
     the seeds that are, and the witnesses' slack (`bench.certify`)."""
-    records = entry.get("certificates")
-    if not isinstance(records, dict):
-        return {}
+    from dynabarn.worldset import own_certificates
+
     short = {
         protocol: {
             "certified": bool(r.get("certified")),
@@ -277,8 +276,7 @@ def _certificates(entry: dict) -> dict:
             "certified_seeds": [t["seed"] for t in r.get("trials", []) if t.get("certified")],
             **({"slack": r["slack"]} if "slack" in r else {}),
         }
-        for protocol, r in records.items()
-        if isinstance(r, dict) and r.get("sha256") == entry.get("sha256")
+        for protocol, r in own_certificates(entry).items()
     }
     return {"certificates": short} if short else {}
 

@@ -215,7 +215,7 @@ def _worlds_show(args: argparse.Namespace) -> int:
 
 def _certificate_lines(path: Path) -> list[str]:
     """The world's certificates from its folder's index (`certify`), one line per protocol."""
-    from dynabarn.worldset import read_index
+    from dynabarn.worldset import own_certificates, read_index
 
     try:
         entries = read_index(path.parent)["worlds"]
@@ -223,9 +223,7 @@ def _certificate_lines(path: Path) -> list[str]:
         return []
     entry = next((e for e in entries if e.get("file") == path.name), {})
     lines = []
-    for protocol, record in sorted((entry.get("certificates") or {}).items()):
-        if not isinstance(record, dict) or record.get("sha256") != entry.get("sha256"):
-            continue
+    for protocol, record in sorted(own_certificates(entry).items()):
         trials = record.get("trials", [])
         slack = f", the witnesses {record['slack']:.2f} s slower than in an empty arena" if "slack" in record else ""
         failed = [t for t in trials if not t.get("certified")]
@@ -304,9 +302,12 @@ def _worlds_stats(args: argparse.Namespace) -> int:
 
 def _predict(names: list[str], ids: list[int] | None, rung: str) -> int:
     """Each world's predicted success for `rung` (`bench.calibration`)."""
+    import hashlib
+
     from dynabarn.bench.calibration import predict, read_calibration, slack_by_world
     from dynabarn.errors import unknown_choice
     from dynabarn.mjcf import read_world
+    from dynabarn.world_file import world_bytes
     from dynabarn.worlds.difficulty import calibration_features
     from dynabarn.worldset import read_index, set_folder, world_set
 
@@ -319,19 +320,12 @@ def _predict(names: list[str], ids: list[int] | None, rung: str) -> int:
     for name in names:
         slack = slack_by_world([read_index(set_folder(name)[0])])
         for world_id, file, difficulty in world_set(name, ids):
-            world = read_world(file)
+            data = world_bytes(Path(file))  # read once: parsed, and hashed to find its certificate
+            world = read_world(file, data)
             features = calibration_features(world)
-            features["slack"] = slack.get((world.name, _sha256(file)), float("nan"))
+            features["slack"] = slack.get((world.name, hashlib.sha256(data).hexdigest()), float("nan"))
             print(f"{name:<24}{world_id:>7}{difficulty:>12}{predict(fit, features):>11.2f}")
     return 0
-
-
-def _sha256(path: str) -> str:
-    import hashlib
-
-    from dynabarn.world_file import world_bytes
-
-    return hashlib.sha256(world_bytes(Path(path))).hexdigest()
 
 
 _WORLD_COMMANDS = {

@@ -122,7 +122,7 @@ class _Occupancy:
         self.x0, self.y0 = min(-half, sx) - 1.0, -half - 1.0
         self.nx = math.ceil((max(half, sx) + 2.0 - self.x0) / g) + 1
         self.ny = math.ceil((half + 1.0 - self.y0) / g) + 1
-        self.g, self.player, self.substeps = g, player, config.substeps
+        self.g, self.player = g, player
         lookup = g * math.sqrt(0.5)  # a point's distance to its cell's centre
         self.base = ROBOT_RADIUS + config.tracking_margin + lookup
         self.static = self._static(world)

@@ -53,6 +53,19 @@ def _entry(world: WorldSpec, file: str, sha256: str) -> dict:
     }
 
 
+def own_certificates(entry: dict) -> dict[str, dict]:
+    """An index entry's certificates by protocol, those computed for the bytes its file has
+    (a record names the sha256 it was computed for; any other is ignored)."""
+    records = entry.get("certificates")
+    if not isinstance(records, dict):
+        return {}
+    return {
+        protocol: record
+        for protocol, record in records.items()
+        if isinstance(record, dict) and record.get("sha256") == entry.get("sha256")
+    }
+
+
 def write_index(out_dir: Path, entries: list[dict], *, meta: dict, sets: dict[str, list[int]]) -> Path:
     """Write the index; certificates already in the folder's index are kept for the worlds
     whose files are still the same bytes (`bench.certify`: computing them takes minutes)."""
@@ -75,11 +88,7 @@ def _kept_certificates(out_dir: Path, entries: list[dict]) -> dict:
     kept = False
     for entry in entries:
         before = by_file.get(entry["file"], {})
-        certificates = {
-            name: record
-            for name, record in (before.get("certificates") or {}).items()
-            if isinstance(record, dict) and record.get("sha256") == entry["sha256"]
-        }
+        certificates = own_certificates({**before, "sha256": entry["sha256"]})
         if certificates:
             entry["certificates"] = certificates
             kept = True
