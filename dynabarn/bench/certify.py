@@ -45,6 +45,8 @@ class Job:
     sha256: str
     protocol: dict
     seeds: tuple[int, ...]
+    budget: int | None = None
+    """The search's budget (states expanded per trial; None: none), `sim.certificate.certify`."""
 
 
 def unobstructed_arrival(protocol: EvalProtocol, config: CertificateConfig | None = None) -> float:
@@ -66,7 +68,7 @@ def certify_world(job: Job) -> tuple[str, list[dict]]:
     sim = None
     trials = []
     for seed in job.seeds:
-        cert = certify(world, protocol, clock_offset=trial_clock_offset(seed))
+        cert = certify(world, protocol, clock_offset=trial_clock_offset(seed), budget=job.budget)
         row = {"seed": seed, **cert.to_dict()}
         if cert.witness is not None:
             sim = sim or Simulation(job.path)
@@ -124,10 +126,12 @@ def certify_set(
     trials: int = 10,
     ids: list[int] | None = None,
     jobs: int = 1,
+    budget: int | None = None,
     progress: Callable = lambda it: it,
 ) -> dict:
     """Certify the worlds `ids` (default: all) of the set in `index_dir`; returns the
-    updated index (also written to its index.json)."""
+    updated index (also written to its index.json). `budget`: the search's, per trial
+    (`sim.certificate.certify`), recorded in the index for `verify_set`."""
     index = read_index(index_dir)
     config = CertificateConfig()
     resolution = config.to_dict()
@@ -140,7 +144,7 @@ def certify_set(
             continue
         if not _current(entry, protocol.name, resolution, seeds):
             path = entry_path(Path(index_dir), entry)
-            todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds))
+            todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget))
     by_path = {Path(entry_path(Path(index_dir), e)).name: e for e in index["worlds"]}
     for done, (path, rows) in enumerate(progress(_results(todo, jobs)), start=1):
         entry = by_path[Path(path).name]
@@ -151,8 +155,8 @@ def certify_set(
             **record,
         }
         if done % CHECKPOINT_EVERY == 0:
-            _write(index_dir, index, protocol, resolution, unobstructed)
-    _write(index_dir, index, protocol, resolution, unobstructed)
+            _write(index_dir, index, protocol, resolution, unobstructed, budget)
+    _write(index_dir, index, protocol, resolution, unobstructed, budget)
     return index
 
 
@@ -168,6 +172,7 @@ def verify_set(
     again, for the trials it holds, and compare: (one line per difference, trials checked).
     Writes nothing."""
     index = read_index(index_dir)
+    budget = index.get("certification", {}).get(protocol.name, {}).get("search_budget")
     wanted = set(ids) if ids is not None else None
     stored: dict[str, dict] = {}
     todo = []
@@ -178,7 +183,7 @@ def verify_set(
         path = entry_path(Path(index_dir), entry)
         stored[path.name] = record
         seeds = tuple(t["seed"] for t in record["trials"])
-        todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds))
+        todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget))
     differences, checked = [], 0
     for path, rows in progress(_results(todo, jobs)):
         for old, new in zip(stored[Path(path).name]["trials"], rows, strict=True):
@@ -216,9 +221,12 @@ def _results(todo: list[Job], jobs: int) -> Iterator[tuple[str, list[dict]]]:
         yield from pool.imap_unordered(certify_world, todo)
 
 
-def _write(index_dir: Path, index: dict, protocol: EvalProtocol, resolution: dict, unobstructed: float) -> None:
+def _write(
+    index_dir: Path, index: dict, protocol: EvalProtocol, resolution: dict, unobstructed: float, budget: int | None
+) -> None:
     index.setdefault("certification", {})[protocol.name] = {
         "resolution": resolution,
+        **({"search_budget": budget} if budget is not None else {}),
         "unobstructed_arrival": unobstructed,
         "protocol": protocol.to_dict(),
     }
@@ -240,6 +248,7 @@ def certify_tier(
     *,
     trials: int = 10,
     jobs: int = 1,
+    budget: int | None = None,
     progress: Callable = lambda it: it,
     say: Callable[[str], None] = print,
 ) -> dict:
@@ -256,7 +265,7 @@ def certify_tier(
     pending = list(tier.ids)
     while True:
         generate_tier(name, folder, draws=draws)  # unchanged files keep their certificates
-        index = certify_set(folder, protocol, trials=trials, ids=pending, jobs=jobs, progress=progress)
+        index = certify_set(folder, protocol, trials=trials, ids=pending, jobs=jobs, budget=budget, progress=progress)
         entries = {e["id"]: e for e in index["worlds"]}
         failed = [i for i in pending if not entries[i]["certificates"][protocol.name]["certified"]]
         if not failed:

@@ -41,6 +41,15 @@ def add_certify_arguments(c: argparse.ArgumentParser) -> None:
         "(whether each trial is certified, the witness's arrival, the reason); write nothing; exit 1 on a "
         "difference",
     )
+    c.add_argument(
+        "--budget",
+        type=ranged(int, 1, 10**12),
+        default=None,
+        metavar="STATES",
+        help="stop a trial's search after it has expanded this many states without a witness and try the exact "
+        "oracle's episode instead (recorded in the index; --verify uses it); default: no limit, the search runs "
+        "to the time limit (in static fields that can take minutes a trial)",
+    )
     add_jobs(c)
 
 
@@ -59,7 +68,12 @@ def worlds_certify(args: argparse.Namespace) -> int:
                 f"--redraw certifies a whole tier ({', '.join(TIERS)}), not {args.set!r} or some worlds"
             )
         record = certify_tier(
-            args.set, protocol, trials=args.trials, jobs=args.jobs, progress=progress_bar(f"certifying {args.set}")
+            args.set,
+            protocol,
+            trials=args.trials,
+            jobs=args.jobs,
+            budget=args.budget,
+            progress=progress_bar(f"certifying {args.set}"),
         )
         print(f"wrote {len(record['certificates'])} certificates, {len(record['draws'])} world(s) redrawn")
     folder, chosen = set_folder(args.set)
@@ -89,6 +103,7 @@ def worlds_certify(args: argparse.Namespace) -> int:
         trials=args.trials,
         ids=ids,
         jobs=args.jobs,
+        budget=args.budget,
         progress=progress_bar(f"certifying {args.set}", total),
     )
     entries = [e for e in index["worlds"] if ids is None or e["id"] in set(ids)]

@@ -246,8 +246,13 @@ def certify(
     clock_offset: float,
     sim: SimConfig | None = None,
     config: CertificateConfig | None = None,
+    budget: int | None = None,
 ) -> Certificate:
-    """The certificate of `world` under `protocol` for obstacle clocks shifted by `clock_offset`."""
+    """The certificate of `world` under `protocol` for obstacle clocks shifted by `clock_offset`.
+
+    `budget` bounds the work: once the search has expanded that many states without a
+    witness it stops and says so (no claim either way; `bench.certify` then tries the exact
+    oracle's episode). None: the search runs to the time limit."""
     sim, config = sim or SimConfig(), config or CertificateConfig()
     reactive = sorted({o.behavior for o in world.obstacles if o.behavior != SCRIPTED})
     if reactive:
@@ -300,6 +305,9 @@ def certify(
         keep = np.flatnonzero(ok)
         if len(keep) == 0:
             return Certificate(False, f"no collision-free motion beyond t = {t0:g} s", clock_offset, None, expanded)
+        if budget is not None and expanded >= budget:
+            reason = f"the search's budget of {budget} states ran out at t = {t0 + motion.period:g} s"
+            return Certificate(False, reason, clock_offset, None, expanded)
         x, y, th = xs[-1, keep], ys[-1, keep], ths[-1, keep]
         ix = np.floor((x - occupancy.x0) / config.cell).astype(np.int64)
         iy = np.floor((y - occupancy.y0) / config.cell).astype(np.int64)
