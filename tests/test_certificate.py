@@ -79,6 +79,18 @@ def test_a_closed_ring_is_not_certified_and_one_that_opens_is_later(tmp_path):
     assert sooner.certified and sooner.arrival == pytest.approx(cert.arrival - 2.0, abs=0.3)
 
 
+def test_a_spent_budget_says_so_and_claims_nothing(tmp_path):
+    """The ring that opens at 6 s needs the search past 6 s: a budget it spends before
+    then stops it, uncertified, with the reason; a budget it does not reach changes nothing."""
+    opens = crafted_world(tmp_path / "opens.xml", _ring(opening_at=6.0))
+    full = certify(read_world(opens), BARN, clock_offset=0.0)
+    spent = certify(read_world(opens), BARN, clock_offset=0.0, budget=full.expanded // 4)
+    assert not spent.certified and spent.witness is None
+    assert "budget" in spent.reason and spent.expanded < full.expanded
+    ample = certify(read_world(opens), BARN, clock_offset=0.0, budget=full.expanded + 1)
+    assert ample.certified and ample.arrival == full.arrival
+
+
 @pytest.mark.parametrize("world_id, seed", [(299, 0), (250, 1)])
 def test_a_witness_replayed_in_the_simulator_is_collision_free(world_id, seed):
     path = resolve_world(world_id)
