@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 import time
@@ -22,6 +23,9 @@ from dynabarn.cli.common import (
 )
 from dynabarn.errors import DynabarnError
 from dynabarn.ros.stacks import STACKS
+
+DEFAULT_SAMPLE = 20
+"""`--verify`'s rows by default (`bench.verify.DEFAULT_SAMPLE`; the parser is built before importing it)."""
 
 
 # Over 80 lines on purpose: one parser, every option with its help, in the order --help shows.
@@ -108,11 +112,36 @@ def build_parser() -> argparse.ArgumentParser:
         help="folder with the reference data the imported golden worlds need (dynabarn60.json, barn300_static.json); "
         "default: ../shared/reference beside the repository; cases that need it are skipped without it",
     )
+    checking = parser.add_argument_group(
+        "looking into results", "a sweep's report and re-running anyone's results (docs/concepts/report.md)"
+    )
+    checking.add_argument(
+        "--report",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="write DIR/report.html for an existing results folder (every sweep writes its own at the end)",
+    )
+    checking.add_argument(
+        "--verify",
+        type=Path,
+        default=None,
+        metavar="RESULTS",
+        help="re-run rows of a results file or folder on this machine and compare each with its row (every field "
+        "but the machine's); exit 0 only when every sampled row reproduces",
+    )
+    checking.add_argument(
+        "--sample",
+        default=str(DEFAULT_SAMPLE),
+        help=f"with --verify: how many rows, drawn by a fixed seed (default {DEFAULT_SAMPLE}), or 'all'",
+    )
     return parser
 
 
 GOLDEN_OPTIONS = {"verify_golden", "update_golden", "reference", "jobs", "debug"}
 """The options that apply to `--verify-golden` and `--update-golden`."""
+CHECK_OPTIONS = {"report", "verify", "sample", "jobs", "debug"}
+"""The options that apply to `--report` and `--verify`."""
 
 
 def _given(argv: Sequence[str] | None) -> list[str]:
@@ -134,6 +163,11 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
         if ignored:
             parser.error(f"{', '.join(ignored)}: not for the golden set, which runs its own committed cases")
         return run_command(_golden, args)
+    if args.report is not None or args.verify is not None:
+        ignored = ["--" + key.replace("_", "-") for key in _given(argv) if key not in CHECK_OPTIONS]
+        if ignored:
+            parser.error(f"{', '.join(ignored)}: not for --report or --verify, which read an existing results folder")
+        return run_command(_check, args)
     if args.out is None:
         parser.error("--out is required for a sweep")
     return run_command(_bench, args)
@@ -173,6 +207,37 @@ def _golden(args: argparse.Namespace) -> int:
         f"({time.perf_counter() - t0:.1f} s)"
     )
     return 0 if report.ok else 1
+
+
+def _check(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from dynabarn.bench.report import write_report
+    from dynabarn.bench.verify import verify_results
+
+    code = 0
+    if args.verify is not None:
+        sample = None if args.sample == "all" else ranged(int, 1, 10**9)(args.sample)
+
+        def progress(stream, total):
+            return tqdm(stream, total=total, desc="re-running rows", unit="row", disable=None)
+
+        verdict = verify_results(args.verify, sample=sample, jobs=args.jobs, progress=progress)
+        for row in verdict["rows"]:
+            print(f"{'identical' if row['identical'] else 'DIFFERS  '}  {row['key']}  {row['problem']}".rstrip())
+        for d in verdict["differences"]:
+            if d["field"] != "-":
+                print(f"  {d['key']}: {d['field']}: row {d['old']!r}, now {d['new']!r}")
+        for note in verdict["notes"]:
+            print(note)
+        print(f"{verdict['checked']} rows re-run: {verdict['identical']} identical")
+        code = 0 if verdict["ok"] else 1
+        folder = Path(verdict["results"]).parent
+        if args.report is None and (folder / "report.html").is_file():
+            args.report = folder  # the report shows the verification
+    if args.report is not None:
+        print(f"wrote {write_report(args.report)}")
+    return code
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -230,6 +295,7 @@ def _bench(args: argparse.Namespace) -> int:
                 jobs, args.out, backend=args.backend, n_workers=args.jobs, address=args.address, progress=progress
             )
         except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM; the workers went with the pool
+            _report_so_far(args.out)
             raise type(exc)(f"finished episodes are in {args.out / bench.RESULTS}; rerun to resume") from None
     # The folder's whole sweep (every planner run into it, same worlds and protocol), so a
     # planner added later is summarised beside the others and the floor.
@@ -241,11 +307,22 @@ def _bench(args: argparse.Namespace) -> int:
     title = f"{args.set}, protocol {protocol.name}, {args.trials} trials"
     paths = bench.write_summary(summary, args.out, title=title)
     print(bench.format_table(summary))
+    from dynabarn.bench.report import write_report
+
+    paths["html"] = write_report(args.out)
     print(
         f"{report.ran} episodes run, {report.skipped} already done, {report.errors} errors, "
-        f"{report.wall_time:.1f} s; wrote {paths['csv']}, {paths['md']}, {paths['png']}"
+        f"{report.wall_time:.1f} s; wrote {paths['csv']}, {paths['md']}, {paths['png']}, {paths['html']}"
     )
     return _report_errors(report.rows, args.out)
+
+
+def _report_so_far(out: Path) -> None:
+    """A sweep cut short: its report shows the rows so far (a resumed sweep rewrites it)."""
+    from dynabarn.bench.report import write_report
+
+    with contextlib.suppress(DynabarnError, OSError):
+        write_report(out)
 
 
 def _report_errors(rows: list[dict], out: Path) -> int:

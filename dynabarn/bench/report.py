@@ -1,0 +1,232 @@
+"""`report.html`: one self-contained page per results folder, to look into a sweep.
+
+The page is rendered by Jinja2 from the package's template (`report_assets/`), with its
+style, script and figures inlined (SVG from matplotlib) and the data it sorts embedded as
+JSON: it opens from disk with no network, and its Content-Security-Policy lets nothing
+load from elsewhere. It shows the summary with intervals and the skill over the floor; per
+planner, a grid of worlds x trials coloured by outcome (each cell's time, clearance and
+reason on hover; sortable by world, difficulty, measured difficulty and successes);
+success against measured difficulty; the tracking quality of planners with a tracker; for
+every recorded episode, a still of its last moment (`report_files/`, drawn from the MCAP
+file) and the command that replays it; and the last `--verify` of the folder.
+
+Written at the end of every sweep (a resumed one rewrites it with every row so far) and by
+`dynabarn-bench --report DIR` for any folder, older ones included.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from collections import defaultdict
+from importlib import resources
+from pathlib import Path
+
+from dynabarn.bench.results import METADATA, RESULTS, WORLDS, certified_episodes, paper_worlds, read_results
+from dynabarn.bench.summary import DIFFICULTIES, FLOOR, summarise, wilson_interval
+from dynabarn.errors import DynabarnError
+from dynabarn.files import write_atomically
+
+REPORT = "report.html"
+STILLS = "report_files"
+"""Beside the report: the stills of recorded episodes (PNG), drawn once per recording."""
+VERIFICATION = "verification.json"
+"""The last `dynabarn-bench --verify` of the folder (`bench.verify`), shown in the report."""
+OUTCOME_COLOURS = {"success": "#2e7d32", "collision": "#c62828", "timeout": "#f9a825", "error": "#6a1b9a"}
+MEASURED = "corridor_blocked"
+"""The measured difficulty the grid sorts by and the figure's axis (`worlds.difficulty`):
+the share of time the straight corridor to the goal is blocked."""
+DIFFICULTY_BINS = 5
+
+
+def write_report(out_dir: Path) -> Path:
+    """Render `OUT/report.html` from the folder's rows (atomically); returns its path."""
+    out = Path(out_dir)
+    if not (out / RESULTS).is_file():
+        raise DynabarnError(f"{out}: no {RESULTS} (not a results folder of dynabarn-bench)")
+    rows = read_results(out / RESULTS)
+    if not rows:
+        raise DynabarnError(f"{out / RESULTS}: no results rows yet")
+    html = render_report(out, rows)
+    path = out / REPORT
+    try:
+        write_atomically(path, html)
+    except OSError as exc:
+        raise DynabarnError(f"cannot write {path}: {exc.strerror or exc}") from None
+    return path
+
+
+def render_report(out: Path, rows: list[dict]) -> str:
+    """The page's HTML for the folder `out` and its rows."""
+    import jinja2
+
+    worlds = _worlds(out)
+    summary = summarise(rows, paper_worlds(out), certified_episodes(out))
+    planners = sorted({r["planner"] for r in rows}, key=lambda p: (p != FLOOR, p))
+    assets = resources.files("dynabarn.bench") / "report_assets"
+    env = jinja2.Environment(
+        loader=jinja2.FunctionLoader(lambda name: (assets / name).read_text(encoding="utf-8")),
+        autoescape=True,
+        undefined=jinja2.StrictUndefined,
+    )
+    template = env.get_template("report.html.j2")
+    return template.render(
+        title=_title(out),
+        summary=summary,
+        difficulties=(*DIFFICULTIES, "all"),
+        planners=planners,
+        grid=grid_data(rows, worlds),
+        colours=OUTCOME_COLOURS,
+        figure=difficulty_figure(rows, worlds),
+        tracking=[s for s in summary if s.get("track_recall") is not None],
+        recordings=_recordings(out, rows),
+        verification=_verification(out),
+        n_rows=len(rows),
+    )
+
+
+def _title(out: Path) -> str:
+    try:
+        meta = json.loads((out / METADATA).read_text())
+        args = meta.get("arguments", {})
+        return f"{out.name}: set {args.get('set', '?')}, protocol {args.get('protocol', '?')}"
+    except (OSError, ValueError, AttributeError, TypeError):
+        return out.name
+
+
+def _worlds(out: Path) -> dict[str, dict]:
+    """world name -> its worlds.json entry (empty for folders from before worlds.json)."""
+    try:
+        return {w["name"]: w for w in json.loads((out / WORLDS).read_text())["worlds"]}
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}
+
+
+def _measured(world: dict | None) -> float | None:
+    value = ((world or {}).get("measured") or {}).get(MEASURED)
+    return float(value) if isinstance(value, int | float) and math.isfinite(value) else None
+
+
+def grid_data(rows: list[dict], worlds: dict[str, dict]) -> dict[str, dict]:
+    """Per planner: its seeds and one row per world, each with its trials' cells (outcome,
+    time, clearance, reason; None where the trial has not run)."""
+    out: dict[str, dict] = {}
+    by_planner: dict[str, list[dict]] = defaultdict(list)
+    for r in rows:
+        by_planner[r["planner"]].append(r)
+    order = {d: i for i, d in enumerate(DIFFICULTIES)}
+    for planner, rs in by_planner.items():
+        seeds = sorted({r["seed"] for r in rs})
+        cells: dict[str, dict[int, dict]] = defaultdict(dict)
+        for r in rs:
+            cells[r["world"]][r["seed"]] = {
+                "outcome": r["outcome"],
+                "time": r.get("time"),
+                "clearance": r.get("min_clearance"),
+                "reason": r.get("reason", ""),
+            }
+        world_rows = []
+        for name, trials in cells.items():
+            sample = next(r for r in rs if r["world"] == name)
+            world_rows.append(
+                {
+                    "world": name,
+                    "id": sample.get("world_id"),
+                    "difficulty": sample.get("difficulty", ""),
+                    "difficulty_rank": order.get(sample.get("difficulty"), len(order)),
+                    "measured": _measured(worlds.get(name)),
+                    "successes": sum(c["outcome"] == "success" for c in trials.values()),
+                    "cells": [trials.get(s) for s in seeds],
+                }
+            )
+        world_rows.sort(key=lambda w: (w["id"] if w["id"] is not None else -1, w["world"]))
+        out[planner] = {"seeds": seeds, "worlds": world_rows}
+    return out
+
+
+def difficulty_figure(rows: list[dict], worlds: dict[str, dict]) -> str | None:
+    """Success against measured difficulty (worlds in quantile bins of it), per planner,
+    with 95% Wilson intervals: an inline SVG (None when no world has a measured difficulty)."""
+    measured = {name: _measured(w) for name, w in worlds.items()}
+    values = sorted(v for v in measured.values() if v is not None)
+    if len(values) < DIFFICULTY_BINS:
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    edges = np.quantile(values, np.linspace(0, 1, DIFFICULTY_BINS + 1))
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    fig, ax = plt.subplots(figsize=(7.5, 4.0), dpi=100)
+    for planner in sorted({r["planner"] for r in rows}):
+        hits, totals = np.zeros(DIFFICULTY_BINS), np.zeros(DIFFICULTY_BINS)
+        for r in rows:
+            m = measured.get(r.get("world"))
+            if r["planner"] == planner and m is not None:
+                b = min(int(np.searchsorted(edges, m, side="right")) - 1, DIFFICULTY_BINS - 1)
+                hits[max(b, 0)] += r["outcome"] == "success"
+                totals[max(b, 0)] += 1
+        ok = totals > 0
+        rate = np.divide(hits, totals, out=np.zeros_like(hits), where=ok)
+        pairs = zip(hits, totals, strict=True)
+        lo_hi = np.array([wilson_interval(int(k), int(n)) if n else (0.0, 0.0) for k, n in pairs])
+        err = np.abs(lo_hi.T - rate)
+        style = {"linestyle": "--", "color": "0.4"} if planner == FLOOR else {}
+        ax.errorbar(centres[ok], rate[ok], yerr=err[:, ok], marker="o", capsize=3, label=planner, **style)
+    ax.set_xlabel("corridor blocked (measured difficulty; bins of equal world counts)")
+    ax.set_ylabel("success")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, ncol=2)
+    fig.tight_layout()
+    buffer = io.StringIO()
+    fig.savefig(buffer, format="svg", metadata={"Date": None})
+    plt.close(fig)
+    svg = buffer.getvalue()
+    return svg[svg.index("<svg") :]
+
+
+def _recordings(out: Path, rows: list[dict]) -> list[dict]:
+    """Recorded episodes: their still (drawn once, `stills.draw_still`), the file relative
+    to the report and the command that replays it."""
+    from dynabarn.bench.stills import still_for
+
+    found = []
+    for r in rows:
+        path = r.get("recording")
+        if not path:
+            continue
+        # Written relative to where the sweep ran, or absolute; the folder may have moved since.
+        candidates = (Path(path), out / path, out / "recordings" / Path(path).name)
+        recording = next((c for c in candidates if c.is_file()), None)
+        if recording is None:
+            continue
+        try:
+            relative = recording.resolve().relative_to(out.resolve()).as_posix()
+        except ValueError:
+            relative = recording.resolve().as_uri()
+        still = still_for(recording, out / STILLS)
+        found.append(
+            {
+                "planner": r["planner"],
+                "world": r["world"],
+                "seed": r["seed"],
+                "outcome": r["outcome"],
+                "reason": r.get("reason", ""),
+                "href": relative,
+                "still": (Path(STILLS) / still.name).as_posix() if still else None,
+                "command": f"dynabarn-replay --web {recording}",
+            }
+        )
+    return found
+
+
+def _verification(out: Path) -> dict | None:
+    try:
+        data = json.loads((out / VERIFICATION).read_text())
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
