@@ -71,6 +71,8 @@ class Browser:
             page = next(t for t in json.load(response) if t["type"] == "page")
         self._ws = connect(page["webSocketDebuggerUrl"], max_size=64_000_000, open_timeout=10).__enter__()
         self._id = 0
+        self.events: list[dict] = []
+        """Every event the page sent (after `Network.enable`: each request it made)."""
         self.call("Page.enable")
 
     def call(self, method: str, **params) -> dict:
@@ -78,6 +80,8 @@ class Browser:
         self._ws.send(json.dumps({"id": self._id, "method": method, "params": params}))
         while True:
             message = json.loads(self._ws.recv(timeout=60))
+            if "method" in message:
+                self.events.append(message)
             if message.get("id") == self._id:
                 if "error" in message:
                     raise RuntimeError(f"{method}: {message['error']}")
@@ -89,6 +93,12 @@ class Browser:
     def evaluate(self, expression: str):
         """The value of a JavaScript expression in the page."""
         return self.call("Runtime.evaluate", expression=expression, returnByValue=True).get("result", {}).get("value")
+
+    def requests(self) -> list[str]:
+        """The URLs of every request the page made since `Network.enable` (collected while
+        calls waited for their answers; one more call collects the latest)."""
+        self.evaluate("0")
+        return [e["params"]["request"]["url"] for e in self.events if e["method"] == "Network.requestWillBeSent"]
 
     def screenshot(self) -> bytes:
         return base64.b64decode(self.call("Page.captureScreenshot", format="png")["data"])
