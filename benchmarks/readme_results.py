@@ -32,6 +32,7 @@ from dynabarn.bench.summary import FLOOR, plot_fig5
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from certified_tables import calibration_table, certification_table, certified_ladder, certified_sets
+from leaderboard import leaderboard_table
 from learning_tables import dagger_training, generalisation_table
 from ros_tables import MOVE_BASE_SETS, ablation_table, move_base_table
 
@@ -61,6 +62,8 @@ TIER_SETS = {
     "tier_combined_barn": "`tier-combined`: all of them",
 }
 """The tiers beyond the paper's hard, 10 trials per world, every world certified solvable."""
+LEADERBOARD_SETS = {**SETS, **TIER_SETS, **OTHER_SETS}
+"""The leaderboard's world sets, in its order (the move_base folders compare stacks, not planners)."""
 PLANNERS = {
     FLOOR: "Blind floor (`straight`)",
     "dwa": "DWA, our defaults (ROS's DWA biases, 2 m/s)",
@@ -316,6 +319,7 @@ BLOCKS = {
     "certification": lambda f, s: certification_table(certified_sets()),
     "certified-ladder": lambda f, s: certified_ladder(f, certified_sets(), SETS, LADDER),
     "calibration": lambda f, s: calibration_table(),
+    "leaderboard": lambda f, s: leaderboard_table(f, LEADERBOARD_SETS),
 }
 
 
@@ -336,6 +340,7 @@ PAGES = {
     DOCS / "tutorials" / "training.md": ("td3-training", "dagger-training"),
     DOCS / "tutorials" / "ros.md": ("move-base", "dwa-ablation"),
     DOCS / "concepts" / "difficulty.md": ("calibration",),
+    DOCS / "leaderboard.md": ("leaderboard",),
 }
 """Each page and the blocks it must hold (every block of BLOCKS is on some page)."""
 

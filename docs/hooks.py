@@ -129,3 +129,27 @@ def on_page_markdown(markdown: str, page, config, files) -> str:
     if API_MARKER in markdown:
         markdown = markdown.replace(API_MARKER, api_reference())
     return MARKER.sub(lambda m: command_reference(m[1]), markdown)
+
+
+def on_post_build(config) -> None:
+    """Every leaderboard set's sweep report (`dynabarn.bench.report`), rendered from its
+    committed results folder into the site's `reports/FOLDER.html`, where the leaderboard
+    links them."""
+    import sys
+    from pathlib import Path
+
+    root = Path(config["config_file_path"]).resolve().parent
+    sys.path.insert(0, str(root / "benchmarks"))
+    from leaderboard import REPORTS
+    from readme_results import LEADERBOARD_SETS, RESULTS_DIR
+
+    from dynabarn.bench.report import render_report
+    from dynabarn.bench.results import RESULTS, read_results
+    from dynabarn.files import write_atomically
+
+    out = Path(config["site_dir"]) / REPORTS
+    out.mkdir(parents=True, exist_ok=True)
+    for folder in LEADERBOARD_SETS:
+        rows = read_results(RESULTS_DIR / folder / RESULTS)
+        if rows:
+            write_atomically(out / f"{folder}.html", render_report(RESULTS_DIR / folder, rows))

@@ -309,21 +309,27 @@ def certify(
             reason = f"the search's budget of {budget} states ran out at t = {t0 + motion.period:g} s"
             return Certificate(False, reason, clock_offset, None, expanded)
         x, y, th = xs[-1, keep], ys[-1, keep], ths[-1, keep]
-        ix = np.floor((x - occupancy.x0) / config.cell).astype(np.int64)
-        iy = np.floor((y - occupancy.y0) / config.cell).astype(np.int64)
-        hb = np.floor(np.mod(th, 2 * math.pi) * (config.heading_bins / (2 * math.pi))).astype(np.int64)
-        key = (iy * cells_x + ix) * config.heading_bins + np.minimum(hb, config.heading_bins - 1)
-        # The first candidate of each key: the least index per key, scattered into a table
-        # of every key (no sort of the candidates), then in candidate order.
-        np.minimum.at(owner, key, np.arange(len(key)))
-        first = owner[key]
-        first = first[first == np.arange(len(key))]
-        owner[key] = _NOBODY
+        first = _first_per_cell(x, y, th, owner, occupancy, config, cells_x)
         chosen = keep[first]
         history.append((parent[chosen], prim[chosen]))
         state = [snap_array(a[first], STATE_RESOLUTION) for a in (x, y, th)] + [v[chosen], w[chosen]]
     reason = f"no witness within the time limit {protocol.time_limit:g} s"
     return Certificate(False, reason, clock_offset, None, expanded)
+
+
+def _first_per_cell(x, y, th, owner: np.ndarray, occupancy: _Occupancy, config: CertificateConfig, cells_x: int):
+    """The indices of the first state in each pruning cell and heading bin, in order. The
+    least index per key is scattered into `owner`, a table of every key (no sort of the
+    candidates), which is left unclaimed again."""
+    ix = np.floor((x - occupancy.x0) / config.cell).astype(np.int64)
+    iy = np.floor((y - occupancy.y0) / config.cell).astype(np.int64)
+    hb = np.floor(np.mod(th, 2 * math.pi) * (config.heading_bins / (2 * math.pi))).astype(np.int64)
+    key = (iy * cells_x + ix) * config.heading_bins + np.minimum(hb, config.heading_bins - 1)
+    np.minimum.at(owner, key, np.arange(len(key)))
+    first = owner[key]
+    first = first[first == np.arange(len(key))]
+    owner[key] = _NOBODY
+    return first
 
 
 def _witness(history: list, motion: _Motion, spawn: tuple, arrival: float) -> Witness:
