@@ -78,3 +78,21 @@ def leaderboard_table(folders: dict[str, tuple[list[dict], list[dict]]], names: 
                 f'| <a href="{REPORTS}/{folder}.html">report</a> |'
             )
     return "\n".join(lines)
+
+
+def tier_ladder_table(folders: dict[str, tuple[list[dict], list[dict]]], tiers: dict[str, str], ladder) -> str:
+    """Each rung of `ladder` ((planner, sees, what), ...) on the hard worlds of every tier,
+    with its 95% interval: the scale beyond the paper's hard, where the rungs part."""
+    present = [folder for folder in tiers if folders.get(folder, ([], []))[1]]
+    names = [tiers[f].split(":")[0] for f in present]
+    lines = [
+        "| rung | sees | " + " | ".join(f"{n}, hard" for n in names) + " |",
+        "|---|---|" + "---|" * len(present),
+    ]
+    by = {f: {(s["planner"], s["difficulty"]): s for s in folders[f][1]} for f in present}
+    for planner, sees, what in ladder:
+        if not any((planner, "hard") in by[f] for f in present):
+            continue
+        cells = [_cell(by[f].get((planner, "hard"))) for f in present]
+        lines.append(f"| {what} (`{planner}`) | {sees} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)

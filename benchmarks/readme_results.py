@@ -32,7 +32,7 @@ from dynabarn.bench.summary import FLOOR, plot_fig5
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from certified_tables import calibration_table, certification_table, certified_ladder, certified_sets
-from leaderboard import leaderboard_table
+from leaderboard import leaderboard_table, tier_ladder_table
 from learning_tables import dagger_training, generalisation_table
 from ros_tables import MOVE_BASE_SETS, ablation_table, move_base_table
 
@@ -320,11 +320,12 @@ BLOCKS = {
     "certified-ladder": lambda f, s: certified_ladder(f, certified_sets(), SETS, LADDER),
     "calibration": lambda f, s: calibration_table(),
     "leaderboard": lambda f, s: leaderboard_table(f, LEADERBOARD_SETS),
+    "tier-ladder": lambda f, s: tier_ladder_table(f, TIER_SETS, LADDER),
 }
 
 
 PAGES = {
-    README: ("headline", "ladder", "certification", "generalisation"),
+    README: ("headline", "ladder", "tier-ladder", "certification", "generalisation"),
     DOCS / "results.md": (
         "fig5",
         "skill",
