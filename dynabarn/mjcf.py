@@ -30,7 +30,8 @@ import numpy as np
 from dynabarn.errors import WorldError
 from dynabarn.files import write_atomically
 from dynabarn.provenance import DATA_ROOT
-from dynabarn.robot import JACKAL_REL, JACKAL_XML, PHYSICS_TIMESTEP, GeomGroup, build_jackal_spec
+from dynabarn.robot import JACKAL_REL, JACKAL_XML, PHYSICS_TIMESTEP, GeomGroup
+from dynabarn.robot_mjcf import build_jackal_spec
 from dynabarn.world_file import _parse, check_self_contained, world_bytes
 from dynabarn.worlds.spec import WorldSpec
 

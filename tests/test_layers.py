@@ -20,7 +20,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("interfaces",),  # what planners and observers are written against: no MuJoCo, no simulator
     ("worlds",),
     ("world_file",),  # a world file read, parsed and checked as untrusted input
-    ("mjcf",),
+    ("robot_mjcf", "mjcf"),  # the Jackal's MJCF model, then the worlds' (MuJoCo from here up)
     ("worldset",),
     ("sim",),
     ("perception",),  # what a robot makes of its laser: below the planners that use it

@@ -3,7 +3,8 @@ import numpy as np
 
 from dynabarn.mjcf import load_model
 from dynabarn.provenance import SHIPPED_WORLDS
-from dynabarn.robot import JACKAL, JACKAL_XML, LASER_GEOM_GROUPS, PHYSICS_TIMESTEP, build_jackal_spec
+from dynabarn.robot import JACKAL, JACKAL_XML, LASER_GEOM_GROUPS, PHYSICS_TIMESTEP
+from dynabarn.robot_mjcf import build_jackal_spec
 
 ASSET_DIR = JACKAL_XML.parent
 
@@ -68,3 +69,29 @@ def test_velocity_actuators_track_commands():
     vx_body = np.cos(d.qpos[2]) * d.qvel[0] + np.sin(d.qpos[2]) * d.qvel[1]
     vy_body = -np.sin(d.qpos[2]) * d.qvel[0] + np.cos(d.qpos[2]) * d.qvel[1]
     assert abs(vx_body - 1.0) < 0.02 and abs(vy_body) < 0.02 and abs(d.qvel[2] - 0.5) < 0.02
+
+
+def test_planners_and_behaviours_load_no_mujoco():
+    """Every shipped planner (each one built with its defaults) and obstacle behaviour, in a
+    fresh interpreter: the robot's numbers come from `dynabarn.robot`, not its MJCF model,
+    so no simulator is loaded. (TEB's solver imports MuJoCo's linear algebra when it first
+    runs, not before.)"""
+    import subprocess
+    import sys
+
+    code = """
+import importlib, pkgutil, sys
+import dynabarn.planners as planners
+for info in pkgutil.walk_packages(planners.__path__, "dynabarn.planners."):
+    importlib.import_module(info.name)
+from dynabarn.planners.registry import available_planners, planner_factory
+from dynabarn.sim.behaviors import BEHAVIORS
+for name in available_planners():
+    if name not in ("ros", "bc", "td3", "dagger"):  # ROS's bridge; PyTorch's policies (the learn extra)
+        planner_factory(name)()
+for name in BEHAVIORS.names():
+    BEHAVIORS.get_item(name)
+print(sorted(m for m in sys.modules if m == "mujoco" or m.startswith("mujoco.")))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
+    assert out.stdout.strip() == "[]", out.stdout + out.stderr

@@ -21,6 +21,9 @@ TEB's time per tick). The algorithm is Marquardt's, as in Madsen, Nielsen and Ti
 (2004), "Methods for non-linear least squares problems", Algorithm 3.16: damping
 mu * diag(scale) with `scale` the largest diagonal of J^T J seen so far (MINPACK's
 internal scaling), mu updated from the gain ratio (Nielsen's rule).
+
+MuJoCo is imported when the solver first runs, not with the module: importing a planner
+loads no simulator (tests/test_robot.py checks every shipped planner and behaviour).
 """
 
 from __future__ import annotations
@@ -29,7 +32,6 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
 
@@ -49,6 +51,8 @@ class LMResult:
 
 def gram(j: np.ndarray) -> np.ndarray:
     """J^T J (n, n) for J (m, n), by MuJoCo's `mju_mulMatTMat`."""
+    import mujoco
+
     j = np.ascontiguousarray(j, dtype=np.float64)
     a = np.empty((j.shape[1], j.shape[1]))
     mujoco.mju_mulMatTMat(a, j, j)
@@ -57,6 +61,8 @@ def gram(j: np.ndarray) -> np.ndarray:
 
 def gradient(j: np.ndarray, r: np.ndarray) -> np.ndarray:
     """J^T r (n,), by MuJoCo's `mju_mulMatTVec`."""
+    import mujoco
+
     g = np.empty(j.shape[1])
     mujoco.mju_mulMatTVec(g, np.ascontiguousarray(j, dtype=np.float64), np.ascontiguousarray(r, dtype=np.float64))
     return g
@@ -66,6 +72,8 @@ def cholesky_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """x with a x = b for a symmetric positive definite (n, n), by MuJoCo's Cholesky
     factorisation; a is not modified. A pivot that is not positive is taken as 1e-300 (the
     damped systems of `minimise` have none)."""
+    import mujoco
+
     factor = np.array(a, dtype=np.float64, order="C")
     mujoco.mju_cholFactor(factor, 1e-300)
     x = np.empty(len(b))

@@ -6,13 +6,49 @@ obstacles) -> episode (one episode, step by step) -> result (its metrics) -> loo
 in `dynabarn.interfaces` (no MuJoCo); the names are handed on here too.
 """
 
-from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
-from dynabarn.interfaces.observation import EpisodeInfo, Observation, ObstacleState
-from dynabarn.sim.config import SimConfig
-from dynabarn.sim.episode import Episode
-from dynabarn.sim.laser import Laser
-from dynabarn.sim.loop import run_episode
-from dynabarn.sim.simulation import Simulation
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
+    from dynabarn.interfaces.observation import EpisodeInfo, Observation, ObstacleState
+    from dynabarn.sim.config import SimConfig
+    from dynabarn.sim.episode import Episode
+    from dynabarn.sim.laser import Laser
+    from dynabarn.sim.loop import run_episode
+    from dynabarn.sim.simulation import Simulation
+
+_HOMES = {
+    "EpisodeObserver": "dynabarn.interfaces.events",
+    "EpisodeStart": "dynabarn.interfaces.events",
+    "Tick": "dynabarn.interfaces.events",
+    "EpisodeInfo": "dynabarn.interfaces.observation",
+    "Observation": "dynabarn.interfaces.observation",
+    "ObstacleState": "dynabarn.interfaces.observation",
+    "SimConfig": "dynabarn.sim.config",
+    "Episode": "dynabarn.sim.episode",
+    "Laser": "dynabarn.sim.laser",
+    "run_episode": "dynabarn.sim.loop",
+    "Simulation": "dynabarn.sim.simulation",
+}
+"""Where each name of the package lives: imported when first asked for (PEP 562), so that
+`dynabarn.sim.behaviors` or `dynabarn.sim.config` can be imported without MuJoCo."""
+
+
+def __getattr__(name: str):
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module 'dynabarn.sim' has no attribute {name!r}")
+    value = getattr(importlib.import_module(home), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_HOMES))
+
 
 __all__ = [
     "Episode",
