@@ -17,6 +17,8 @@ import importlib
 import sys
 from typing import TYPE_CHECKING
 
+from dynabarn.exports import lazy_exports
+
 _WHERE = {
     "DynabarnError": "dynabarn.errors",
     "EpisodeInfo": "dynabarn.interfaces",
@@ -124,21 +126,10 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
-    module = _WHERE.get(name)
-    if module is None:
-        raise AttributeError(f"module 'dynabarn' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
+__getattr__, __dir__ = lazy_exports(__name__, _WHERE)
 
 if "gymnasium" in sys.modules:
     importlib.import_module("dynabarn.learn")  # registers the environment ids
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_WHERE})
 
 
 if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eagerly

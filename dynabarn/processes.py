@@ -9,7 +9,7 @@ import contextlib
 import os
 import sys
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 
 SAFE_PATH = {"PYTHONSAFEPATH": "1"}
 """Python's safe-path mode (3.11+) for every interpreter we start: `python -m ...` and
@@ -79,6 +79,21 @@ def worker_start(parent: int) -> None:
         _die_with_parent()
         if os.getppid() != parent:  # the sweep died before the signal was asked for
             os._exit(1)
+
+
+def map_in_workers(function: Callable, items: Sequence, jobs: int) -> Iterator:
+    """`function` over `items`: here, in order, with one job (or one item); else in a pool
+    of min(jobs, items) spawned workers, as they finish. The workers run in safe-path mode,
+    with one thread each, and die with this process (`worker_start`)."""
+    if jobs <= 1 or len(items) <= 1:
+        yield from map(function, items)
+        return
+    import multiprocessing as mp
+
+    safe_path_for_children()
+    one_thread_per_worker()
+    with mp.get_context("spawn").Pool(min(jobs, len(items)), initializer=worker_start, initargs=(os.getpid(),)) as pool:
+        yield from pool.imap_unordered(function, items)
 
 
 def die_with_parent() -> Callable[[], None] | None:

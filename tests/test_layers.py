@@ -16,7 +16,19 @@ PACKAGE = Path(__file__).resolve().parent.parent / "dynabarn"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
     # foundations
-    ("errors", "limits", "registry", "determinism", "files", "processes", "provenance", "robot", "protocol", "metrics"),
+    (
+        "errors",
+        "exports",
+        "limits",
+        "registry",
+        "determinism",
+        "files",
+        "processes",
+        "provenance",
+        "robot",
+        "protocol",
+        "metrics",
+    ),
     ("interfaces",),  # what planners and observers are written against: no MuJoCo, no simulator
     ("worlds",),
     ("world_file",),  # a world file read, parsed and checked as untrusted input

@@ -18,14 +18,14 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import statistics
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
+from dynabarn.processes import map_in_workers
 from dynabarn.protocol import EvalProtocol
 from dynabarn.sim.certificate import CertificateConfig, certify
 from dynabarn.sim.config import trial_clock_offset
@@ -146,7 +146,7 @@ def certify_set(
             path = entry_path(Path(index_dir), entry)
             todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget))
     by_path = {Path(entry_path(Path(index_dir), e)).name: e for e in index["worlds"]}
-    for done, (path, rows) in enumerate(progress(_results(todo, jobs)), start=1):
+    for done, (path, rows) in enumerate(progress(map_in_workers(certify_world, todo, jobs)), start=1):
         entry = by_path[Path(path).name]
         record = world_record(rows, unobstructed)
         entry.setdefault("certificates", {})[protocol.name] = {
@@ -185,7 +185,7 @@ def verify_set(
         seeds = tuple(t["seed"] for t in record["trials"])
         todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget))
     differences, checked = [], 0
-    for path, rows in progress(_results(todo, jobs)):
+    for path, rows in progress(map_in_workers(certify_world, todo, jobs)):
         for old, new in zip(stored[Path(path).name]["trials"], rows, strict=True):
             checked += 1
             for key in ("certified", "arrival", "reason", "by"):
@@ -205,20 +205,6 @@ def _current(entry: dict, protocol: str, resolution: dict, seeds: tuple[int, ...
         # Records from before the oracle's stage: their uncertified trials have not had it.
         and all(t.get("certified") or "oracle" in t for t in record["trials"])
     )
-
-
-def _results(todo: list[Job], jobs: int) -> Iterator[tuple[str, list[dict]]]:
-    if jobs <= 1 or len(todo) <= 1:
-        yield from map(certify_world, todo)
-        return
-    import multiprocessing as mp
-
-    from dynabarn.processes import one_thread_per_worker, safe_path_for_children, worker_start
-
-    safe_path_for_children()
-    one_thread_per_worker()
-    with mp.get_context("spawn").Pool(min(jobs, len(todo)), initializer=worker_start, initargs=(os.getpid(),)) as pool:
-        yield from pool.imap_unordered(certify_world, todo)
 
 
 def _write(

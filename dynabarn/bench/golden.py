@@ -28,6 +28,7 @@ from pathlib import Path
 
 from dynabarn.errors import DynabarnError
 from dynabarn.mjcf import write_world
+from dynabarn.processes import map_in_workers
 from dynabarn.provenance import REPO_ROOT, SHIPPED_WORLDS, work_root
 from dynabarn.recording import MACHINE_FIELDS
 from dynabarn.sim.config import SimConfig
@@ -232,21 +233,8 @@ def run_cases(
     for case in skipped:
         yield case, None
     by_key = {c.key: c for c in cases}
-    if jobs <= 1:
-        for item in items:
-            yield item[0], _run_one(item)
-        return
-    import multiprocessing as mp
-
-    from dynabarn.processes import one_thread_per_worker, safe_path_for_children, worker_start
-
-    safe_path_for_children()
-    one_thread_per_worker()
-    with mp.get_context("spawn").Pool(
-        min(jobs, len(items) or 1), initializer=worker_start, initargs=(os.getpid(),)
-    ) as pool:
-        for row in pool.imap_unordered(_run_one, items):
-            yield by_key[row["case"]], row
+    for row in map_in_workers(_run_one, items, jobs):
+        yield by_key[row["case"]], row
 
 
 # -- comparing ------------------------------------------------------------------------------

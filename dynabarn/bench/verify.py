@@ -14,7 +14,6 @@ as such (it is not the same episode). The verdict is written into the folder
 from __future__ import annotations
 
 import json
-import os
 import tempfile
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
@@ -24,6 +23,7 @@ from dynabarn.bench.golden import compare
 from dynabarn.bench.results import METADATA, RESULTS, is_row, read_results
 from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
+from dynabarn.processes import map_in_workers
 
 DEFAULT_SAMPLE = 20
 SAMPLE_SEED = 20260
@@ -175,7 +175,7 @@ def verify_results(path: Path, *, sample: int | None = DEFAULT_SAMPLE, jobs: int
         protocol = None
     chosen = sample_rows([r for r in rows if r.get("outcome") != "error"], sample)
     items = [(r, str(folder), protocol if isinstance(protocol, dict) else None) for r in chosen]
-    checks = list((progress or (lambda it, total: it))(_run(items, jobs), len(items)))
+    checks = list((progress or (lambda it, total: it))(map_in_workers(_check, items, jobs), len(items)))
     order = {r["key"]: i for i, r in enumerate(chosen)}
     checks.sort(key=lambda c: order[c.key])
     notes = _version_notes(chosen, versions(), machine())
@@ -197,20 +197,6 @@ def verify_results(path: Path, *, sample: int | None = DEFAULT_SAMPLE, jobs: int
     except OSError:
         verdict["notes"].append(f"{folder} is read-only: the verdict was not written there")
     return verdict
-
-
-def _run(items: list, jobs: int):
-    if jobs <= 1 or len(items) <= 1:
-        yield from map(_check, items)
-        return
-    import multiprocessing as mp
-
-    from dynabarn.processes import one_thread_per_worker, safe_path_for_children, worker_start
-
-    safe_path_for_children()
-    one_thread_per_worker()
-    with mp.get_context("spawn").Pool(min(jobs, len(items)), initializer=worker_start, initargs=(os.getpid(),)) as pool:
-        yield from pool.imap_unordered(_check, items)
 
 
 def _version_notes(rows: list[dict], now_versions: dict, now_machine: dict) -> list[str]:

@@ -8,8 +8,9 @@ in `dynabarn.interfaces` (no MuJoCo); the names are handed on here too.
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
+
+from dynabarn.exports import lazy_exports
 
 if TYPE_CHECKING:
     from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
@@ -37,18 +38,7 @@ _HOMES = {
 `dynabarn.sim.behaviors` or `dynabarn.sim.config` can be imported without MuJoCo."""
 
 
-def __getattr__(name: str):
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module 'dynabarn.sim' has no attribute {name!r}")
-    value = getattr(importlib.import_module(home), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_HOMES))
-
+__getattr__, __dir__ = lazy_exports(__name__, _HOMES)
 
 __all__ = [
     "Episode",
