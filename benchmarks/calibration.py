@@ -31,6 +31,9 @@ FOLDERS = (
     "shaped_hard_barn",
     "tier_dense_barn",
     "tier_fast_barn",
+    "tier_mixed_barn",
+    "tier_combined_barn",
+    "mixed_easy_medium_barn",
 )
 FIGURE = ROOT / "docs" / "assets" / "calibration.png"
 

@@ -83,8 +83,9 @@ def certification_table(sets: dict[str, list[dict]]) -> str:
     """Per set: worlds certified for every trial, trials certified, the witnesses' slack,
     and the worlds that are not certified with what stopped their trials."""
     lines = [
-        "| worlds | certified (every trial) | trials certified | witness slack, median [s] | not certified |",
-        "|---|---|---|---|---|",
+        "| worlds | certified (every trial) | trials certified | by the search / by the oracle's episode "
+        "| witness slack, median [s] | not certified |",
+        "|---|---|---|---|---|---|",
     ]
     for title, worlds in sets.items():
         records = [(w, w["certificates"][PROTOCOL]) for w in worlds if PROTOCOL in w.get("certificates", {})]
@@ -99,9 +100,11 @@ def certification_table(sets: dict[str, list[dict]]) -> str:
                 kinds[_kind(t["reason"])] = kinds.get(_kind(t["reason"]), 0) + 1
         why = "; ".join(f"{n} trials: {k}" for k, n in sorted(kinds.items(), key=lambda kv: -kv[1]))
         not_certified = f"worlds {', '.join(map(str, failed))} ({why})" if failed else "-"
+        by_oracle = sum(1 for t in trials if t["certified"] and t.get("by"))
+        by_search = sum(t["certified"] for t in trials) - by_oracle
         lines.append(
             f"| {title} | {sum(r['certified'] for _, r in records)} of {len(records)} "
-            f"| {sum(t['certified'] for t in trials)} of {len(trials)} "
+            f"| {sum(t['certified'] for t in trials)} of {len(trials)} | {by_search} / {by_oracle} "
             f"| {statistics.median(slack) if slack else float('nan'):.2f} | {not_certified} |"
         )
     return "\n".join(lines)

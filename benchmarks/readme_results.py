@@ -50,6 +50,7 @@ SETS = {
 }
 OTHER_SETS = {
     "mixed_hard_barn": "mixed shapes, a static BARN field (`--static barn-grid --shapes mixed`), hard worlds 200-299",
+    "mixed_easy_medium_barn": "mixed shapes, a static BARN field, easy and medium worlds 0-199",
     "shaped_hard_barn": "mixed shapes (`--shapes mixed`), hard worlds 200-299",
     "yield_hard_barn": "obstacles that yield (`--behavior yield`), hard worlds 200-299",
     "avoid_hard_barn": "obstacles that steer around the robot (`--behavior avoid`), hard worlds 200-299",

@@ -154,7 +154,7 @@ TD3_ARGV = [
 def test_short_td3_run_trains_saves_and_resumes(tmp_path, capsys):
     """Demonstrations, behaviour cloning, critic warm-up, TD3, checkpoints with the whole
     state; running the same command again resumes (no new demonstrations, no new steps)."""
-    from dynabarn.learn.replay import ReplayBuffer
+    from dynabarn.learn.replay_buffer import ReplayBuffer
 
     out = tmp_path / "td3"
     # A 4 s time limit from the start: episodes end within the run whatever the policy does.

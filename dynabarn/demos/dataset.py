@@ -41,7 +41,7 @@ DEFAULT_LOOKAHEAD = 2.0
 
 
 @dataclass
-class Episode:
+class DemoEpisode:
     file: str
     world: str
     world_id: int
@@ -69,7 +69,7 @@ def find_recordings(inputs: list[Path]) -> list[Path]:
     return files
 
 
-def episode_rows(rec: Recording, *, lookahead: float = DEFAULT_LOOKAHEAD) -> Episode:
+def episode_rows(rec: Recording, *, lookahead: float = DEFAULT_LOOKAHEAD) -> DemoEpisode:
     """The BC rows of one recording, one per control tick with both a scan and a command."""
     meta = rec.metadata
     if not meta:
@@ -101,7 +101,7 @@ def episode_rows(rec: Recording, *, lookahead: float = DEFAULT_LOOKAHEAD) -> Epi
         times.append(t)
     result = rec.result or {}
     world = meta["world"]
-    return Episode(
+    return DemoEpisode(
         file=str(rec.path),
         world=world["name"],
         world_id=-1 if world.get("world_id") is None else int(world["world_id"]),
@@ -121,7 +121,7 @@ def export(
 ) -> dict:
     """Write the dataset; returns a summary (episodes kept and skipped, rows)."""
     files = find_recordings(inputs)
-    episodes: list[Episode] = []
+    episodes: list[DemoEpisode] = []
     skipped: list[tuple[str, str]] = []
     for f in progress(files) if progress else files:
         rec = read_recording(f)

@@ -44,7 +44,7 @@ from dynabarn.files import save_atomically, write_atomically
 from dynabarn.learn import ENV_ID
 from dynabarn.learn.bc import fit_actor
 from dynabarn.learn.configs import TD3Config, resuming, saved_config
-from dynabarn.learn.replay import ReplayBuffer, collect_demonstrations
+from dynabarn.learn.replay_buffer import ReplayBuffer, collect_demonstrations
 from dynabarn.planners.learned.models import Actor, Critic, load_tensors, save_policy, save_tensors
 
 EVAL_SEED_BASE = 2_000_000

@@ -16,13 +16,13 @@ import numpy as np
 
 from dynabarn.errors import WorldError
 from dynabarn.files import plain_name_problem
-from dynabarn.worlds.limits import MAX_OBSTACLES, check_layout, check_obstacle_numbers
 from dynabarn.worlds.profiles import (
     ARENA_HALF_SIZE,
     CountClass,
     Difficulty,
     MotionClass,
 )
+from dynabarn.worlds.ranges import MAX_OBSTACLES, check_layout, check_obstacle_numbers
 from dynabarn.worlds.trajectory import Trajectory
 
 WORLD_FORMAT_VERSION = 1
