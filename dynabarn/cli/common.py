@@ -230,13 +230,13 @@ def add_recording(p: argparse.ArgumentParser, planner: str = "<planner>", extra_
 
 
 def add_jobs(p: argparse.ArgumentParser) -> None:
-    import os
+    from dynabarn.processes import usable_cores
 
     p.add_argument(
         "--jobs",
         type=ranged(int, 1, MAX_JOBS),
-        default=min(os.cpu_count() or 1, MAX_JOBS),
-        help=f"parallel workers (at most {MAX_JOBS})",
+        default=min(usable_cores(), MAX_JOBS),
+        help=f"parallel workers (default: the cores this process may use; at most {MAX_JOBS})",
     )
 
 

@@ -39,7 +39,7 @@ from dynabarn.learn.env import DynaBARNEnv
 from dynabarn.learn.shared_worlds import SHARED_WORLDS, shared_world
 from dynabarn.planners.learned.spaces import action_to_command, checked_actions
 from dynabarn.planners.local_goal_batch import LocalGoalBatch
-from dynabarn.processes import safe_path_for_children
+from dynabarn.processes import safe_path_for_children, usable_cores
 from dynabarn.sim.ray_batch import BatchCaster, supports
 from dynabarn.worlds.schedule_batch import ScheduleBatch, batchable
 
@@ -214,7 +214,7 @@ class DynaBARNVectorEnv(VectorEnv):
     """`num_envs` DynaBARN-v0 worlds stepped by `workers` processes: this one and
     `workers - 1` spawned ones (0 or 1: all in this process).
 
-    Args: `num_envs`, `workers` (default: the cores, at most 2), and every keyword of
+    Args: `num_envs`, `workers` (default: one per usable core, at most `num_envs`), and every keyword of
     `DynaBARNEnv` but rendering (`world_set`, `split`, `split_seed`, `difficulty`,
     `worlds`, `protocol`, `lookahead`). `reset(seed=s)` seeds world i with s + i.
     """
@@ -231,7 +231,7 @@ class DynaBARNVectorEnv(VectorEnv):
             raise ValueError(f"num_envs must be a whole number >= 1, got {num_envs!r}")
         if "render_mode" in env_kwargs:
             raise ValueError("the vector environment does not render; use DynaBARNEnv for pictures")
-        workers = min(2, os.cpu_count() or 1) if workers is None else workers
+        workers = min(num_envs, usable_cores()) if workers is None else workers
         if isinstance(workers, bool) or not (isinstance(workers, int) and 0 <= workers <= num_envs):
             raise ValueError(f"workers must be a whole number in [0, num_envs], got {workers!r}")
         probe = DynaBARNEnv(**env_kwargs)  # checks the arguments here, with one clear error
