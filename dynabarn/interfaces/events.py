@@ -8,10 +8,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from dynabarn.errors import DynabarnError
 from dynabarn.interfaces.observation import EpisodeInfo
 
 if TYPE_CHECKING:  # annotations only (what the simulator passes in)
@@ -63,7 +64,19 @@ class EpisodeObserver:
     """Receives an episode as it happens; override the hooks you need (each does nothing
     here). The loop calls `on_start`, then per control tick `on_tick` and `on_poses` (the
     robot's poses at the pose rate since the last tick), then `on_end` with the result.
-    Raising `dynabarn.errors.EndEpisode` from `on_tick` ends the episode."""
+    Raising `dynabarn.errors.EndEpisode` from `on_tick` ends the episode.
+
+    Two more hooks are optional (not defined here, so the loop can tell): an observer that
+    defines `on_tick_period(period)` or `on_poses_period(period)` receives the control
+    period's own record (`dynabarn.sim.period_record.PeriodRecord`) instead of `on_tick`
+    or `on_poses` (the recorder's writer process: it makes the Tick elsewhere).
+
+    Every hook is named in `HOOKS`; the loop refuses an observer with any other `on_*`
+    method (`check_hooks`), so a misspelt hook is an error, not a hook never called."""
+
+    HOOKS: ClassVar[frozenset[str]] = frozenset(
+        {"on_start", "on_tick", "on_poses", "on_end", "on_tick_period", "on_poses_period"}
+    )
 
     def on_start(self, start: EpisodeStart) -> None:
         """The episode starts (world, protocol, planner, seed, versions)."""
@@ -76,3 +89,16 @@ class EpisodeObserver:
 
     def on_end(self, result: EpisodeResult) -> None:
         """The episode's result."""
+
+
+def check_hooks(observer: object) -> None:
+    """Refuse an observer with an `on_*` method that is not a hook (`EpisodeObserver.HOOKS`):
+    it would never be called."""
+    unknown = sorted(
+        name for name in dir(type(observer)) if name.startswith("on_") and name not in EpisodeObserver.HOOKS
+    )
+    if unknown:
+        raise DynabarnError(
+            f"observer {type(observer).__name__}: {', '.join(unknown)} is not a hook (hooks: "
+            f"{', '.join(sorted(EpisodeObserver.HOOKS))})"
+        )

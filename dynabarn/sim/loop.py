@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Protocol
 
 from dynabarn.errors import EndEpisode
-from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart
+from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, check_hooks
 from dynabarn.interfaces.observation import EpisodeInfo, Observation
 from dynabarn.metrics import (
     INTERRUPTED,
@@ -90,6 +90,8 @@ def run_episode(
         versions=versions() | planner.versions(),
         world_xml=sim.world_xml,
     )
+    for obs_ in observers:
+        check_hooks(obs_)
     for obs_ in observers:
         obs_.on_start(start)
     tick_hooks, pose_hooks = observer_hooks(observers)

@@ -1,0 +1,45 @@
+"""Observer hooks are declared: a misspelt one is refused when the observer is attached."""
+
+from __future__ import annotations
+
+import pytest
+
+from dynabarn.errors import DynabarnError
+from dynabarn.interfaces import EpisodeObserver
+from dynabarn.interfaces.events import check_hooks
+from dynabarn.planners import get_planner
+from dynabarn.protocol import get_protocol
+from dynabarn.sim import run_episode
+from dynabarn.worldset import resolve_world
+
+
+class Counting(EpisodeObserver):
+    def __init__(self) -> None:
+        self.ticks = 0
+
+    def on_tick(self, tick) -> None:
+        self.ticks += 1
+
+
+class Misspelt(Counting):
+    def on_ticks(self, tick) -> None:  # not a hook: would never be called
+        raise AssertionError("never")
+
+
+def test_declared_hooks_are_called_and_a_misspelt_one_is_refused():
+    world, planner, protocol = resolve_world(0), get_planner("straight"), get_protocol("barn")
+    counting = Counting()
+    result = run_episode(world, planner, protocol, seed=0, observers=[counting])
+    assert counting.ticks == result.n_ticks > 0
+    with pytest.raises(DynabarnError, match="on_ticks is not a hook"):
+        run_episode(world, get_planner("straight"), protocol, seed=0, observers=[Misspelt()])
+
+
+def test_every_hook_the_loop_calls_is_declared():
+    assert {"on_start", "on_tick", "on_poses", "on_end", "on_tick_period", "on_poses_period"} == set(
+        EpisodeObserver.HOOKS
+    )
+    check_hooks(EpisodeObserver())
+    from dynabarn.recording.background import BackgroundRecorder  # the writer-process recorder's period hooks
+
+    check_hooks(BackgroundRecorder.__new__(BackgroundRecorder))  # its on_tick_period, on_poses_period
