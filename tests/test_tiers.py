@@ -98,7 +98,7 @@ def test_a_redraw_is_the_next_seed_of_the_worlds_own_sequence():
     assert redrawn != generate_world(250, table1, draw=2) and redrawn != generate_world(251, table1, draw=1)
 
 
-CERTIFIED_TIERS = ("tier-dense", "tier-fast", "tier-mixed")
+CERTIFIED_TIERS = ("tier-dense", "tier-fast", "tier-mixed", "tier-combined")
 """The tiers whose every world is certified for every trial (committed records)."""
 
 
