@@ -146,3 +146,15 @@ def test_the_sample_is_fixed_and_keys_parse():
     assert parts["sim"] == {"dt": 0.004} and parts["world"] == "world_000.xml"
     with pytest.raises(DynabarnError):
         parse_key("dwa|{}|world_000.xml")
+
+
+def test_a_row_without_its_world_still_has_its_cell(sweep, tmp_path):
+    """A worker that died mid-episode leaves a row without `world`: the report names the
+    world from the row's key."""
+    copy = tmp_path / "cut"
+    shutil.copytree(sweep, copy)
+    rows = _rows(copy)
+    del rows[0]["world"]
+    (copy / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    html = write_report(copy).read_text()
+    assert html.count('class="cell ') == len(rows)

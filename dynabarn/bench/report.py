@@ -108,6 +108,17 @@ def _measured(world: dict | None) -> float | None:
     return float(value) if isinstance(value, int | float) and math.isfinite(value) else None
 
 
+def _world_of(row: dict) -> str:
+    """The row's world (a row from a worker that died mid-episode has none: its key's file)."""
+    world = row.get("world")
+    if world:
+        return world
+    parts = row["key"].split("|")
+    if parts[-1].startswith("sim="):  # the key's simulation settings, after the seed
+        parts.pop()
+    return Path(parts[-3] if len(parts) >= 5 else "?").stem
+
+
 def grid_data(rows: list[dict], worlds: dict[str, dict]) -> dict[str, dict]:
     """Per planner: its seeds and one row per world, each with its trials' cells (outcome,
     time, clearance, reason; None where the trial has not run)."""
@@ -120,7 +131,7 @@ def grid_data(rows: list[dict], worlds: dict[str, dict]) -> dict[str, dict]:
         seeds = sorted({r["seed"] for r in rs})
         cells: dict[str, dict[int, dict]] = defaultdict(dict)
         for r in rs:
-            cells[r["world"]][r["seed"]] = {
+            cells[_world_of(r)][r["seed"]] = {
                 "outcome": r["outcome"],
                 "time": r.get("time"),
                 "clearance": r.get("min_clearance"),
@@ -128,7 +139,7 @@ def grid_data(rows: list[dict], worlds: dict[str, dict]) -> dict[str, dict]:
             }
         world_rows = []
         for name, trials in cells.items():
-            sample = next(r for r in rs if r["world"] == name)
+            sample = next(r for r in rs if _world_of(r) == name)
             world_rows.append(
                 {
                     "world": name,
@@ -212,7 +223,7 @@ def _recordings(out: Path, rows: list[dict]) -> list[dict]:
         found.append(
             {
                 "planner": r["planner"],
-                "world": r["world"],
+                "world": _world_of(r),
                 "seed": r["seed"],
                 "outcome": r["outcome"],
                 "reason": r.get("reason", ""),
