@@ -234,7 +234,7 @@ def _check(args: argparse.Namespace) -> int:
         code = 0 if verdict["ok"] else 1
         folder = Path(verdict["results"]).parent
         if args.report is None and (folder / "report.html").is_file():
-            args.report = folder  # the report shows the verification
+            _report_so_far(folder)  # the report shows the verification (a read-only folder keeps its own)
     if args.report is not None:
         print(f"wrote {write_report(args.report)}")
     return code
