@@ -135,6 +135,11 @@ def test_verify_refuses_what_is_not_a_results_file(sweep, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "nonsense" in err[0]
     assert bench_main(["--verify", str(tmp_path / "nothing")]) == 2
+    for bad in ("x", "0", "-3"):  # refused by the parser: one line, exit 2
+        with pytest.raises(SystemExit) as stop:
+            bench_main(["--verify", str(bad), "--sample", bad])
+        assert stop.value.code == 2
+        assert "--sample" in capsys.readouterr().err
 
 
 def test_the_sample_is_fixed_and_keys_parse():

@@ -132,10 +132,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     checking.add_argument(
         "--sample",
-        default=str(DEFAULT_SAMPLE),
+        type=_sample,
+        default=DEFAULT_SAMPLE,
         help=f"with --verify: how many rows, drawn by a fixed seed (default {DEFAULT_SAMPLE}), or 'all'",
     )
     return parser
+
+
+def _sample(text: str) -> int | None:
+    """`--sample`: a whole number of rows, or `all` (None)."""
+    return None if text == "all" else ranged(int, 1, 10**9)(text)
 
 
 GOLDEN_OPTIONS = {"verify_golden", "update_golden", "reference", "jobs", "debug"}
@@ -217,12 +223,11 @@ def _check(args: argparse.Namespace) -> int:
 
     code = 0
     if args.verify is not None:
-        sample = None if args.sample == "all" else ranged(int, 1, 10**9)(args.sample)
 
         def progress(stream, total):
             return tqdm(stream, total=total, desc="re-running rows", unit="row", disable=None)
 
-        verdict = verify_results(args.verify, sample=sample, jobs=args.jobs, progress=progress)
+        verdict = verify_results(args.verify, sample=args.sample, jobs=args.jobs, progress=progress)
         for row in verdict["rows"]:
             print(f"{'identical' if row['identical'] else 'DIFFERS  '}  {row['key']}  {row['problem']}".rstrip())
         for d in verdict["differences"]:
