@@ -23,16 +23,23 @@ from collections import defaultdict
 from importlib import resources
 from pathlib import Path
 
-from dynabarn.bench.results import METADATA, RESULTS, WORLDS, certified_episodes, paper_worlds, read_results
+from dynabarn.bench.results import (
+    METADATA,
+    RESULTS,
+    WORLDS,
+    certified_episodes,
+    paper_worlds,
+    read_results,
+    recording_path,
+)
 from dynabarn.bench.summary import DIFFICULTIES, FLOOR, summarise, wilson_interval
+from dynabarn.bench.verify import VERIFICATION, parse_key
 from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
 
 REPORT = "report.html"
 STILLS = "report_files"
 """Beside the report: the stills of recorded episodes (PNG), drawn once per recording."""
-VERIFICATION = "verification.json"
-"""The last `dynabarn-bench --verify` of the folder (`bench.verify`), shown in the report."""
 OUTCOME_COLOURS = {"success": "#2e7d32", "collision": "#c62828", "timeout": "#f9a825", "error": "#6a1b9a"}
 MEASURED = "corridor_blocked"
 """The measured difficulty the grid sorts by and the figure's axis (`worlds.difficulty`):
@@ -113,10 +120,10 @@ def _world_of(row: dict) -> str:
     world = row.get("world")
     if world:
         return world
-    parts = row["key"].split("|")
-    if parts[-1].startswith("sim="):  # the key's simulation settings, after the seed
-        parts.pop()
-    return Path(parts[-3] if len(parts) >= 5 else "?").stem
+    try:
+        return Path(parse_key(row["key"])["world"]).stem
+    except DynabarnError:
+        return "?"
 
 
 def grid_data(rows: list[dict], worlds: dict[str, dict]) -> dict[str, dict]:
@@ -130,8 +137,11 @@ def grid_data(rows: list[dict], worlds: dict[str, dict]) -> dict[str, dict]:
     for planner, rs in by_planner.items():
         seeds = sorted({r["seed"] for r in rs})
         cells: dict[str, dict[int, dict]] = defaultdict(dict)
+        first: dict[str, dict] = {}  # each world's first row: its id and difficulty
         for r in rs:
-            cells[_world_of(r)][r["seed"]] = {
+            name = _world_of(r)
+            first.setdefault(name, r)
+            cells[name][r["seed"]] = {
                 "outcome": r["outcome"],
                 "time": r.get("time"),
                 "clearance": r.get("min_clearance"),
@@ -139,7 +149,7 @@ def grid_data(rows: list[dict], worlds: dict[str, dict]) -> dict[str, dict]:
             }
         world_rows = []
         for name, trials in cells.items():
-            sample = next(r for r in rs if _world_of(r) == name)
+            sample = first[name]
             world_rows.append(
                 {
                     "world": name,
@@ -207,12 +217,7 @@ def _recordings(out: Path, rows: list[dict]) -> list[dict]:
 
     found = []
     for r in rows:
-        path = r.get("recording")
-        if not path:
-            continue
-        # Written relative to where the sweep ran, or absolute; the folder may have moved since.
-        candidates = (Path(path), out / path, out / "recordings" / Path(path).name)
-        recording = next((c for c in candidates if c.is_file()), None)
+        recording = recording_path(r, out)
         if recording is None:
             continue
         try:

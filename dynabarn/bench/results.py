@@ -29,6 +29,8 @@ def read_results(path: Path) -> list[dict]:
     return _read(path)[0]
 
 
+RECORDINGS = "recordings"
+"""A sweep's recordings (`--record`), in its folder."""
 MAX_ROW_BYTES = 1 << 20
 """A row is a few kB (with a planner's traceback, tens); a longer line is not one of ours."""
 _ROW_TEXT = ("key", "planner", "difficulty", "outcome")
@@ -201,7 +203,7 @@ def check_or_write_metadata(out_dir: Path, meta: dict, *, force: bool) -> None:
     elif path.is_file() and force:
         for name in (RESULTS, WORLDS, "summary.csv", "summary.md", "fig5.png"):
             (out_dir / name).unlink(missing_ok=True)
-        shutil.rmtree(out_dir / "recordings", ignore_errors=True)
+        shutil.rmtree(out_dir / RECORDINGS, ignore_errors=True)
     write_atomically(path, json.dumps(meta, indent=1, sort_keys=True) + "\n")
 
 
@@ -294,6 +296,18 @@ def certified_episodes(out_dir: Path) -> dict[tuple[str, str], tuple[set[int], s
         }
     except (OSError, json.JSONDecodeError, UnicodeDecodeError, RecursionError, KeyError, TypeError, AttributeError):
         return {}
+
+
+def recording_path(row: dict, out_dir: Path) -> Path | None:
+    """A row's recording on this machine, or None: its path is written relative to where the
+    sweep ran (or absolute), and the folder may have moved since, so it is also looked for
+    under the folder and in the folder's RECORDINGS."""
+    written = row.get("recording")
+    if not written:
+        return None
+    out = Path(out_dir)
+    candidates = (Path(written), out / written, out / RECORDINGS / Path(written).name)
+    return next((c for c in candidates if c.is_file()), None)
 
 
 def paper_worlds(out_dir: Path) -> set[str]:

@@ -20,12 +20,14 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from dynabarn.bench.golden import compare
-from dynabarn.bench.results import METADATA, RESULTS, is_row, read_results
+from dynabarn.bench.results import METADATA, RESULTS, is_row, read_results, recording_path
 from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
 from dynabarn.processes import map_in_workers
 
 DEFAULT_SAMPLE = 20
+VERIFICATION = "verification.json"
+"""Where the verdict is written, beside the rows (the folder's report shows it)."""
 SAMPLE_SEED = 20260
 """The sample is the same on every machine: rows drawn by this seed from the file's order."""
 
@@ -129,8 +131,9 @@ def check_row(row: dict, folder: Path, protocol_dict: dict | None) -> RowCheck:
             now = run_spec(spec, record_to=recording).to_dict() | {"planner": spec.shown}
         except Exception as exc:  # a planner that no longer runs: that row does not reproduce
             return RowCheck(key, False, problem=f"the episode raised {type(exc).__name__}: {exc}")
-        if row.get("recording") and Path(row["recording"]).is_file():
-            row = {**row, "recording_digest": message_digest(Path(row["recording"]))}
+        recorded = recording_path(row, folder)
+        if recorded is not None:
+            row = {**row, "recording_digest": message_digest(recorded)}
             now["recording_digest"] = message_digest(recording)
     shared = {k: row[k] for k in now if k in row}
     mismatches = compare(key, shared, {k: now[k] for k in shared})
@@ -193,7 +196,7 @@ def verify_results(path: Path, *, sample: int | None = DEFAULT_SAMPLE, jobs: int
         "notes": notes + sorted({n for c in checks for n in c.notes}),
     }
     try:
-        write_atomically(folder / "verification.json", json.dumps(verdict, indent=1, default=str) + "\n")
+        write_atomically(folder / VERIFICATION, json.dumps(verdict, indent=1, default=str) + "\n")
     except OSError:
         verdict["notes"].append(f"{folder} is read-only: the verdict was not written there")
     return verdict

@@ -24,9 +24,6 @@ from dynabarn.cli.common import (
 from dynabarn.errors import DynabarnError
 from dynabarn.ros.stacks import STACKS
 
-DEFAULT_SAMPLE = 20
-"""`--verify`'s rows by default (`bench.verify.DEFAULT_SAMPLE`; the parser is built before importing it)."""
-
 
 # Over 80 lines on purpose: one parser, every option with its help, in the order --help shows.
 def build_parser() -> argparse.ArgumentParser:
@@ -38,6 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     # Imported once the parser exists: make_parser chose MuJoCo's OpenGL platform, which
     # MuJoCo reads when first imported (these modules import it).
+    from dynabarn.bench.verify import DEFAULT_SAMPLE
     from dynabarn.planners import planner_presets
 
     parser.add_argument(
@@ -249,6 +247,7 @@ def _bench(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from dynabarn import bench, worldset
+    from dynabarn.bench.results import RECORDINGS
     from dynabarn.bench.summary import FLOOR
     from dynabarn.planners import get_planner, planner_spec
     from dynabarn.protocol import get_protocol
@@ -279,7 +278,7 @@ def _bench(args: argparse.Namespace) -> int:
         protocol,
         args.trials,
         record=args.record,
-        recordings_dir=args.out / "recordings",
+        recordings_dir=args.out / RECORDINGS,
         sim=SimConfig(dt=args.dt, control_rate=args.control_rate),
     )
     if args.out.exists() and not args.out.is_dir():
