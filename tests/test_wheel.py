@@ -108,6 +108,11 @@ def test_wheel_carries_worlds_robot_and_policies(installed):
         "dynabarn/ros/launch/move_base_dwa.launch",
         "dynabarn/ros/launch/dyna_barn/trajectory_planner.yaml",
         "dynabarn/ros/launch/barn_main/overrides.yaml",
+        "dynabarn/bench/report_assets/report.html.j2",  # every sweep's report.html
+        "dynabarn/bench/report_assets/report.css",
+        "dynabarn/bench/report_assets/report.js",
+        "dynabarn/worlds/tier_profiles/mixed.certified.json",
+        "dynabarn/worlds/tier_profiles/combined.certified.json",
         "dynabarn/__main__.py",
     ):
         assert needed in names, needed
