@@ -269,7 +269,7 @@ def tracking_quality(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
         "| velocity error median / p95 [m/s] | identity switches per episode |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    names = {**SETS, **{k: v.split(" (")[0] + " (hard)" for k, v in OTHER_SETS.items()}}
+    names = {**SETS, **OTHER_SETS}
     for folder in ("paper60_barn", "original60_barn", *OTHER_SETS):
         for s in folders.get(folder, ([], []))[1]:
             if s.get("track_recall") is None or (folder in OTHER_SETS and s["difficulty"] != "all"):

@@ -7,7 +7,8 @@ least squares in numpy) maps a world's `worlds.difficulty.calibration_features` 
 certificate's slack to the chance that an episode there succeeds. Worlds are split by
 their file's sha256 (a fifth held back, never fitted); on the held-back worlds each rung
 reports Spearman's rank correlation between the predicted difficulty (one minus the
-predicted success) and the actual success per world (negative: it ranks them) and
+predicted success) and the actual success per world (negative: it ranks them), beside
+the strongest any measure could reach against rates that tie (`spearman_ceiling`), and
 the AUC of the prediction against each episode's outcome, beside the rank correlation of
 the single measure used before (crossings per minute). The fit is stored as
 `calibration.json` in this folder; `dynabarn-worlds stats SET --predict RUNG` applies it.
@@ -159,10 +160,28 @@ def _scores(fit: dict, test: list[WorldOutcomes], rung: str) -> dict:
     # (the convention of the single measure before it).
     return {
         "spearman": _finite(spearmanr(1.0 - p, rate)[0]),
+        "spearman_ceiling": _finite(spearman_ceiling(rate)),
         "auc": _finite(auc(episodes, won)),
         "spearman_baseline": _finite(spearmanr(baseline, rate)[0]),
         "success": float(rate.mean()),
     }
+
+
+def spearman_ceiling(rate: np.ndarray) -> float:
+    """The strongest (most negative) Spearman correlation any difficulty measure without ties
+    could reach against these per-world success rates: one that orders the worlds exactly as
+    their rates do. Short of -1 where the rates tie: a rung that succeeds in 9 worlds of 10
+    ties most of them at 1.0, and no measure can rank worlds its outcomes do not (with nine in
+    ten at 1.0 and one at 0 the ceiling is about -0.52). The measured correlation is read
+    against it."""
+    from scipy.stats import spearmanr
+
+    if len(rate) < 2 or np.all(rate == rate[0]):
+        return math.nan
+    order = np.argsort(rate, kind="stable")
+    untied = np.empty(len(rate))
+    untied[order] = np.arange(len(rate))
+    return -float(spearmanr(untied, rate)[0])
 
 
 def _finite(x: float) -> float | None:
