@@ -26,8 +26,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     # After make_parser has chosen MuJoCo's OpenGL platform (Gymnasium's registration loads
     # MuJoCo); no PyTorch: --help works without the extra.
-    from dynabarn.learn.configs import DaggerConfig, TD3Config
-    from dynabarn.planners.learned.spaces import HEADS
+    from dynabarn.learn.configs import DEVICES, DaggerConfig, TD3Config
+    from dynabarn.planners.learned.spaces import ENCODERS, HEADS
 
     sub = subcommands(parser)
     bc = sub.add_parser(
@@ -64,12 +64,26 @@ def build_parser() -> argparse.ArgumentParser:
         help="the student's output: regress the teacher's action, or classify among its candidate commands",
     )
     dg.add_argument(
+        "--encoder",
+        choices=ENCODERS,
+        default=DaggerConfig.encoder,
+        help="how the student reads its inputs: one flat vector (mlp), or the scans by convolution and the "
+        "tracks as a set (set)",
+    )
+    dg.add_argument(
+        "--device",
+        choices=DEVICES,
+        default=DaggerConfig.device,
+        help="where the student is fitted: auto takes a CUDA GPU when PyTorch sees one (collection runs on the CPU)",
+    )
+    dg.add_argument(
         "--no-velocity", dest="velocity", action="store_false", help="leave the measured (v, w) out of the inputs"
     )
     dg.add_argument(
         "--profile-sets",
         default="table1,release2022",
-        help="comma-separated profile sets the training worlds are drawn from",
+        help="comma-separated profile sets (table1, release2022) or tiers (tier-dense, tier-fast, tier-mixed, "
+        "tier-combined: their profiles, never their worlds) the training worlds are drawn from",
     )
     dg.add_argument("--out", type=Path, required=True, help="folder for data, checkpoints, policy.pt and the curve")
     return parser
@@ -151,6 +165,8 @@ def _train_dagger(args: argparse.Namespace, tqdm) -> int:
     cfg = DaggerConfig(  # checks the protocol and profile sets: one line before any worker starts
         protocol=args.protocol,
         head=args.head,
+        encoder=args.encoder,
+        device=args.device,
         velocity=args.velocity,
         profile_sets=profile_sets,
         **{name: getattr(args, name) for name, *_ in cli_options(DaggerConfig)},

@@ -14,6 +14,7 @@ from typing import Any
 from dynabarn.learn.split import DEFAULT_PROFILE_SETS
 from dynabarn.limits import MAX_JOBS, MAX_SEED
 from dynabarn.planners.learned.features import FeatureConfig
+from dynabarn.processes import usable_cores
 
 
 def option(default: Any, low: float, high: float, text: str) -> Any:
@@ -76,6 +77,13 @@ class TD3Config:
         }
 
 
+DEVICES = ("auto", "cpu", "cuda")
+"""Where `dynabarn-train dagger` fits the student (`--device`)."""
+CORES = min(usable_cores(), MAX_JOBS)
+"""DAgger's collection workers and fitting threads by default: collection and fitting take
+turns, so each may use every core this process may run on."""
+
+
 @dataclass
 class DaggerConfig:
     iterations: int = option(12, 1, 10_000, "DAgger iterations (collect, relabel, aggregate, fit, validate)")
@@ -89,6 +97,12 @@ class DaggerConfig:
     """The student's output (`spaces.HEADS`): `classify` among the teacher's candidate
     commands (cross-entropy; the shipped student), or `regress` the teacher's action (mean
     squared error; the first shipped student)."""
+    encoder: str = "mlp"
+    """How the student reads its inputs (`student.ENCODERS`): `mlp`, the flat vector (the
+    students shipped so far), or `set`, the scans by convolution and the tracks as a set."""
+    device: str = "auto"
+    """Where the student is fitted (`auto`: a CUDA GPU when PyTorch sees one, else the CPU).
+    Collection and validation run on the CPU in the workers whatever it is."""
     updates: int = option(4000, 1, 100_000_000, "gradient steps per iteration over the whole aggregated dataset")
     final_updates: int = option(0, 0, 100_000_000, "updates after the last iteration, the learning rate falling to 0")
     """After the last iteration, this many more updates on the whole dataset with the
@@ -101,8 +115,8 @@ class DaggerConfig:
     velocity: bool = True
     tracks: int = option(8, 0, 64, "nearest laser-tracker tracks the student sees (0: no tracker)")
     protocol: str = "barn"
-    workers: int = option(2, 1, MAX_JOBS, "collection processes")
-    threads: int = option(2, 1, MAX_JOBS, "PyTorch threads for fitting")
+    workers: int = option(CORES, 1, MAX_JOBS, "collection processes (default: the cores this process may use)")
+    threads: int = option(CORES, 1, MAX_JOBS, "PyTorch threads for fitting (default: the cores this process may use)")
     seed: int = option(0, 0, MAX_SEED, "seed of the split, the trials, the coin and torch")
     profile_sets: list[str] = field(default_factory=lambda: list(DEFAULT_PROFILE_SETS))
 
@@ -110,14 +124,14 @@ class DaggerConfig:
         """Names checked here, where the run is configured (a `DynabarnError` line), not first
         inside the collection workers."""
         from dynabarn.errors import DynabarnError
+        from dynabarn.learn.split import training_profile
         from dynabarn.protocol import get_protocol
-        from dynabarn.worlds.profiles import get_profile_set
 
         get_protocol(self.protocol)
         if isinstance(self.profile_sets, str) or not self.profile_sets:
-            raise DynabarnError(f"profile_sets {self.profile_sets!r}: give a list of one or more profile set names")
+            raise DynabarnError(f"profile_sets {self.profile_sets!r}: give one or more profile set or tier names")
         for name in self.profile_sets:
-            get_profile_set(name)
+            training_profile(name)
 
     def features(self) -> FeatureConfig:
         return FeatureConfig(

@@ -34,12 +34,12 @@ import torch
 
 from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically, write_atomically
-from dynabarn.learn.configs import DaggerConfig, resuming, saved_config
+from dynabarn.learn.configs import DEVICES, DaggerConfig, resuming, saved_config
 from dynabarn.learn.dagger_rollout import EpisodeData, run_episodes
 from dynabarn.learn.split import describe_split
 from dynabarn.planners.learned.models import load_tensors, save_tensors
 from dynabarn.planners.learned.spaces import HEADS, command_to_action
-from dynabarn.planners.learned.student import StudentActor, save_student
+from dynabarn.planners.learned.student import StudentActor, save_student, student_for
 from dynabarn.planners.registry import get_planner
 from dynabarn.processes import safe_path_for_children, worker_start
 
@@ -59,7 +59,7 @@ def _log(out: Path, line: str) -> None:
         f.write(line + "\n")
 
 
-RUN_LENGTH = ("threads", "workers", "iterations", "final_updates")
+RUN_LENGTH = ("threads", "workers", "iterations", "final_updates", "device")
 """Settings a run may change when resumed: where it ends and how it runs, not what it did."""
 
 
@@ -95,9 +95,26 @@ def _resume(out: Path, actor: StudentActor, opt, data: Dataset) -> tuple[int, Da
     return len(report.iterations), report
 
 
+def fitting_device(choice: str) -> str:
+    """`auto`, `cpu` or `cuda` as the device the student is fitted on; one line where CUDA is
+    asked for and PyTorch sees none."""
+    if choice not in DEVICES:
+        raise DynabarnError(f"device {choice!r}: use one of {', '.join(DEVICES)}")
+    if choice == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if choice == "cuda" and not torch.cuda.is_available():
+        raise DynabarnError("device 'cuda': PyTorch sees no CUDA GPU here (use --device cpu or auto)")
+    return choice
+
+
+def _cpu_weights(actor: StudentActor) -> dict:
+    """The student's weights for the collection workers (CPU tensors, wherever it is fitted)."""
+    return {k: v.detach().to("cpu", copy=True) for k, v in actor.state_dict().items()}
+
+
 def _validate(pool, cfg: DaggerConfig, actor: StudentActor) -> list[EpisodeData]:
     """The student alone on the fixed validation worlds."""
-    weights = {k: v.clone() for k, v in actor.state_dict().items()}
+    weights = _cpu_weights(actor)
     return run_episodes(pool, cfg, "validation", range(cfg.validation_episodes), beta=0.0, weights=weights, label=False)
 
 
@@ -165,7 +182,8 @@ def fit(actor, opt, x: np.ndarray, y: np.ndarray, cfg: DaggerConfig, seed: int, 
     actor.train()
     losses = []
     classify = actor.classes is not None
-    xt = torch.from_numpy(x)
+    device = next(actor.parameters()).device
+    xt = torch.from_numpy(x)  # on the CPU: a batch at a time goes to the device
     yt = torch.from_numpy(actor.class_labels(y)) if classify else torch.from_numpy(y)
     loss_of = torch.nn.functional.cross_entropy if classify else torch.nn.functional.mse_loss
     n = cfg.updates if updates is None else updates
@@ -174,7 +192,7 @@ def fit(actor, opt, x: np.ndarray, y: np.ndarray, cfg: DaggerConfig, seed: int, 
             for group in opt.param_groups:
                 group["lr"] = cfg.lr * (1.0 - k / n)
         idx = torch.from_numpy(rng.integers(0, len(x), cfg.batch_size))
-        loss = loss_of(actor(xt[idx].float()), yt[idx])
+        loss = loss_of(actor(xt[idx].to(device).float()), yt[idx].to(device))
         opt.zero_grad()
         loss.backward()
         opt.step()
@@ -191,10 +209,11 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     features = cfg.features()
-    n_inputs = features.size()
     if cfg.head not in HEADS:
         raise DynabarnError(f"head {cfg.head!r}: use one of {', '.join(HEADS)}")
-    actor = StudentActor(n_inputs, classes=teacher_classes(cfg))
+    device = fitting_device(cfg.device)
+    # Initialised on the CPU (the same weights for every device), then moved.
+    actor = student_for(features, teacher_classes(cfg), cfg.encoder).to(device)
     opt = torch.optim.Adam(actor.parameters(), lr=cfg.lr)
     report = DaggerReport()
     data = Dataset(out / DATA)
@@ -217,7 +236,7 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
         for it in range(done, cfg.iterations):
             report.final = None  # a run extended after its final fit fits again at its new end
             beta = cfg.beta_decay**it
-            weights = None if it == 0 else {k: v.clone() for k, v in actor.state_dict().items()}
+            weights = None if it == 0 else _cpu_weights(actor)
             ks = range(it * cfg.episodes, (it + 1) * cfg.episodes)
             eps = run_episodes(pool, cfg, "train", ks, beta=beta, weights=weights, label=True)
             rows = data.add(it, eps)
@@ -235,6 +254,7 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
                 "teacher_share": float(np.mean([e.teacher_share for e in eps])),
                 "validation": _rates(val),
                 "seconds": time.perf_counter() - t0,
+                "device": device,
             }
             report.iterations.append(entry)
             report.seconds = entry["seconds"]
@@ -257,12 +277,24 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
         bar.close()
     split = describe_split("train", cfg.seed, tuple(cfg.profile_sets))
     trained_on = {**split, "worlds": len(set(report.fingerprints)), "fingerprints": sorted(set(report.fingerprints))}
-    notes = {"config": asdict(cfg), "last_iteration": report.iterations[-1] if report.iterations else None}
-    notes["final"] = report.final
-    save_student(actor, out / "policy.pt", features=features, trained_on=trained_on, notes=notes)
+    notes = _notes(cfg, report, device)
+    save_student(actor.cpu(), out / "policy.pt", features=features, trained_on=trained_on, notes=notes)
     write_atomically(out / "training.json", json.dumps({"config": asdict(cfg), **asdict(report)}, indent=1))
     plot_learning_curve(report, out / "learning_curve.png")
     return report
+
+
+def _notes(cfg: DaggerConfig, report: DaggerReport, device: str) -> dict:
+    """What the policy file says of its run: what it did, not how it ran (workers, threads,
+    seconds: a CPU run's file is the same bytes whatever they were), except the device of a
+    GPU run, whose kernels round differently."""
+    config = {k: v for k, v in asdict(cfg).items() if k not in RUN_LENGTH or k in ("iterations", "final_updates")}
+    last = report.iterations[-1] if report.iterations else None
+    notes = {"config": config, "last_iteration": last and {k: v for k, v in last.items() if k != "seconds"}}
+    notes["final"] = report.final
+    if device != "cpu":
+        notes["device"] = f"{device} ({torch.cuda.get_device_name()})" if device == "cuda" else device
+    return notes
 
 
 def plot_learning_curve(report: DaggerReport, path: Path) -> Path:

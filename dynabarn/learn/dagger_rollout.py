@@ -16,7 +16,7 @@ import torch
 
 from dynabarn.planners.learned.features import Features
 from dynabarn.planners.learned.spaces import command_to_action
-from dynabarn.planners.learned.student import StudentActor
+from dynabarn.planners.learned.student import StudentActor, student_for
 from dynabarn.planners.registry import get_planner
 
 JOB_EPISODES = 4
@@ -104,7 +104,7 @@ def _job(cfg, split: str, ks: list[int], beta: float, weights: dict | None, labe
     actor = None
     if weights is not None:
         classes = weights.get("classes")
-        actor = StudentActor(cfg.features().size(), classes=None if classes is None else classes.numpy())
+        actor = student_for(cfg.features(), None if classes is None else classes.numpy(), cfg.encoder)
         actor.load_state_dict(weights)
         actor.eval()
     return [episode(cfg, split, k, beta, actor, label) for k in ks]

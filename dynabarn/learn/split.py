@@ -3,7 +3,9 @@
 `ProceduralWorlds` draws training world k of a run from the paper's generator (Alg. 2's
 obstacle count, Alg. 1's trajectories) under one of the named profile sets (Table I's
 `table1`, the release's measured `release2022`), on a Fig. 2 branch drawn uniformly
-(as the 300 shipped worlds: a third easy, a third medium, a third hard). The branch and
+(as the 300 shipped worlds: a third easy, a third medium, a third hard). A tier's name
+(`tier-dense`, `tier-fast`, `tier-mixed`, `tier-combined`) draws from its profile file
+instead: its counts and motions, and its shapes and static field. The branch and
 profile set come from `SeedSequence([TRAIN_SEED_BASE + seed, k])`; the world itself is
 `generate_world(branch, profile set, base_seed=((TRAIN_SEED_BASE + seed) << 40) + (k << 8)
 + redraw)`: the shipped worlds use base seed 2022 and the release's were drawn by the
@@ -29,6 +31,7 @@ from dynabarn.errors import DynabarnError
 from dynabarn.mjcf import write_world
 from dynabarn.worlds.fingerprint import world_fingerprint
 from dynabarn.worlds.generate import N_WORLDS, generate_world
+from dynabarn.worlds.profile_file import GenerationProfile
 from dynabarn.worlds.profiles import get_profile_set
 
 TRAIN_SEED_BASE = 3_000_000_000
@@ -63,6 +66,18 @@ def reserved_fingerprints(folders: tuple[Path, ...] = ()) -> frozenset[str]:
     return frozenset(out)
 
 
+def training_profile(name: str) -> GenerationProfile:
+    """What a split draws worlds from, by name: a profile set (the paper's cylinders in an
+    open arena: `table1`, `release2022`, or one registered) or a tier's profile file (its
+    counts, motions, shapes and static field: `tier-dense`, `tier-mixed`, ...). A tier's
+    profile only: the worlds come from the split's own seeds, never the tier's."""
+    from dynabarn.worlds.tiers import TIERS
+
+    if name in TIERS:
+        return TIERS[name].profile()
+    return GenerationProfile(get_profile_set(name))
+
+
 def describe_split(split: str, seed: int, profile_sets: tuple[str, ...]) -> dict:
     """A split's description, as a policy trained on it records it."""
     return {
@@ -91,8 +106,7 @@ class ProceduralWorlds:
         self.split, self.seed = split, int(seed)
         self.base = SPLITS[split] + self.seed
         self.profile_sets = tuple(profile_sets)
-        for name in self.profile_sets:
-            get_profile_set(name)  # one clear line for an unknown name
+        self._profiles = {name: training_profile(name) for name in self.profile_sets}  # one line for a bad name
         self.cache_dir = Path(cache_dir)
         self.reserved = reserved
         self.keep = keep
@@ -119,7 +133,14 @@ class ProceduralWorlds:
         for attempt in range(MAX_DRAWS):
             branch_id = int(rng.integers(N_WORLDS))
             name = self.profile_sets[int(rng.integers(len(self.profile_sets)))]
-            spec = generate_world(branch_id, get_profile_set(name), base_seed=self._base_seed(k, attempt))
+            profile = self._profiles[name]
+            spec = generate_world(
+                branch_id,
+                profile.profile_set,
+                base_seed=self._base_seed(k, attempt),
+                shapes=profile.shapes,
+                static_field=profile.static_field,
+            )
             fp = world_fingerprint(spec)
             if fp not in self.reserved:
                 break

@@ -81,6 +81,19 @@ class FeatureConfig:
         pooled = math.ceil(n_beams / self.history_pool)
         return n_beams + 2 + self.history * pooled + (2 if self.velocity else 0) + self.tracks * TRACK_FIELDS
 
+    def layout(self, n_beams: int = JACKAL.laser_beams) -> dict:
+        """Where each input lies in the vector (what `set_encoder` splits it by): the beams'
+        count and pooled width, and (start, end) of the history frames, the velocity and the
+        track slots (the velocity and the tracks None where not given)."""
+        pooled = math.ceil(n_beams / self.history_pool)
+        i = n_beams + 2
+        history = (i, i + self.history * pooled)
+        i = history[1]
+        velocity = (i, i + 2) if self.velocity else None
+        i += 2 if self.velocity else 0
+        tracks = (i, i + self.tracks * TRACK_FIELDS) if self.tracks else None
+        return {"beams": n_beams, "pooled": pooled, "history": history, "velocity": velocity, "tracks": tracks}
+
     def names(self) -> list[str]:
         """The option names in use, for tables ("scan+goal", "history 2", ...)."""
         out = ["scan+goal"]

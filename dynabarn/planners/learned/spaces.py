@@ -16,6 +16,10 @@ V_MIN, V_MAX, W_MAX = JACKAL.v_min, JACKAL.v_max, JACKAL.w_max
 HEADS = ("regress", "classify")
 """How a student turns its inputs into an action (`student.StudentActor`): the action
 itself, or the most likely of a teacher's candidate commands."""
+ENCODERS = ("mlp", "set")
+"""How a student reads its features (`student.StudentActor`): `mlp`, one flat vector
+through dense layers (the first students); `set`, the scans by convolution and the tracks
+as a set (`set_encoder`)."""
 
 
 def policy_input(scan: np.ndarray, local_goal: np.ndarray, dtype=np.float64) -> np.ndarray:

@@ -1,7 +1,8 @@
 """The student of `dynabarn-train dagger`: a network over `Features`, and its file.
 
-A multilayer perceptron (ReLU hidden layers) over the feature vector of
-`features.FeatureConfig`, with one of two heads:
+A network over the feature vector of `features.FeatureConfig`: a multilayer perceptron
+(ReLU hidden layers) over the flat vector (`encoder="mlp"`), or the scans through
+convolutions and the tracks as a set (`encoder="set"`, `set_encoder`); with one of two heads:
 
 - `regress`: a tanh output, the normalised action of `DynaBARN-v0`, fitted by mean
   squared error;
@@ -30,7 +31,8 @@ from torch import nn
 from dynabarn.errors import DynabarnError
 from dynabarn.planners.learned.features import FeatureConfig
 from dynabarn.planners.learned.models import load_weights, read_blob, save_tensors
-from dynabarn.planners.learned.spaces import HEADS
+from dynabarn.planners.learned.set_encoder import SetEncoderNet
+from dynabarn.planners.learned.spaces import ENCODERS, HEADS
 
 STUDENT_FORMAT = "dynabarn-student-v1"
 HIDDEN = (512, 256, 128)
@@ -41,18 +43,27 @@ class StudentActor(nn.Module):
     """`forward` gives what the loss is taken of (the action, or the logits of a classifier);
     `act` the normalised action to drive."""
 
-    def __init__(self, n_inputs: int, hidden: tuple[int, ...] = HIDDEN, classes: np.ndarray | None = None) -> None:
+    def __init__(
+        self,
+        n_inputs: int,
+        hidden: tuple[int, ...] = HIDDEN,
+        classes: np.ndarray | None = None,
+        *,
+        encoder: str = "mlp",
+        features: FeatureConfig | None = None,
+    ) -> None:
         super().__init__()
         self.head = "regress" if classes is None else "classify"
-        layers: list[nn.Module] = []
-        sizes = [n_inputs, *hidden, 2 if classes is None else len(classes)]
-        for i, (a, b) in enumerate(itertools.pairwise(sizes)):
-            layers.append(nn.Linear(a, b))
-            if i < len(sizes) - 2:
-                layers.append(nn.ReLU())
-            elif classes is None:
-                layers.append(nn.Tanh())
-        self.net = nn.Sequential(*layers)
+        n_out = 2 if classes is None else len(classes)
+        if encoder not in ENCODERS:
+            raise DynabarnError(f"encoder {encoder!r}: use one of {', '.join(ENCODERS)}")
+        self.encoder = encoder
+        if encoder == "set":
+            if features is None or features.size() != n_inputs:
+                raise DynabarnError(f"the set encoder needs the features of its {n_inputs} inputs")
+            self.net = SetEncoderNet(features, n_out, bounded=classes is None)
+        else:
+            self.net = _flat_mlp([n_inputs, *hidden, n_out], bounded=classes is None)
         self.n_inputs = n_inputs
         self.hidden = tuple(hidden)
         # The classes' actions travel with the weights (a buffer: in the state dict, not trained).
@@ -85,6 +96,22 @@ class StudentActor(nn.Module):
         return idx[which.reshape(-1)]
 
 
+def _flat_mlp(sizes: list[int], *, bounded: bool) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for i, (a, b) in enumerate(itertools.pairwise(sizes)):
+        layers.append(nn.Linear(a, b))
+        if i < len(sizes) - 2:
+            layers.append(nn.ReLU())
+        elif bounded:
+            layers.append(nn.Tanh())
+    return nn.Sequential(*layers)
+
+
+def student_for(features: FeatureConfig, classes: np.ndarray | None, encoder: str) -> StudentActor:
+    """A new (untrained) student over `features` with the given head and encoder."""
+    return StudentActor(features.size(), classes=classes, encoder=encoder, features=features)
+
+
 def save_student(actor: StudentActor, path: Path, *, features: FeatureConfig, trained_on: dict, notes: dict) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -94,6 +121,7 @@ def save_student(actor: StudentActor, path: Path, *, features: FeatureConfig, tr
         "n_inputs": actor.n_inputs,
         "hidden": list(actor.hidden),
         **({} if actor.classes is None else {"head": "classify", "classes": actor.classes.tolist()}),
+        **({} if actor.encoder == "mlp" else {"encoder": actor.encoder}),
         "features": features.to_dict(),
         "trained_on": trained_on,
         "notes": notes,
@@ -116,6 +144,9 @@ def load_student(path: Path) -> tuple[StudentActor, FeatureConfig, dict]:
         head = blob.get("head", "regress")  # files before the classifier have no head: they regress
         if head not in HEADS:
             raise ValueError(f"head {head!r} is not one of {', '.join(HEADS)}")
+        encoder = blob.get("encoder", "mlp")  # files before the set encoder have none: flat
+        if encoder not in ENCODERS:
+            raise ValueError(f"encoder {encoder!r} is not one of {', '.join(ENCODERS)}")
         classes = None
         if head == "classify":
             classes = np.asarray(blob["classes"], dtype=np.float32)
@@ -129,5 +160,6 @@ def load_student(path: Path) -> tuple[StudentActor, FeatureConfig, dict]:
         raise DynabarnError(f"{path}: hidden layers {hidden} out of range")
     if n_inputs != features.size():
         raise DynabarnError(f"{path}: {n_inputs} inputs, but its features make {features.size()}")
-    actor = load_weights(StudentActor(n_inputs, hidden, classes), blob, path, "student")
+    actor = StudentActor(n_inputs, hidden, classes, encoder=encoder, features=features)
+    actor = load_weights(actor, blob, path, "student")
     return actor, features, {k: v for k, v in blob.items() if k != "state_dict"}

@@ -1,0 +1,130 @@
+"""The `set` student (issue 44): tracks read as a set, scans by convolution, its file, the
+training split's tiers, and a CPU run's policy bytes whatever its workers and device."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from dynabarn.errors import DynabarnError  # noqa: E402
+from dynabarn.learn.configs import DaggerConfig  # noqa: E402
+from dynabarn.learn.split import ProceduralWorlds  # noqa: E402
+from dynabarn.planners.learned.features import TRACK_FIELDS, FeatureConfig  # noqa: E402
+from dynabarn.planners.learned.student import load_student, save_student, student_for  # noqa: E402
+
+FEATURES = FeatureConfig(history=2, velocity=True, tracks=8)
+CLASSES = np.stack(np.meshgrid(np.linspace(-1, 1, 6), np.linspace(-1, 1, 7), indexing="ij"), -1).reshape(-1, 2)
+
+
+def _student(seed: int = 0):
+    torch.manual_seed(seed)
+    return student_for(FEATURES, CLASSES.astype(np.float32), "set").double().eval()
+
+
+def _inputs(rng: np.random.Generator, batch: int = 4, present: int = 5) -> np.ndarray:
+    x = rng.uniform(0.0, 1.0, (batch, FEATURES.size()))
+    a, b = FEATURES.layout()["tracks"]
+    slots = rng.uniform(-1.0, 1.0, (batch, FEATURES.tracks, TRACK_FIELDS))
+    slots[:, :, TRACK_FIELDS - 1] = 0.0
+    slots[:, :present, TRACK_FIELDS - 1] = 1.0
+    slots[:, present:, : TRACK_FIELDS - 1] = 0.0  # empty slots read zero, as `Features` writes them
+    x[:, a:b] = slots.reshape(batch, -1)
+    return x
+
+
+def _out(actor, x: np.ndarray) -> np.ndarray:
+    with torch.no_grad():
+        return actor(torch.from_numpy(x)).numpy()
+
+
+def test_the_set_encoder_does_not_depend_on_the_order_of_the_tracks():
+    actor, rng = _student(), np.random.default_rng(1)
+    x = _inputs(rng)
+    a, b = FEATURES.layout()["tracks"]
+    for _ in range(5):
+        y = x.copy()
+        slots = y[:, a:b].reshape(len(y), FEATURES.tracks, TRACK_FIELDS)
+        y[:, a:b] = slots[:, rng.permutation(FEATURES.tracks)].reshape(len(y), -1)  # empty slots move too
+        assert not np.array_equal(x, y)
+        np.testing.assert_allclose(_out(actor, y), _out(actor, x), rtol=0, atol=1e-12)
+
+
+def test_the_set_encoder_reads_each_input_where_the_layout_puts_it():
+    actor, rng = _student(), np.random.default_rng(2)
+    x = _inputs(rng, present=3)
+    lay = FEATURES.layout()
+    a, _ = lay["tracks"]
+    base = _out(actor, x)
+    # What an empty slot holds beyond its flag is not read; a present track's position is.
+    empty = x.copy()
+    empty[:, a + 5 * TRACK_FIELDS : a + 5 * TRACK_FIELDS + 4] = 0.7
+    np.testing.assert_array_equal(_out(actor, empty), base)
+    moved = x.copy()
+    moved[:, a] += 0.3
+    assert np.abs(_out(actor, moved) - base).max() > 1e-6
+    # The current scan, each history frame, the goal and the velocity all count.
+    for lo, hi in ((0, 720), lay["history"], (720, 722), lay["velocity"]):
+        y = x.copy()
+        y[:, lo:hi] = rng.uniform(0.0, 1.0, (len(y), hi - lo))
+        assert np.abs(_out(actor, y) - base).max() > 1e-6, (lo, hi)
+
+
+def test_a_set_student_file_keeps_its_encoder_and_acts_the_same(tmp_path):
+    actor = _student(3)
+    path = save_student(actor, tmp_path / "s.pt", features=FEATURES, trained_on={"fingerprints": []}, notes={})
+    again, features, header = load_student(path)
+    assert header["encoder"] == "set" and again.encoder == "set" and features == FEATURES
+    x = torch.from_numpy(_inputs(np.random.default_rng(4)))
+    with torch.no_grad():
+        np.testing.assert_array_equal(again.double().act(x).numpy(), actor.act(x).numpy())
+    # A flat student's file has no encoder field (the shipped one's bytes stay as they are).
+    flat = student_for(FEATURES, None, "mlp")
+    save_student(flat, tmp_path / "f.pt", features=FEATURES, trained_on={"fingerprints": []}, notes={})
+    assert "encoder" not in load_student(tmp_path / "f.pt")[2]
+    blob = torch.load(path, weights_only=True)
+    blob["encoder"] = "transformer"
+    torch.save(blob, tmp_path / "bad.pt")
+    with pytest.raises(DynabarnError, match="malformed student header"):
+        load_student(tmp_path / "bad.pt")
+
+
+def test_the_training_split_draws_from_a_tiers_profile_and_refuses_an_unknown_name(tmp_path):
+    worlds = ProceduralWorlds(tmp_path, profile_sets=("tier-mixed",))
+    from dynabarn.mjcf import read_world
+
+    spec = read_world(worlds.world(0).path)
+    assert len(spec.layout.cylinders) > 10, "a tier-mixed training world has its static field"
+    assert worlds.world(0).profile_set == "tier-mixed"
+    with pytest.raises(DynabarnError, match="tier-nope"):
+        DaggerConfig(profile_sets=["tier-nope"])
+
+
+def test_fitting_on_cuda_without_one_is_one_line():
+    from dynabarn.learn.dagger import fitting_device
+
+    assert fitting_device("cpu") == "cpu"
+    if torch.cuda.is_available():
+        pytest.skip("this machine has a CUDA GPU")
+    assert fitting_device("auto") == "cpu"
+    with pytest.raises(DynabarnError, match="no CUDA GPU"):
+        fitting_device("cuda")
+
+
+@pytest.mark.slow
+def test_a_cpu_runs_policy_bytes_do_not_depend_on_its_workers_or_device_choice(tmp_path):
+    from dynabarn.cli.train import train_main
+
+    args = ["dagger", "--iterations", "2", "--episodes", "2", "--max-steps", "30", "--updates", "5"]
+    args += ["--batch-size", "32", "--validation-episodes", "1", "--threads", "1", "--encoder", "set"]
+    auto = "cpu" if torch.cuda.is_available() else "auto"  # auto on a GPU machine would fit on the GPU
+    digests = []
+    for workers, device in (("1", "cpu"), ("2", auto)):
+        out = tmp_path / f"run{workers}"
+        assert train_main([*args, "--workers", workers, "--device", device, "--out", str(out)]) == 0
+        digests.append(hashlib.sha256(Path(out / "policy.pt").read_bytes()).hexdigest())
+    assert digests[0] == digests[1]
