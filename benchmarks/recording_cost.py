@@ -29,8 +29,8 @@ PER_PERIOD = ("on_tick", "on_tick_period", "on_poses", "on_poses_period")
 
 def _timed(base: type) -> type:
     """`base` with the wall time of each of its hooks summed in `spent` (only the hooks it
-    has: the loop chooses by which ones an observer defines)."""
-    hooks = [h for h in HOOKS if hasattr(base, h)]
+    overrides: the loop chooses by which ones an observer overrides)."""
+    hooks = [h for h in HOOKS if getattr(base, h) is not getattr(EpisodeObserver, h)]
 
     def __init__(self, path: Path) -> None:
         base.__init__(self, path)

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dynabarn.interfaces import EpisodeObserver
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.provenance import SHIPPED_WORLDS
@@ -24,7 +25,7 @@ WORLD, SEED, AT = 205, 0, 3.0
 """A hard world of paper60, its first trial, and the moment drawn [s]."""
 
 
-class _Snapshot:
+class _Snapshot(EpisodeObserver):
     """Keeps what the figure needs at the tick nearest `at` (an episode observer)."""
 
     def __init__(self, at: float) -> None:

@@ -191,14 +191,20 @@ PROTOCOLS: Registry[EvalProtocol] = Registry(
         ),
     },
     group="dynabarn.protocols",
+    check=lambda item: _check_protocol(item),
 )
 """Every protocol by name: built in, registered at run time, installed."""
+
+
+def _check_protocol(item: object) -> None:
+    if not isinstance(item, EvalProtocol):
+        raise TypeError(f"{item!r} is not a dynabarn.protocol.EvalProtocol")
 
 
 def register_protocol(protocol: EvalProtocol) -> None:
     """Make `protocol` available by name in this process (other processes: install it under
     the entry-point group `dynabarn.protocols`)."""
-    PROTOCOLS.register(protocol.name, protocol)
+    PROTOCOLS.register(protocol)
 
 
 def get_protocol(name_or_path: str) -> EvalProtocol:

@@ -7,12 +7,16 @@ A registry is a dict of what is built in and what was registered in this process
     [project.entry-points."dynabarn.planners"]
     my_planner = "my_pkg.planner:MyPlanner"
 
+Every registry is extended the same way, `register(item)`: the item carries its own name
+(`item.name`; `name=` gives another), and the registry's `check` refuses what does not
+keep its kind's contract, in one line, when it is registered and when it is installed.
 `get(name)` looks in that order and fails with one line: an unknown name lists what is
 available, an installed package that breaks on import is named.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from importlib.metadata import EntryPoint, entry_points
 from typing import Generic, TypeVar
 
@@ -29,19 +33,45 @@ class Registry(dict[str, T], Generic[T]):
         items: the built-in items.
         group: the entry-point group other packages install items under (None: none).
         error: the error class of a failed lookup (a `DynabarnError`).
+        check: the contract of an item (raises TypeError or ValueError with one line), applied
+            to every item registered or installed; None: anything goes.
     """
 
     def __init__(
-        self, kind: str, items: dict[str, T], *, group: str | None = None, error: type[DynabarnError] = DynabarnError
+        self,
+        kind: str,
+        items: dict[str, T],
+        *,
+        group: str | None = None,
+        error: type[DynabarnError] = DynabarnError,
+        check: Callable[[T], None] | None = None,
     ) -> None:
         super().__init__(items)
-        self.kind, self.group, self.error = kind, group, error
+        self.kind, self.group, self.error, self.check = kind, group, error, check
         self.builtin = frozenset(items)
 
-    def register(self, name: str, item: T) -> None:
-        """Make `item` available as `name` in this process (other processes and machines:
-        install it under the entry-point group)."""
+    def register(self, item, legacy=None, *, name: str | None = None) -> T:
+        """Make `item` available in this process under its own name (`item.name`) or `name`
+        (other processes and machines: install it under the entry-point group), after the
+        registry's check; returns it, so it also decorates a class. The older shape,
+        `register(name, item)`, still works."""
+        if legacy is not None and isinstance(item, str):
+            name, item = item, legacy
+        if name is None:
+            name = getattr(item, "name", None)
+        if not isinstance(name, str) or not name:
+            raise self.error(f"{self.kind} {item!r} has no name: give it a `name` or pass name=")
+        self._checked(name, item)
         self[name] = item
+        return item
+
+    def _checked(self, name: str, item: T) -> T:
+        if self.check is not None:
+            try:
+                self.check(item)
+            except (TypeError, ValueError) as exc:
+                raise self.error(f"{self.kind} {name!r}: {exc}") from None
+        return item
 
     def installed(self) -> dict[str, EntryPoint]:
         """The items other packages offer under the entry-point group, not yet loaded."""
@@ -64,6 +94,7 @@ class Registry(dict[str, T], Generic[T]):
         if ep is None:
             raise self.error(unknown_choice(self.kind, name, self.names()))
         try:
-            return ep.load()
+            item = ep.load()
         except Exception as exc:  # a broken third-party package: say which one
             raise self.error(f"{self.kind} {name!r} failed to load from {ep.value}: {exc}") from None
+        return self._checked(name, item)

@@ -6,7 +6,7 @@ import pytest
 
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces import EpisodeObserver
-from dynabarn.interfaces.events import check_hooks
+from dynabarn.interfaces.events import check_hooks, listens
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.sim import run_episode
@@ -33,6 +33,34 @@ def test_declared_hooks_are_called_and_a_misspelt_one_is_refused():
     assert counting.ticks == result.n_ticks > 0
     with pytest.raises(DynabarnError, match="on_ticks is not a hook"):
         run_episode(world, get_planner("straight"), protocol, seed=0, observers=[Misspelt()])
+
+
+def test_an_observer_is_an_episode_observer_and_gets_periods_only_for_what_it_overrides():
+    world, protocol = resolve_world(0), get_protocol("barn")
+
+    class DuckTyped:  # the hooks' names, but not the declared contract
+        def on_tick(self, tick) -> None: ...
+
+    with pytest.raises(DynabarnError, match="not a dynabarn.interfaces.EpisodeObserver"):
+        run_episode(world, get_planner("straight"), protocol, observers=[DuckTyped()])
+
+    class EndsOnly(EpisodeObserver):
+        ended = None
+
+        def on_end(self, result) -> None:
+            self.ended = result
+
+    class PosesOnly(EpisodeObserver):
+        poses = 0
+
+        def on_poses(self, times, poses) -> None:
+            self.poses += len(times)
+
+    assert listens(EndsOnly()) == (False, False) and listens(PosesOnly()) == (False, True)
+    assert listens(Counting()) == (True, False)
+    ends, poses, counting = EndsOnly(), PosesOnly(), Counting()
+    result = run_episode(world, get_planner("straight"), protocol, observers=[ends, poses, counting])
+    assert ends.ended == result and counting.ticks == result.n_ticks and poses.poses > result.n_ticks
 
 
 def test_every_hook_the_loop_calls_is_declared():

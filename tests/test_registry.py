@@ -126,3 +126,73 @@ def test_an_installed_package_adds_a_recording_topic_and_a_command(installed, tm
     assert len(speeds) > 10 and max(m["speed"] for _, m in speeds) > 1.0  # it drove
     assert ("/robot/speed", "speed") in [(t.name, f) for t, f in plotted()]
     assert main(["hello", "world"]) == 0 and capsys.readouterr().out.strip() == "hello world"
+
+
+def test_every_kind_registers_the_same_way_and_keeps_its_contract():
+    """`register(item)` under the item's own name, checked: a planner is a `Planner`
+    subclass (or a factory whose product is checked when built), a behaviour an
+    `ObstacleBehavior` subclass, a protocol an `EvalProtocol`, a profile set a `ProfileSet`."""
+    import dataclasses
+
+    from dynabarn.interfaces import Planner
+    from dynabarn.planners.registry import register_planner
+    from dynabarn.protocol import register_protocol
+    from dynabarn.sim.behaviors import Scripted, register_behavior
+
+    class Mine(Planner):
+        name = "mine_contract"
+
+        def act(self, obs):
+            return 0.0, 0.0
+
+    class Frozen(Scripted):
+        name = "frozen_contract"
+
+    protocol = dataclasses.replace(get_protocol("barn"), name="barn_contract")
+    profiles = dataclasses.replace(get_profile_set("table1"), name="table1_contract")
+    try:
+        assert register_planner(Mine) is Mine and isinstance(get_planner("mine_contract"), Mine)
+        assert register_behavior(Frozen) is Frozen and get_behavior("frozen_contract") is Frozen
+        register_protocol(protocol)
+        assert get_protocol("barn_contract") is protocol
+        assert PROFILE_SETS.register(profiles) is profiles and get_profile_set("table1_contract") is profiles
+        # What breaks a kind's contract is refused when registered, in one line.
+        with pytest.raises(DynabarnError, match="'not_a_planner'.*not a subclass of dynabarn.interfaces.Planner"):
+            register_planner(dict, name="not_a_planner")
+        with pytest.raises(WorldError, match="not a subclass of dynabarn.sim.behaviors.ObstacleBehavior"):
+            BEHAVIORS.register(Mine, name="not_a_behaviour")
+        with pytest.raises(DynabarnError, match="not a dynabarn.protocol.EvalProtocol"):
+            PROTOCOLS.register(profiles, name="not_a_protocol")
+        with pytest.raises(ProfileError, match="not a dynabarn.worlds.profiles.ProfileSet"):
+            PROFILE_SETS.register(protocol, name="not_a_profile_set")
+        with pytest.raises(DynabarnError, match="has no name"):
+            PROFILE_SETS.register(object())
+        # A factory function may build anything; what it built is checked before it drives.
+        register_planner(lambda: object(), name="builds_junk")
+        with pytest.raises(DynabarnError, match="what planner 'builds_junk'.*not a dynabarn.interfaces.Planner"):
+            get_planner("builds_junk")
+    finally:
+        for registry, name in (
+            (PLANNERS, "mine_contract"),
+            (PLANNERS, "builds_junk"),
+            (BEHAVIORS, "frozen_contract"),
+            (PROTOCOLS, "barn_contract"),
+            (PROFILE_SETS, "table1_contract"),
+        ):
+            registry.pop(name, None)
+
+
+def test_the_loop_refuses_what_is_not_a_planner():
+    from dynabarn.sim import run_episode
+    from dynabarn.worldset import resolve_world
+
+    class DuckTyped:  # the methods, not the declared contract
+        name, privileged = "duck", False
+
+        def reset(self, info): ...
+
+        def act(self, obs):
+            return 0.0, 0.0
+
+    with pytest.raises(DynabarnError, match="DuckTyped, not a dynabarn.interfaces.Planner"):
+        run_episode(resolve_world(0), DuckTyped(), get_protocol("barn"))

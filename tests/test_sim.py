@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dynabarn.errors import DynabarnError
-from dynabarn.interfaces import Planner
+from dynabarn.interfaces import EpisodeObserver, Planner
 from dynabarn.metrics import Outcome
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
@@ -126,7 +126,7 @@ def test_command_limits_are_applied(empty_world):
 
     seen = []
 
-    class Spy:
+    class Spy(EpisodeObserver):
         def on_start(self, s): ...
         def on_tick(self, t):
             seen.append(t.command.copy())
@@ -148,7 +148,7 @@ def test_bad_config_is_rejected():
 def test_laser_sees_a_parked_obstacle(blocked_world):
     scans = []
 
-    class Spy:
+    class Spy(EpisodeObserver):
         def on_start(self, s): ...
         def on_tick(self, t):
             scans.append(t.scan)

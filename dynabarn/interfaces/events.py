@@ -66,13 +66,16 @@ class EpisodeObserver:
     robot's poses at the pose rate since the last tick), then `on_end` with the result.
     Raising `dynabarn.errors.EndEpisode` from `on_tick` ends the episode.
 
-    Two more hooks are optional (not defined here, so the loop can tell): an observer that
-    defines `on_tick_period(period)` or `on_poses_period(period)` receives the control
-    period's own record (`dynabarn.sim.period_record.PeriodRecord`) instead of `on_tick`
-    or `on_poses` (the recorder's writer process: it makes the Tick elsewhere).
+    Two more hooks take a control period's own record (`dynabarn.sim.period_record.
+    PeriodRecord`) instead: `on_tick_period` hands `on_tick` the period's Tick and
+    `on_poses_period` hands `on_poses` its poses, unless an observer overrides them (the
+    recorder's writer process does: it makes the Tick elsewhere). The loop makes a period's
+    Tick only for observers that override `on_tick` or `on_tick_period` (`listens`).
 
-    Every hook is named in `HOOKS`; the loop refuses an observer with any other `on_*`
-    method (`check_hooks`), so a misspelt hook is an error, not a hook never called."""
+    An observer is an instance of this class; every hook is named in `HOOKS`, and the loop
+    refuses an observer with any other `on_*` method (`check_hooks`), so a misspelt hook is
+    an error, not a hook never called.
+    """
 
     HOOKS: ClassVar[frozenset[str]] = frozenset(
         {"on_start", "on_tick", "on_poses", "on_end", "on_tick_period", "on_poses_period"}
@@ -90,10 +93,33 @@ class EpisodeObserver:
     def on_end(self, result: EpisodeResult) -> None:
         """The episode's result."""
 
+    def on_tick_period(self, period) -> None:
+        """One control period's record: by default its Tick, made now, to `on_tick`."""
+        self.on_tick(period.tick)
+
+    def on_poses_period(self, period) -> None:
+        """One control period's record: by default its poses, when there are any, to `on_poses`."""
+        times, poses = period.poses
+        if len(times):
+            self.on_poses(times, poses)
+
+
+def listens(observer: EpisodeObserver) -> tuple[bool, bool]:
+    """(to ticks, to poses): whether the observer overrides a tick hook and a pose hook (the
+    loop hands periods only to those that do, and makes no Tick for the others)."""
+    cls, base = type(observer), EpisodeObserver
+    ticks = cls.on_tick is not base.on_tick or cls.on_tick_period is not base.on_tick_period
+    poses = cls.on_poses is not base.on_poses or cls.on_poses_period is not base.on_poses_period
+    return ticks, poses
+
 
 def check_hooks(observer: object) -> None:
-    """Refuse an observer with an `on_*` method that is not a hook (`EpisodeObserver.HOOKS`):
-    it would never be called."""
+    """Refuse what is not an `EpisodeObserver`, and an observer with an `on_*` method that is
+    not a hook (`EpisodeObserver.HOOKS`): it would never be called."""
+    if not isinstance(observer, EpisodeObserver):
+        raise DynabarnError(
+            f"observer {type(observer).__name__} is not a dynabarn.interfaces.EpisodeObserver (subclass it)"
+        )
     unknown = sorted(
         name for name in dir(type(observer)) if name.startswith("on_") and name not in EpisodeObserver.HOOKS
     )

@@ -1,9 +1,13 @@
-"""The planner interface: what a planner sees (`Observation`) and what it returns.
+"""The planner contract: what a planner sees (`Observation`), what it returns, and what
+else the episode loop may ask of it, all declared on one base class (`Planner`).
 
-A planner is any object with `reset(info)` and `act(obs) -> (v, w)`. It sees only
+A planner is an instance of `Planner`: it implements `act(obs) -> (v, w)` and overrides
+what it needs of the optional capabilities, each with a default that does nothing here
+(`reset`, `finish`, `tracks`, `debug`, `config`, `versions`, `waited_ms`). It sees only
 observations, never MuJoCo's data: the laser scan, its own pose and velocity, the goal,
 the time, and (only when it declares `privileged = True`) the true obstacle states and
-their schedules.
+their schedules. `check_planner` is the one check of the contract: the registry applies it
+to every factory registered and to what a factory builds, the loop to what it is given.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ from typing import ClassVar
 
 from dynabarn.interfaces.observation import EpisodeInfo, Observation
 
-__all__ = ["Planner", "config_from_kwargs", "nested_config"]
+__all__ = ["Planner", "check_planner", "check_planner_factory", "config_from_kwargs", "nested_config"]
 
 
 def config_from_kwargs(cls, kwargs: dict, what: str):
@@ -139,3 +143,25 @@ class Planner(abc.ABC):
         """Versions of the libraries beyond the runner's that decide this planner's
         commands (e.g. PyTorch), recorded with every episode."""
         return {}
+
+    waited_ms: float = 0.0
+    """Milliseconds of the last `act` spent waiting on purpose (a ROS stack's start-up,
+    pacing to the wall clock): the loop records planning time, not waiting time."""
+
+
+def check_planner(planner: object, what: str = "planner") -> Planner:
+    """`planner` if it keeps the contract (an instance of `Planner`); TypeError with one line
+    otherwise (the callers make it their `DynabarnError`)."""
+    if not isinstance(planner, Planner):
+        raise TypeError(f"{what} is a {type(planner).__name__}, not a dynabarn.interfaces.Planner (subclass it)")
+    return planner
+
+
+def check_planner_factory(factory: object) -> None:
+    """What may be registered as a planner: a `Planner` subclass, or any other callable
+    (a function, a partial) whose product `check_planner` checks when it is built."""
+    if isinstance(factory, type):
+        if not issubclass(factory, Planner):
+            raise TypeError(f"{factory.__name__} is not a subclass of dynabarn.interfaces.Planner")
+    elif not callable(factory):
+        raise TypeError(f"{factory!r} is neither a Planner subclass nor a callable that builds one")

@@ -18,6 +18,7 @@ import threading
 import foxglove
 from foxglove.websocket import Capability, ChannelView, Client, ServerListener
 
+from dynabarn.interfaces.events import EpisodeObserver
 from dynabarn.recording import McapRecorder
 
 HOST = "127.0.0.1"
@@ -36,7 +37,7 @@ class _Latch(ServerListener):
         self.live.resend(channel.topic)
 
 
-class FoxgloveLive:
+class FoxgloveLive(EpisodeObserver):
     """A Foxglove WebSocket server for one episode; pass `context` to the recorder's `live`.
 
     Args:

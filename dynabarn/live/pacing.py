@@ -11,8 +11,10 @@ import threading
 import time
 from collections.abc import Callable
 
+from dynabarn.interfaces.events import EpisodeObserver
 
-class Pacer:
+
+class Pacer(EpisodeObserver):
     """Holds each control tick until `start + sim_time / rate` on the wall clock.
 
     Args:

@@ -15,6 +15,7 @@ import numpy as np
 import rerun as rr
 
 from dynabarn.errors import EndEpisode
+from dynabarn.interfaces.events import EpisodeObserver
 from dynabarn.recording import returns_in_world
 from dynabarn.recording.topics import plotted
 from dynabarn.replay import APP_ID, COLORS, PATH_VERTICES, blueprint
@@ -31,7 +32,7 @@ from dynabarn.robot import JACKAL
 RUN = "runs/live"
 
 
-class RerunLive:
+class RerunLive(EpisodeObserver):
     """Sends each tick to a rerun recording stream.
 
     Args:

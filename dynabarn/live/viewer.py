@@ -18,6 +18,7 @@ from collections.abc import Callable
 import numpy as np
 
 from dynabarn.errors import EndEpisode
+from dynabarn.interfaces.events import EpisodeObserver
 from dynabarn.live.pacing import Pacer
 
 KEY_SPACE, KEY_ESCAPE = 32, 256
@@ -38,7 +39,7 @@ def viewer_was_opened() -> bool:
     return _opened
 
 
-class MujocoViewer:
+class MujocoViewer(EpisodeObserver):
     """MuJoCo's passive viewer on a `Simulation`, following the robot, paced to `rate`.
 
     Args:

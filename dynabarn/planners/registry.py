@@ -13,6 +13,7 @@ from pathlib import Path
 
 from dynabarn.errors import DynabarnError, unknown_choice
 from dynabarn.interfaces import Planner
+from dynabarn.interfaces.planner import check_planner, check_planner_factory
 from dynabarn.planners.dwa import DWAPlanner
 from dynabarn.planners.learned import BCPlanner, DaggerPlanner, TD3Planner
 from dynabarn.planners.oracle import OraclePlanner, PresentStateOraclePlanner
@@ -38,13 +39,17 @@ _BUILTIN: dict[str, Callable[..., Planner]] = {
     "straight": StraightPlanner,
     "stop": StopPlanner,
 }
-PLANNERS: Registry[Callable[..., Planner]] = Registry("planner", _BUILTIN, group=ENTRY_POINT_GROUP)
+PLANNERS: Registry[Callable[..., Planner]] = Registry(
+    "planner", _BUILTIN, group=ENTRY_POINT_GROUP, check=check_planner_factory
+)
 """Every planner factory by name: built in, registered at run time, installed."""
 
 
-def register_planner(name: str, factory: Callable[..., Planner]) -> None:
-    """Register a planner factory under `name` at run time."""
-    PLANNERS.register(name, factory)
+def register_planner(factory, legacy=None, *, name: str | None = None):
+    """Register a planner at run time: a `Planner` subclass under its `name`
+    (`register_planner(MyPlanner)`), or any factory with `name=` (the older shape,
+    `register_planner(name, factory)`, still works). Checked: `check_planner_factory`."""
+    return PLANNERS.register(factory, legacy, name=name)
 
 
 def available_planners() -> list[str]:
@@ -69,9 +74,13 @@ def get_planner(name: str, /, factory: Callable[..., Planner] | None = None, **c
         raise DynabarnError(f"planner {name!r}: bad configuration: unknown parameter 'factory'")
     factory = factory or planner_factory(name)
     try:
-        return factory(**config)
+        planner = factory(**config)
     except TypeError as exc:
         raise DynabarnError(f"planner {name!r}: bad configuration: {exc}") from None
+    try:
+        return check_planner(planner, f"what planner {name!r}'s factory built")
+    except TypeError as exc:
+        raise DynabarnError(str(exc)) from None
 
 
 PRESETS_DIR = Path(__file__).resolve().parent / "presets"

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from dynabarn.interfaces.events import Tick
-from dynabarn.sim.period_record import tick_from
+from dynabarn.sim.tick import tick_from
 
 HOLDS_TICK, DERIVE_ALL, CLEARANCE_GIVEN = 1.0, 2.0, 3.0
 """What a row holds: a whole Tick, or a period's numbers from which the writer makes it

@@ -23,7 +23,7 @@ import numpy as np
 from foxglove.mcap import MCAPWriteOptions
 
 from dynabarn.files import check_target, claim_staging, file_name_part, is_same_file, publish, release
-from dynabarn.interfaces.events import EpisodeStart, Tick
+from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
 from dynabarn.metrics import EpisodeResult, is_interrupted
 from dynabarn.provenance import portable_path
 from dynabarn.recording import scene, wire
@@ -103,7 +103,7 @@ class _Fanout:
             c.log(data, log_time=log_time)
 
 
-class McapRecorder:
+class McapRecorder(EpisodeObserver):
     """Records an episode to one MCAP file as it runs (an `EpisodeObserver`).
 
     Args:

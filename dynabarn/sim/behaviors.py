@@ -185,16 +185,21 @@ class Avoid(ObstacleBehavior):
 
 
 _BUILTIN: dict[str, type[ObstacleBehavior]] = {b.name: b for b in (Scripted, Yield, Avoid)}
+def _check_behavior(item: object) -> None:
+    if not (isinstance(item, type) and issubclass(item, ObstacleBehavior)):
+        raise TypeError(f"{item!r} is not a subclass of dynabarn.sim.behaviors.ObstacleBehavior")
+
+
 BEHAVIORS: Registry[type[ObstacleBehavior]] = Registry(
-    "obstacle behaviour", _BUILTIN, group=ENTRY_POINT_GROUP, error=WorldError
+    "obstacle behaviour", _BUILTIN, group=ENTRY_POINT_GROUP, error=WorldError, check=_check_behavior
 )
 """Every obstacle behaviour by name: built in, registered at run time, installed."""
 
 
-def register_behavior(behavior: type[ObstacleBehavior]) -> None:
+def register_behavior(behavior: type[ObstacleBehavior]) -> type[ObstacleBehavior]:
     """Make a behaviour available by its name in this process (for worker processes and
     other machines, install it under the entry-point group `dynabarn.behaviors`)."""
-    BEHAVIORS.register(behavior.name, behavior)
+    return BEHAVIORS.register(behavior)
 
 
 def available_behaviors() -> list[str]:

@@ -22,8 +22,8 @@ from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL, to_robot_frame
 from dynabarn.sim.behaviors import ReactiveObstacles
 from dynabarn.sim.config import draw_clock_offset, episode_rng
-from dynabarn.sim.period_record import TickFacts, tick_from
 from dynabarn.sim.simulation import Simulation
+from dynabarn.sim.tick import TickFacts, tick_from
 from dynabarn.sim.track_scoring import MIN_BEAMS, TrackScorer, beams_per_obstacle
 from dynabarn.worlds.schedule import SchedulePlayer
 
@@ -292,7 +292,7 @@ class Episode:
         )
 
     def period_numbers(self) -> tuple:
-        """This period's numbers a Tick is made of (`period_record.tick_from`), as
+        """This period's numbers a Tick is made of (`sim.tick.tick_from`), as
         references: time, scan, pose, velocity, command, raw command, obstacles, planner
         ms, and the clearance where the world's shapes need the simulation for it."""
         obs, sim = self._obs, self.sim

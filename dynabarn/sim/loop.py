@@ -21,11 +21,10 @@ import contextlib
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Protocol
 
-from dynabarn.errors import EndEpisode
+from dynabarn.errors import DynabarnError, EndEpisode
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, check_hooks
-from dynabarn.interfaces.observation import EpisodeInfo, Observation
+from dynabarn.interfaces.planner import Planner, check_planner
 from dynabarn.metrics import (
     INTERRUPTED,
     EpisodeResult,
@@ -41,26 +40,9 @@ from dynabarn.sim.result import episode_result
 from dynabarn.sim.simulation import Simulation
 
 
-class Controller(Protocol):
-    """What the loop needs of a planner (`dynabarn.planners.Planner` is one)."""
-
-    name: str
-    privileged: bool
-
-    def reset(self, info: EpisodeInfo) -> None: ...
-
-    def act(self, obs: Observation) -> tuple[float, float]: ...
-
-    def debug(self) -> dict: ...
-
-    def config(self) -> dict: ...
-
-    def versions(self) -> dict[str, str]: ...
-
-
 def run_episode(
     world: Path | str | Simulation,
-    planner: Controller,
+    planner: Planner,
     protocol: EvalProtocol,
     *,
     seed: int = 0,
@@ -74,6 +56,7 @@ def run_episode(
     `error` and the reason. Ctrl-C ends it the same way (reason "interrupted"), lets the
     observers finish (the recording is closed and complete), then re-raises.
     """
+    _check_planner(planner)
     sim = world if isinstance(world, Simulation) else Simulation(world, config=config)
     episode = Episode(sim, protocol, seed=seed, privileged=planner.privileged)
     start = EpisodeStart(
@@ -81,7 +64,7 @@ def run_episode(
         world_path=sim.world_path,
         world_sha256=sim.world_sha256,
         protocol=protocol,
-        planner=planner_name or getattr(planner, "name", type(planner).__name__),
+        planner=planner_name or planner.name,
         planner_config=planner.config(),
         seed=seed,
         clock_offset=episode.clock_offset,
@@ -95,7 +78,6 @@ def run_episode(
     for obs_ in observers:
         obs_.on_start(start)
     tick_hooks, pose_hooks = observer_hooks(observers)
-    tracks_of = getattr(planner, "tracks", None)  # planners that predate the hook have none
     try:
         planner.reset(episode.info)
         while episode.outcome is None:
@@ -113,7 +95,7 @@ def run_episode(
                 episode.end(Outcome.ERROR, f"planner raised {type(exc).__name__}: {exc}")
                 break
             episode.planner_ms[episode.n_ticks] = _planning_ms(planner, c0)
-            tracks = episode.score_tracks(tracks_of()) if tracks_of is not None else None
+            tracks = episode.score_tracks(planner.tracks())
             first = episode.step
             if episode.apply(raw_v, raw_w) is Outcome.ERROR:
                 break
@@ -149,16 +131,21 @@ def _end_interrupted(episode: Episode, start: EpisodeStart, observers: Sequence[
         _finish(planner, INTERRUPTED)
 
 
-def _planning_ms(planner, since: float) -> float:
+def _check_planner(planner: object) -> None:
+    """The contract (`interfaces.planner.check_planner`), before anything runs: one line."""
+    try:
+        check_planner(planner)
+    except TypeError as exc:
+        raise DynabarnError(str(exc)) from None
+
+
+def _planning_ms(planner: Planner, since: float) -> float:
     """Milliseconds since `since`, less what the planner waited on purpose (a ROS stack's
     start-up, pacing to the wall clock: `waited_ms`): planning time, not waiting time."""
-    return (time.perf_counter() - since) * 1e3 - getattr(planner, "waited_ms", 0.0)
+    return (time.perf_counter() - since) * 1e3 - planner.waited_ms
 
 
-def _finish(planner, outcome: str) -> None:
-    """The planner's end-of-episode hook (planners that predate it have none)."""
-    finish = getattr(planner, "finish", None)
-    if finish is None:
-        return
+def _finish(planner: Planner, outcome: str) -> None:
+    """The planner's end-of-episode hook."""
     with contextlib.suppress(Exception):  # releasing resources must not turn a judged episode into a crash
-        finish(outcome)
+        planner.finish(outcome)

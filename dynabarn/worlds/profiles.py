@@ -368,8 +368,14 @@ PROFILE_SETS: Registry[ProfileSet] = Registry(
     },
     group="dynabarn.profile_sets",
     error=ProfileError,
+    check=lambda item: _check_profile_set(item),
 )
 """Profile sets by name: built in, registered at run time (`PROFILE_SETS.register`), installed."""
+
+
+def _check_profile_set(item: object) -> None:
+    if not isinstance(item, ProfileSet):
+        raise TypeError(f"{item!r} is not a dynabarn.worlds.profiles.ProfileSet")
 
 
 def get_profile_set(name: str) -> ProfileSet:
