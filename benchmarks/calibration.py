@@ -60,7 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(worlds)} worlds; per rung: {counts}")
     for rung, fit in calibration["rungs"].items():
         print(
-            f"{rung:<18} worlds {fit['worlds']:>4} held back {fit['held_back']:>3}  Spearman {fit['spearman']:+.2f} (ceiling {fit['spearman_ceiling']:+.2f})  "
+            f"{rung:<18} worlds {fit['worlds']:>4} held back {fit['held_back']:>3}  Spearman {fit['spearman']:+.2f} "
+            f"(ceiling {fit['spearman_ceiling']:+.2f})  "
             f"AUC {fit['auc']:.2f}  (crossings per minute alone: {fit['spearman_baseline']:+.2f})"
         )
     _draw(worlds, calibration)

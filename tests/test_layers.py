@@ -27,6 +27,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "provenance",
         "robot",
         "protocol",
+        "sim_config",
         "metrics",
     ),
     ("interfaces",),  # what planners and observers are written against: no MuJoCo, no simulator

@@ -41,7 +41,7 @@ def test_an_observer_is_an_episode_observer_and_gets_periods_only_for_what_it_ov
     class DuckTyped:  # the hooks' names, but not the declared contract
         def on_tick(self, tick) -> None: ...
 
-    with pytest.raises(DynabarnError, match="not a dynabarn.interfaces.EpisodeObserver"):
+    with pytest.raises(DynabarnError, match=r"not a dynabarn.interfaces.EpisodeObserver"):
         run_episode(world, get_planner("straight"), protocol, observers=[DuckTyped()])
 
     class EndsOnly(EpisodeObserver):

@@ -16,7 +16,7 @@ from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import MACHINE_FIELDS
 from dynabarn.sim import run_episode
-from dynabarn.sim.config import MAX_CLOCK_OFFSET
+from dynabarn.sim_config import MAX_CLOCK_OFFSET
 from dynabarn.worldset import resolve_world
 from tests.helpers import crafted_world, obstacle
 

@@ -157,19 +157,19 @@ def test_every_kind_registers_the_same_way_and_keeps_its_contract():
         assert get_protocol("barn_contract") is protocol
         assert PROFILE_SETS.register(profiles) is profiles and get_profile_set("table1_contract") is profiles
         # What breaks a kind's contract is refused when registered, in one line.
-        with pytest.raises(DynabarnError, match="'not_a_planner'.*not a subclass of dynabarn.interfaces.Planner"):
+        with pytest.raises(DynabarnError, match=r"'not_a_planner'.*not a subclass of dynabarn.interfaces.Planner"):
             register_planner(dict, name="not_a_planner")
-        with pytest.raises(WorldError, match="not a subclass of dynabarn.sim.behaviors.ObstacleBehavior"):
+        with pytest.raises(WorldError, match=r"not a subclass of dynabarn.sim.behaviors.ObstacleBehavior"):
             BEHAVIORS.register(Mine, name="not_a_behaviour")
-        with pytest.raises(DynabarnError, match="not a dynabarn.protocol.EvalProtocol"):
+        with pytest.raises(DynabarnError, match=r"not a dynabarn.protocol.EvalProtocol"):
             PROTOCOLS.register(profiles, name="not_a_protocol")
-        with pytest.raises(ProfileError, match="not a dynabarn.worlds.profiles.ProfileSet"):
+        with pytest.raises(ProfileError, match=r"not a dynabarn.worlds.profiles.ProfileSet"):
             PROFILE_SETS.register(protocol, name="not_a_profile_set")
         with pytest.raises(DynabarnError, match="has no name"):
             PROFILE_SETS.register(object())
         # A factory function may build anything; what it built is checked before it drives.
         register_planner(lambda: object(), name="builds_junk")
-        with pytest.raises(DynabarnError, match="what planner 'builds_junk'.*not a dynabarn.interfaces.Planner"):
+        with pytest.raises(DynabarnError, match=r"what planner 'builds_junk'.*not a dynabarn.interfaces.Planner"):
             get_planner("builds_junk")
     finally:
         for registry, name in (
@@ -194,5 +194,5 @@ def test_the_loop_refuses_what_is_not_a_planner():
         def act(self, obs):
             return 0.0, 0.0
 
-    with pytest.raises(DynabarnError, match="DuckTyped, not a dynabarn.interfaces.Planner"):
+    with pytest.raises(DynabarnError, match=r"DuckTyped, not a dynabarn.interfaces.Planner"):
         run_episode(resolve_world(0), DuckTyped(), get_protocol("barn"))

@@ -28,7 +28,7 @@ from dynabarn.files import write_atomically
 from dynabarn.processes import map_in_workers
 from dynabarn.protocol import EvalProtocol
 from dynabarn.sim.certificate import CertificateConfig, certify
-from dynabarn.sim.config import trial_clock_offset
+from dynabarn.sim_config import trial_clock_offset
 from dynabarn.worlds.spec import Layout, WorldSpec
 from dynabarn.worldset import INDEX_NAME, entry_path, own_certificates, read_index
 

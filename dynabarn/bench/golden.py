@@ -31,7 +31,7 @@ from dynabarn.mjcf import write_world
 from dynabarn.processes import map_in_workers
 from dynabarn.provenance import REPO_ROOT, SHIPPED_WORLDS, work_root
 from dynabarn.recording import MACHINE_FIELDS
-from dynabarn.sim.config import SimConfig
+from dynabarn.sim_config import SimConfig
 
 GOLDEN_FILE = Path(__file__).resolve().parent / "golden_set.json"
 GOLDEN_WORLDS = work_root() / ".golden_worlds"

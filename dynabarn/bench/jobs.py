@@ -13,7 +13,7 @@ from dynabarn.planners.registry import planner_factory, registered_at_run_time
 from dynabarn.protocol import EvalProtocol
 from dynabarn.recording.writer import default_run_path, staging_path
 from dynabarn.runner import EpisodeSpec, RecordingFailed, run_spec
-from dynabarn.sim.config import SimConfig
+from dynabarn.sim_config import SimConfig
 
 
 @dataclass(frozen=True)

@@ -110,7 +110,7 @@ def check_row(row: dict, folder: Path, protocol_dict: dict | None) -> RowCheck:
     from dynabarn.protocol import EvalProtocol, get_protocol
     from dynabarn.recording import message_digest
     from dynabarn.runner import EpisodeSpec, run_spec
-    from dynabarn.sim.config import SimConfig
+    from dynabarn.sim_config import SimConfig
 
     key = row["key"]
     parts = parse_key(key)

@@ -18,7 +18,7 @@ from dynabarn.interfaces.observation import EpisodeInfo
 if TYPE_CHECKING:  # annotations only (what the simulator passes in)
     from dynabarn.metrics import EpisodeResult
     from dynabarn.protocol import EvalProtocol
-    from dynabarn.sim.config import SimConfig
+    from dynabarn.sim_config import SimConfig
     from dynabarn.worlds.spec import WorldSpec
 
 

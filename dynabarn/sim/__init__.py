@@ -15,11 +15,11 @@ from dynabarn.exports import lazy_exports
 if TYPE_CHECKING:
     from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
     from dynabarn.interfaces.observation import EpisodeInfo, Observation, ObstacleState
-    from dynabarn.sim.config import SimConfig
     from dynabarn.sim.episode import Episode
     from dynabarn.sim.laser import Laser
     from dynabarn.sim.loop import run_episode
     from dynabarn.sim.simulation import Simulation
+    from dynabarn.sim_config import SimConfig
 
 _HOMES = {
     "EpisodeObserver": "dynabarn.interfaces.events",
@@ -28,14 +28,14 @@ _HOMES = {
     "EpisodeInfo": "dynabarn.interfaces.observation",
     "Observation": "dynabarn.interfaces.observation",
     "ObstacleState": "dynabarn.interfaces.observation",
-    "SimConfig": "dynabarn.sim.config",
+    "SimConfig": "dynabarn.sim_config",
     "Episode": "dynabarn.sim.episode",
     "Laser": "dynabarn.sim.laser",
     "run_episode": "dynabarn.sim.loop",
     "Simulation": "dynabarn.sim.simulation",
 }
 """Where each name of the package lives: imported when first asked for (PEP 562), so that
-`dynabarn.sim.behaviors` or `dynabarn.sim.config` can be imported without MuJoCo."""
+`dynabarn.sim.behaviors` or `dynabarn.sim_config` can be imported without MuJoCo."""
 
 
 __getattr__, __dir__ = lazy_exports(__name__, _HOMES)

@@ -185,6 +185,8 @@ class Avoid(ObstacleBehavior):
 
 
 _BUILTIN: dict[str, type[ObstacleBehavior]] = {b.name: b for b in (Scripted, Yield, Avoid)}
+
+
 def _check_behavior(item: object) -> None:
     if not (isinstance(item, type) and issubclass(item, ObstacleBehavior)):
         raise TypeError(f"{item!r} is not a subclass of dynabarn.sim.behaviors.ObstacleBehavior")

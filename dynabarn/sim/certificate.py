@@ -45,7 +45,7 @@ import numpy as np
 from dynabarn.determinism import STATE_RESOLUTION, exp, sincos, snap_array
 from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL
-from dynabarn.sim.config import SimConfig
+from dynabarn.sim_config import SimConfig
 from dynabarn.worlds.schedule import SchedulePlayer
 from dynabarn.worlds.spec import SCRIPTED, WorldSpec
 

@@ -21,10 +21,10 @@ from dynabarn.metrics import Outcome
 from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL, to_robot_frame
 from dynabarn.sim.behaviors import ReactiveObstacles
-from dynabarn.sim.config import draw_clock_offset, episode_rng
 from dynabarn.sim.simulation import Simulation
 from dynabarn.sim.tick import TickFacts, tick_from
 from dynabarn.sim.track_scoring import MIN_BEAMS, TrackScorer, beams_per_obstacle
+from dynabarn.sim_config import draw_clock_offset, episode_rng
 from dynabarn.worlds.schedule import SchedulePlayer
 
 FAR_FROM_GOAL = 1.0

@@ -33,11 +33,11 @@ from dynabarn.metrics import (
 from dynabarn.processes import no_interrupts
 from dynabarn.protocol import EvalProtocol
 from dynabarn.provenance import versions
-from dynabarn.sim.config import SimConfig
 from dynabarn.sim.episode import Episode
 from dynabarn.sim.period_record import PeriodRecord, observer_hooks
 from dynabarn.sim.result import episode_result
 from dynabarn.sim.simulation import Simulation
+from dynabarn.sim_config import SimConfig
 
 
 def run_episode(

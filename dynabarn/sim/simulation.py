@@ -20,9 +20,9 @@ from dynabarn.mjcf import ROBOT_PREFIX, load_model, open_world
 from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL, JackalParams
 from dynabarn.sim.behaviors import check_behaviors
-from dynabarn.sim.config import SimConfig
 from dynabarn.sim.laser import Laser
 from dynabarn.sim.physics_period import PhysicsPeriod
+from dynabarn.sim_config import SimConfig
 from dynabarn.world_file import world_bytes
 from dynabarn.worlds.fingerprint import world_fingerprint
 
