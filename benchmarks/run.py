@@ -142,7 +142,7 @@ def recovery_speed() -> float:
 def replay_conversion() -> tuple[float, float]:
     """(seconds to convert a 60 s recording to .rrd, its length in simulated seconds)."""
     from dynabarn.protocol import EvalProtocol
-    from dynabarn.replay import save_rrd
+    from dynabarn.rerun_replay import save_rrd
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "r.mcap"

@@ -32,7 +32,7 @@ from dynabarn.files import write_atomically
 from dynabarn.provenance import DATA_ROOT
 from dynabarn.robot import JACKAL_REL, JACKAL_XML, PHYSICS_TIMESTEP, GeomGroup
 from dynabarn.robot_mjcf import build_jackal_spec
-from dynabarn.world_file import _parse, check_self_contained, world_bytes
+from dynabarn.world_file import check_self_contained, parse_xml, world_bytes
 from dynabarn.worlds.spec import WorldSpec
 
 METADATA_TEXT = "dynabarn_world"
@@ -231,7 +231,7 @@ def open_world(path: Path | str, data: bytes | None = None) -> tuple[ET.Element,
     """A world file parsed and checked once: its document (what `load_model` compiles,
     `root=`) and its WorldSpec."""
     path = Path(path)
-    root = _parse(path, world_bytes(path) if data is None else data)
+    root = parse_xml(path, world_bytes(path) if data is None else data)
     check_self_contained(path, root)
     return root, _world_spec(path, root)
 
@@ -288,7 +288,7 @@ def load_model(
     `open_world` parsed and checked (so a load parses once)."""
     path = Path(path)
     if root is None:
-        root = _parse(path, world_bytes(path) if data is None else data)
+        root = parse_xml(path, world_bytes(path) if data is None else data)
         check_self_contained(path, root)
     else:  # `open_world`'s document, parsed and checked: rewritten below, so a copy
         root = copy.deepcopy(root)

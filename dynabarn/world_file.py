@@ -80,7 +80,7 @@ def world_bytes(path: Path | str) -> bytes:
         raise WorldError(f"{path}: cannot read ({exc.strerror})") from None
 
 
-def _parse(path: Path, data: bytes) -> ET.Element:
+def parse_xml(path: Path, data: bytes) -> ET.Element:
     try:
         root = ET.fromstring(data)
     except ET.ParseError as exc:
@@ -128,7 +128,7 @@ def check_self_contained(path: Path, root: ET.Element) -> None:
 def check_world_data(path: Path, data: bytes) -> None:
     """The checks every world file passes, on bytes from elsewhere (a recording's attached
     world): parsed, then self-contained and bounded, or one `WorldError`."""
-    check_self_contained(path, _parse(path, data))
+    check_self_contained(path, parse_xml(path, data))
 
 
 def _check_depth(path: Path, root: ET.Element) -> None:

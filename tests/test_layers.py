@@ -40,7 +40,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("planners",),
     ("recording",),
     ("runner",),  # one episode described and run one way: every command goes through it
-    ("rerun_scene", "replay", "web_viewer"),  # consumers of the layers above, each may use the ones before it
+    ("rerun_scene", "rerun_replay", "web_viewer"),  # consumers of the layers above, each may use the ones before it
     ("render",),
     ("live",),
     ("demos",),
@@ -178,3 +178,60 @@ def test_files_and_functions_stay_readable():
                 assert "Over 80 lines on purpose" in above, (
                     f"{module}.{node.name}: {node.end_lineno - node.lineno + 1} lines"
                 )
+
+
+OTHER_LIBRARIES_PRIVATES = {
+    "_exit": "os._exit: the documented way to end a forked child without cleanup",
+    "_actions": "argparse keeps a parser's options only there (cli/bench.py reads which were given)",
+    "_foreach_lerp_": "PyTorch's fused in-place lerp over a list of tensors (TD3's target update)",
+    "_request": "imageio's ffmpeg plugin: the only handle on the writer's process",
+}
+"""Private names of other libraries read on purpose, each with its reason."""
+
+
+def _private_reads(path: Path) -> list[str]:
+    """`x._name` read where x is not self, cls or super() and no `_name` is defined in the
+    same module (an attribute set on self, a function, a class attribute), and any
+    `from dynabarn... import _name`: one object reaching into another's privates."""
+    tree = ast.parse(path.read_text())
+    defined = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            defined.add(node.name)
+        elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
+            defined.add(node.attr)
+        elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+            defined.add(node.id)
+        elif isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "self":
+            defined.add(node.attr)
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__"):
+            owner = node.value
+            if isinstance(owner, ast.Name) and owner.id in ("self", "cls"):
+                continue
+            if isinstance(owner, ast.Call) and isinstance(owner.func, ast.Name) and owner.func.id == "super":
+                continue
+            if node.attr in defined or node.attr in OTHER_LIBRARIES_PRIVATES:
+                continue
+            found.append(f"{path.name}:{node.lineno}: {ast.unparse(node)}")
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("dynabarn"):
+            found += [
+                f"{path.name}:{node.lineno}: from {node.module} import {a.name}"
+                for a in node.names
+                if a.name.startswith("_") and not a.name.startswith("__")
+            ]
+    return found
+
+
+def test_no_module_reads_another_objects_privates():
+    """Batch and single versions share public records (issue 46): a module reads another
+    object's `_attributes` only where they are its own (defined in the same module)."""
+    found = [line for path in sorted(PACKAGE.rglob("*.py")) for line in _private_reads(path)]
+    assert found == [], "\n".join(found)
+
+
+def test_the_private_read_check_catches_one(tmp_path):
+    bad = tmp_path / "reaches_in.py"
+    bad.write_text("from dynabarn.cli import _hidden\n\n\ndef f(env):\n    return env._begin()\n")
+    assert len(_private_reads(bad)) == 2

@@ -11,7 +11,7 @@ from dynabarn.cli import replay_main
 from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, read_recording
-from dynabarn.replay import save_rrd
+from dynabarn.rerun_replay import save_rrd
 from dynabarn.sim import run_episode
 from dynabarn.worldset import resolve_world
 

@@ -32,7 +32,7 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def _interrupted_while_starting(signum, frame) -> None:  # pragma: no cover - a real Ctrl-C
+def interrupted_while_starting(signum, frame) -> None:  # pragma: no cover - a real Ctrl-C
     os.write(2, b"interrupted\n")
     os._exit(130)
 
@@ -41,4 +41,4 @@ def _interrupted_while_starting(signum, frame) -> None:  # pragma: no cover - a 
 # imports the package: `command` puts Python's own handler back when the body starts.
 _SCRIPT = os.path.basename(sys.argv[0] if sys.argv else "").startswith("dynabarn-")
 if _SCRIPT and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-    signal.signal(signal.SIGINT, _interrupted_while_starting)
+    signal.signal(signal.SIGINT, interrupted_while_starting)

@@ -16,7 +16,7 @@ import sys
 from collections.abc import Callable, Sequence
 from importlib.metadata import PackageNotFoundError, version
 
-from dynabarn.cli import _interrupted_while_starting
+from dynabarn.cli import interrupted_while_starting
 from dynabarn.errors import DynabarnError, ImportFormatError, Terminated
 from dynabarn.limits import MAX_JOBS, MAX_SEED
 from dynabarn.processes import ignore_interrupts
@@ -287,7 +287,7 @@ def command(main: Callable[[Sequence[str] | None], int]) -> Callable[[Sequence[s
     def wrapped(argv: Sequence[str] | None = None) -> int:
         import signal
 
-        if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:  # started: Ctrl-C as usual
+        if signal.getsignal(signal.SIGINT) is interrupted_while_starting:  # started: Ctrl-C as usual
             signal.signal(signal.SIGINT, signal.default_int_handler)
         try:
             code = main(argv)

@@ -63,7 +63,7 @@ def replay_main(argv: Sequence[str] | None = None) -> int:
 def _replay(args: argparse.Namespace) -> int:
 
     from dynabarn.recording import read_recording
-    from dynabarn.replay import save_rrd, send_to, spawn_viewer
+    from dynabarn.rerun_replay import save_rrd, send_to, spawn_viewer
     from dynabarn.web_viewer import check_reachable, grpc_url
 
     recs = []
@@ -107,7 +107,7 @@ def _serve_web(recs: list, args: argparse.Namespace) -> int:
     import signal
     import tempfile
 
-    from dynabarn.replay import save_rrd
+    from dynabarn.rerun_replay import save_rrd
     from dynabarn.web_viewer import check_address, serve_web
 
     check_address(args.bind, args.port, args.grpc_port)

@@ -231,21 +231,21 @@ class DynaBARNEnv(gymnasium.Env):
 
     def _observe(self) -> np.ndarray:
         """The policy's observation now (the scan cast here)."""
-        obs = self._seen(self.episode.observe())
-        return policy_input(obs.scan, self._planner.local_goal_in_robot(obs.pose, self.lookahead), np.float32)
+        obs = self.seen(self.episode.observe())
+        return policy_input(obs.scan, self.global_planner.local_goal_in_robot(obs.pose, self.lookahead), np.float32)
 
-    def _seen(self, obs: Observation) -> Observation:
+    def seen(self, obs: Observation) -> Observation:
         """Keep the simulator's observation (a privileged demonstrator reads it) and its pose."""
         self._observation, self._pose = obs, obs.pose
         return obs
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        self._begin(seed, options)
-        return self._started(self._observe())
+        self.begin(seed, options)
+        return self.started(self._observe())
 
-    def _begin(self, seed: int | None, options: dict[str, Any] | None) -> None:
+    def begin(self, seed: int | None, options: dict[str, Any] | None) -> None:
         """`reset` up to its observation: the world and the trial drawn, the episode started
-        (a batch of worlds observes its new episodes together, then calls `_started`)."""
+        (a batch of worlds observes its new episodes together, then calls `started`)."""
         super().reset(seed=seed)
         options = options or {}
         if self.procedural is not None:
@@ -264,7 +264,7 @@ class DynaBARNEnv(gymnasium.Env):
             self._sims[file] = template.fork()
         sim = self._sims[file]
         self._file = file
-        self._planner = self._planners[file]
+        self.global_planner = self._planners[file]
         # Privileged episodes let a demonstrator (the oracle) see the obstacles' true states;
         # the policy's observation is the same either way.
         self.episode = Episode(sim, self.protocol, seed=trial, privileged=bool(options.get("privileged", False)))
@@ -276,17 +276,17 @@ class DynaBARNEnv(gymnasium.Env):
             "fingerprint": sim.world_fingerprint,
         }
 
-    def _started(self, observation: np.ndarray) -> tuple[np.ndarray, dict]:
+    def started(self, observation: np.ndarray) -> tuple[np.ndarray, dict]:
         """`reset`'s values once the episode's first observation is known."""
-        self._cost_to_go = self._planner.cost_to_go(float(self._pose[0]), float(self._pose[1]))
+        self._cost_to_go = self.global_planner.cost_to_go(float(self._pose[0]), float(self._pose[1]))
         if self.render_mode == "human":
             self._show()
         return observation, {**self._info, "is_success": False}
 
     def step(self, action):
         outcome = self._apply(action)
-        observation = self._observe() if outcome is None else self._last_observation()
-        return self._conclude(outcome, observation)
+        observation = self._observe() if outcome is None else self.final_observation()
+        return self.conclude(outcome, observation)
 
     def _apply(self, action) -> Outcome | None:
         """Run one control period of the action; the outcome if the episode ended."""
@@ -297,9 +297,9 @@ class DynaBARNEnv(gymnasium.Env):
         v, w = action_to_command(checked_actions(action))
         return self.episode.apply(v, w)
 
-    def _conclude(self, outcome: Outcome | None, observation: np.ndarray):
+    def conclude(self, outcome: Outcome | None, observation: np.ndarray):
         """`step`'s five values once the observation after the period is known."""
-        ctg = self._planner.cost_to_go(float(self._pose[0]), float(self._pose[1]))
+        ctg = self.global_planner.cost_to_go(float(self._pose[0]), float(self._pose[1]))
         progress = self._cost_to_go - ctg if math.isfinite(ctg) and math.isfinite(self._cost_to_go) else 0.0
         self._cost_to_go = ctg
         terms = {
@@ -321,12 +321,12 @@ class DynaBARNEnv(gymnasium.Env):
             self._show()
         return observation, float(sum(terms.values())), terminated, truncated, info
 
-    def _last_observation(self) -> np.ndarray:
+    def final_observation(self) -> np.ndarray:
         """After the episode ended: the final pose's observation, without a new scan."""
         ep = self.episode
         self._pose = ep.poses[ep.step].copy()
-        g = self._planner.local_goal_in_robot(self._pose, self.lookahead)
-        scan = np.clip(ep._obs.scan, JACKAL.laser_range_min, JACKAL.laser_range_max)
+        g = self.global_planner.local_goal_in_robot(self._pose, self.lookahead)
+        scan = np.clip(ep.observation.scan, JACKAL.laser_range_min, JACKAL.laser_range_max)
         return policy_input(scan, g, np.float32)
 
     # -- rendering ------------------------------------------------------------------------

@@ -68,11 +68,11 @@ class WorldBatch:
 
     def reset(self, seeds: list[int | None], options: dict | None) -> tuple[np.ndarray, list[dict]]:
         for env, seed in zip(self.envs, seeds, strict=True):
-            env._begin(seed, options)
+            env.begin(seed, options)
         obs = self.obs
         fresh = list(range(len(self.envs)))
         self._observe(fresh, obs)
-        infos = [self.envs[i]._started(obs[i])[1] for i in fresh]
+        infos = [self.envs[i].started(obs[i])[1] for i in fresh]
         self.needs_reset[:] = False
         return obs, _infos(infos)
 
@@ -85,23 +85,23 @@ class WorldBatch:
         v, w = action_to_command(np.asarray(actions).T)  # elementwise: each world's own bits
         for i, env in enumerate(self.envs):
             if self.needs_reset[i]:  # Gymnasium's NEXT_STEP autoreset: a new episode, observed below
-                env._begin(None, None)
+                env.begin(None, None)
                 fresh.append(i)
                 continue
             outcome = env.episode.apply(float(v[i]), float(w[i]))
             if outcome is None:
                 running.append(i)
             else:
-                obs[i], rewards[i], terminated[i], truncated[i], infos[i] = env._conclude(
-                    outcome, env._last_observation()
+                obs[i], rewards[i], terminated[i], truncated[i], infos[i] = env.conclude(
+                    outcome, env.final_observation()
                 )
         # New episodes' first observations and the running ones' next, in one batch.
         if running or fresh:
             self._observe(sorted(running + fresh), obs)
         for i in running:
-            _, rewards[i], terminated[i], truncated[i], infos[i] = self.envs[i]._conclude(None, None)
+            _, rewards[i], terminated[i], truncated[i], infos[i] = self.envs[i].conclude(None, None)
         for i in fresh:
-            infos[i] = self.envs[i]._started(obs[i])[1]
+            infos[i] = self.envs[i].started(obs[i])[1]
         self.needs_reset = terminated | truncated
         # The infos as Gymnasium's arrays here, in the worker: the parent only joins them.
         return obs, rewards, terminated, truncated, _infos(infos)
@@ -119,8 +119,8 @@ class WorldBatch:
         scans = laser.noisy(self._cast(running), [ep.rng for ep in episodes])
         poses = np.empty((len(running), 3))
         for k, (env, ep) in enumerate(zip(envs, episodes, strict=True)):
-            poses[k] = env._seen(ep.observe_scan(scans[k])).pose
-        goals = self._local_goals.local_goals_in_robot([env._planner for env in envs], poses, envs[0].lookahead)
+            poses[k] = env.seen(ep.observe_scan(scans[k])).pose
+        goals = self._local_goals.local_goals_in_robot([env.global_planner for env in envs], poses, envs[0].lookahead)
         obs[running, : scans.shape[1]] = scans
         obs[running, scans.shape[1] :] = goals
 
@@ -137,7 +137,7 @@ class WorldBatch:
         # Each world's `period_times()` (time = step x dt, + the steps' offsets), all at once:
         # every world here has the one simulation configuration of DynaBARN-v0's worlds.
         steps = np.array([ep.step for ep in eps], dtype=np.float64)
-        times = (steps * eps[0].dt)[None, :] + eps[0]._step_offsets[:, None]
+        times = (steps * eps[0].dt)[None, :] + eps[0].step_offsets[:, None]
         pos, vel = self._schedule.positions_at(times)
         return {i: (p, v) for i, p, v in zip(scripted, pos, vel, strict=True)}
 

@@ -135,8 +135,8 @@ class GlobalPlanner:
         )
         x0, _, y0, _ = BOUNDS
         f = self.field
-        self._cx = x0 + (np.arange(f.nx) + 0.5) * resolution
-        self._cy = y0 + (np.arange(f.ny) + 0.5) * resolution
+        self.cell_x = x0 + (np.arange(f.nx) + 0.5) * resolution
+        self.cell_y = y0 + (np.arange(f.ny) + 0.5) * resolution
         self._replanner: LocalReplanner | None = None
         self._suffixes: dict[tuple[int, int], np.ndarray] = {}
 
@@ -183,8 +183,8 @@ class GlobalPlanner:
         nx = self.field.nx
         idx = np.array(cells[1:], dtype=np.int64)
         out = np.empty((len(cells) + (0 if cut else 1), 2))
-        out[1 : len(cells), 0] = self._cx[idx % nx]
-        out[1 : len(cells), 1] = self._cy[idx // nx]
+        out[1 : len(cells), 0] = self.cell_x[idx % nx]
+        out[1 : len(cells), 1] = self.cell_y[idx // nx]
         if not cut:
             out[-1] = self.goal
         return out

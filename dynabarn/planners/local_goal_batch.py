@@ -97,7 +97,7 @@ class LocalGoalBatch:
         if self._grid is None:
             self._grid = grid
             self._next = np.full(1, -1, np.int32)  # slots added as they are needed (DynaBARN's worlds share one plan)
-            self._cx, self._cy = planner._cx, planner._cy
+            self._cx, self._cy = planner.cell_x, planner.cell_y
         elif grid != self._grid:
             return None
         if len(self._slots) < self.capacity:

@@ -324,8 +324,8 @@ def _serve(stdin, stdout) -> None:
         except EOFError:  # the episode's process is gone: what came is closed into NAME.part, not renamed
             if ahead is not None:
                 ahead.close()
-            if recorder is not None and recorder._writer is not None:
-                recorder._writer.close()
+            if recorder is not None:
+                recorder.abandon()
             return
         try:
             if kind == "start":

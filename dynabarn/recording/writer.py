@@ -314,6 +314,13 @@ class McapRecorder(EpisodeObserver):
         """topic -> this recorder's channel in one of its live contexts (empty before the start)."""
         return dict(self._by_context.get(id(context), {}))
 
+    def abandon(self) -> None:
+        """Close what was written into NAME.part and leave it there, not renamed (the
+        episode's process is gone: the file never looks finished)."""
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+
     def close(self, *, replace: bool = True) -> None:
         """End the recording: the file is closed, made durable and renamed to `path` (with
         `replace=False`, beside a recording already there: `files.publish`)."""

@@ -75,7 +75,7 @@ class Episode:
         self.tick_w = np.zeros(n_ticks_max)
         self.tick_w_cmd = np.zeros(n_ticks_max)
         self.planner_ms = np.zeros(n_ticks_max)
-        self._step_offsets = np.arange(self.k) * self.dt
+        self.step_offsets = np.arange(self.k) * self.dt
         sim.reset(protocol.spawn)
         self.poses[0] = protocol.spawn
         self.outcome: Outcome | None = None
@@ -98,7 +98,7 @@ class Episode:
                 self.player,
                 sim.bounding_radii,
                 period=self.period,
-                step_offsets=self._step_offsets,
+                step_offsets=self.step_offsets,
                 max_steps=max_steps,
             )
 
@@ -112,9 +112,14 @@ class Episode:
         sim = self.sim
         return self.observe_ranges(sim.laser.cast(sim.model, sim.data, float(sim.data.qpos[2])))
 
+    @property
+    def observation(self) -> Observation:
+        """The last observation made (`observe`, `observe_scan`, `observe_ranges`)."""
+        return self._obs
+
     def period_times(self) -> np.ndarray:
         """The times [s] of this control period's physics steps (what the schedules are read at)."""
-        return self.time + self._step_offsets
+        return self.time + self.step_offsets
 
     @property
     def obstacle_centres(self) -> np.ndarray:

@@ -32,7 +32,7 @@ _STRIDE = 1.0e6
 
 
 @dataclass(frozen=True)
-class _Keyframes:
+class Keyframes:
     """A world's keyframes as the player evaluates them (read only: shared by its players)."""
 
     n: int
@@ -48,10 +48,10 @@ class _Keyframes:
 
 
 _KEPT_WORLDS = 256
-_kept: OrderedDict[int, tuple[WorldSpec, _Keyframes]] = OrderedDict()
+_kept: OrderedDict[int, tuple[WorldSpec, Keyframes]] = OrderedDict()
 
 
-def _keyframes(world: WorldSpec) -> _Keyframes:
+def keyframes_of(world: WorldSpec) -> Keyframes:
     """The world's keyframe arrays, built once per world object: every episode's player
     (one per trial) shares them; only the clock offset is its own."""
     hit = _kept.get(id(world))
@@ -64,7 +64,7 @@ def _keyframes(world: WorldSpec) -> _Keyframes:
     # All keyframes in one flat array, obstacle i's times shifted by i * _STRIDE, so one
     # searchsorted finds every obstacle's segment at every query time at once.
     start = np.concatenate([[0], np.cumsum(n_keyframes)[:-1]]).astype(np.int64)
-    table = _Keyframes(
+    table = Keyframes(
         n=n,
         n_keyframes=n_keyframes,
         durations=np.array([o.trajectory.duration for o in obstacles], dtype=np.float64),
@@ -97,7 +97,7 @@ class SchedulePlayer:
         self.interpolation = Interpolation(world.interpolation)
         self.end_behavior = EndBehavior(world.end_behavior)
         self.clock_offset = float(clock_offset)
-        k = _keyframes(world)
+        k = self.keyframes = keyframes_of(world)  # public: a batch of players joins them (`schedule_batch`)
         self.n_obstacles = k.n
         self.n_keyframes, self.durations = k.n_keyframes, k.durations
         self._seg_lo, self._seg_hi, self._stride_offsets = k.seg_lo, k.seg_hi, k.stride_offsets

@@ -45,11 +45,11 @@ class ScheduleBatch:
             return
         self.offset = np.concatenate([np.full(p.n_obstacles, p.clock_offset) for p in live])
         self.durations = np.concatenate([p.durations for p in live])
-        self.stride = np.concatenate([p._stride_offsets for p in live])
+        self.stride = np.concatenate([p.keyframes.stride_offsets for p in live])
         n_key = np.concatenate([p.n_keyframes for p in live])
-        self._flat_t = np.concatenate([p._flat_t for p in live])
-        self._flat_p = np.concatenate([p._flat_p for p in live])
-        self._flat_m = np.concatenate([p._flat_m for p in live])
+        self._flat_t = np.concatenate([p.keyframes.flat_t for p in live])
+        self._flat_p = np.concatenate([p.keyframes.flat_p for p in live])
+        self._flat_m = np.concatenate([p.keyframes.flat_m for p in live])
         start = np.concatenate([[0], np.cumsum(n_key)[:-1]]).astype(np.int64)
         self._start = start
         self._seg_lo = start
@@ -58,7 +58,7 @@ class ScheduleBatch:
         # with WINDOW more +inf columns so a window past the last key needs no bounds check.
         width = int(n_key.max()) + WINDOW
         keys = np.full((self.n, width), np.inf)
-        own = np.concatenate([p._flat_key for p in live])
+        own = np.concatenate([p.keyframes.flat_key for p in live])
         col = np.arange(len(own)) - np.repeat(start, n_key)
         keys[np.repeat(np.arange(self.n), n_key), col] = own
         self._keys = keys
