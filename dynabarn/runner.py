@@ -1,9 +1,13 @@
-"""One episode described once (`EpisodeSpec`) and run one way (`run_spec`).
+"""One episode described once (`EpisodeSpec`) and run one way (`run_spec`), which builds
+what it runs: the simulation with the spec's settings, the planner with its configuration,
+the recorder.
 
 Every command that runs an episode goes through here: `dynabarn-run`, `dynabarn-ros`,
-`dynabarn-bench` (each job is a spec), the golden set and teleop. So the simulation's
-settings (`--dt`, `--control-rate`) travel with an episode into a sweep, a resumed sweep
-and the golden set, and a recording is made, finished and failed in one place:
+`dynabarn-bench` (each job is a spec), `--verify`, the golden set and teleop, none with a
+simulation of its own (what needs the compiled world, a viewer, gets it from `on_built`).
+So the simulation's settings (`--dt`, `--control-rate`) are given once, in the spec, and
+travel with an episode into a sweep, a resumed sweep and the golden set; and a recording
+is made, finished and failed in one place:
 
 - the recording is written as `NAME.part` and renamed when whole (`McapRecorder`, in a
   writer process beside the episode: `BackgroundRecorder`), so a killed run never leaves a
@@ -114,39 +118,43 @@ class EpisodeSpec:
 def run_spec(
     spec: EpisodeSpec,
     *,
-    planner=None,
-    factory: Callable | None = None,
-    sim: Simulation | None = None,
     record_to: Path | None = None,
-    recorder=None,
+    record_in: Path | None = None,
     live_contexts: tuple = (),
     observers: Sequence[EpisodeObserver] = (),
+    on_built: Callable[[Simulation], Sequence[EpisodeObserver] | None] | None = None,
     on_recorder: Callable | None = None,
+    planner=None,
+    recorder=None,
 ):
-    """Run the episode `spec` describes; its `EpisodeResult`.
+    """Build what `spec` describes (the simulation with its settings, the planner with its
+    configuration, the recorder) and run the episode; its `EpisodeResult`. Each setting is
+    given once, in the spec: nothing passed here changes what happens in the episode.
 
     Args:
-        planner: a planner object instead of the registry's (the ROS bridge, teleop).
-        factory: the planner's factory when registered at run time (worker processes).
-        sim: the compiled world, when the caller has it already (`Simulation.fork` or one
-            opened for a viewer); else compiled here with the spec's settings.
         record_to: record the episode to this MCAP file (NAME.part until whole).
-        recorder: a recorder the caller made (teleop's, with its input channel) instead.
+        record_in: or to this folder, under the default name (`default_run_path`: world,
+            the planner as results show it, protocol, seed).
         live_contexts: foxglove contexts the recorder also streams to.
-        observers: further observers (viewers, pacing), after the recorder.
+        observers: further observers (pacing, live views), after the recorder.
+        on_built: called with the compiled simulation before the episode starts; returns
+            observers that need it (a viewer of its MuJoCo model), which run after the others.
         on_recorder: called with the recorder before the episode starts.
+        planner: a planner that lives beyond one episode and is not built from a name (a ROS
+            master's bridge, an operator's keys); `spec.planner` names it in results.
+        recorder: a recorder with channels of its own (teleop's input channel) instead.
     """
     from dynabarn.planners import get_planner
-    from dynabarn.recording import McapRecorder
+    from dynabarn.recording import McapRecorder, default_run_path
     from dynabarn.recording.background import BackgroundRecorder
     from dynabarn.sim import run_episode
 
-    if sim is None:
-        sim = Simulation(spec.world, config=spec.sim_config)
-    elif sim.config != spec.sim_config:
-        raise DynabarnError(f"the simulation's settings {sim.config} are not the episode's {spec.sim_config}")
-    if planner is None:
-        planner = get_planner(spec.planner, factory=factory, **dict(spec.planner_config))
+    if planner is None:  # before the world is compiled: a bad configuration is one line at once
+        planner = get_planner(spec.planner, **dict(spec.planner_config))
+    sim = Simulation(spec.world, config=spec.sim_config)
+    observers = [*observers, *((on_built(sim) or ()) if on_built is not None else ())]
+    if record_to is None and record_in is not None:
+        record_to = default_run_path(record_in, sim.world.name, spec.shown, spec.protocol["name"], spec.seed)
     if recorder is None and (record_to is not None or live_contexts):
         try:
             # A file alone is written by a writer process beside the episode (the same bytes,

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dynabarn.metrics import Outcome
-from dynabarn.planners.registry import planner_factory, registered_at_run_time
+from dynabarn.planners.registry import PLANNERS, planner_factory, register_planner, registered_at_run_time
 from dynabarn.protocol import EvalProtocol
-from dynabarn.recording.writer import default_run_path, staging_path
+from dynabarn.recording.writer import staging_path
 from dynabarn.runner import EpisodeSpec, RecordingFailed, run_spec
 from dynabarn.sim_config import SimConfig
 
@@ -79,25 +79,23 @@ def row_head(job: Job) -> dict:
 
 def run_job(job: Job) -> dict:
     """Run one episode; never raises (an exception becomes an `error` row with its traceback)."""
-    from dynabarn.sim import Simulation
-
     row = row_head(job)
-    rec_path = None
     recorders: list = []
+    built: list = []
     try:
         spec = job.spec
-        sim = Simulation(spec.world, config=spec.sim_config)
-        if job.record != "none":
-            rec_path = default_run_path(
-                Path(job.recordings_dir), sim.world.name, spec.planner, spec.protocol["name"], spec.seed
-            )  # written as rec_path.part, renamed when whole
-        result = run_spec(spec, factory=job.factory, sim=sim, record_to=rec_path, on_recorder=recorders.append)
+        if job.factory is not None and spec.planner not in PLANNERS:
+            # Registered at run time in the sweep's process: this worker learns it the same way.
+            register_planner(job.factory, name=spec.planner)
+        record_in = Path(job.recordings_dir) if job.record != "none" else None  # NAME.part until whole
+        result = run_spec(spec, record_in=record_in, on_built=built.append, on_recorder=recorders.append)
         row.update(result.to_dict())
         # The profile the world was drawn from (the sweep's worlds.json has its numbers).
-        row["profile_set"] = sim.world.profile_set
+        row["profile_set"] = built[0].world.profile_set
         if recorders and recorders[0].stopped:  # disk nearly full: the result stands, run it again
             row.update({"retry": True, "recording_error": recorders[0].stopped})
-        if rec_path is not None:
+        if recorders:
+            rec_path = recorders[0].path
             if job.record == "all" or result.outcome is not Outcome.SUCCESS:
                 row["recording"] = str(rec_path)
             else:
@@ -110,8 +108,8 @@ def run_job(job: Job) -> dict:
                 "retry": True,
             }
         )
-        if rec_path is not None:
-            staging_path(rec_path).unlink(missing_ok=True)  # what the recorder had written
+        if recorders:
+            staging_path(recorders[0].path).unlink(missing_ok=True)  # what the recorder had written
     except Exception as exc:  # foreign planner code, a broken world...: record and go on
         row.update(
             {

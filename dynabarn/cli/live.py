@@ -74,8 +74,8 @@ class LiveOutputs:
     """The live outputs one `dynabarn-run` asked for, opened before the episode and closed
     after it whatever happens. `contexts` go to the recorder; `observers` run after it."""
 
-    def __init__(self, args: argparse.Namespace, sim, protocol) -> None:
-        self.args, self.sim, self.protocol = args, sim, protocol
+    def __init__(self, args: argparse.Namespace, protocol) -> None:
+        self.args, self.protocol = args, protocol
         self.contexts: tuple = ()
         self.observers: tuple = ()
         self._foxglove = self._rerun = self._viewer = None
@@ -107,7 +107,7 @@ class LiveOutputs:
         if "rerun" in args.live:
             observers.append(self._open_rerun())
         if args.viewer:
-            observers.append(self._open_viewer())
+            self._check_viewer()  # opened on the compiled world: `watch`
         elif args.live:
             from dynabarn.live.pacing import Pacer
 
@@ -137,17 +137,23 @@ class LiveOutputs:
             self._rerun = RerunLive(url)
         return self._rerun
 
-    def _open_viewer(self):
+    def _check_viewer(self) -> None:
         if not has_display():
             raise DynabarnError("--viewer needs a display (or Xvfb); none is set")
         if os.environ.get("MUJOCO_GL") not in (None, "", "glfw"):
             raise DynabarnError(f"--viewer needs MuJoCo's windowed GL; MUJOCO_GL={os.environ['MUJOCO_GL']} is set")
+
+    def watch(self, sim) -> tuple:
+        """`run_spec`'s `on_built`: with --viewer, MuJoCo's viewer opened on the compiled
+        world (an observer after the others), closed when this context ends."""
+        if not self.args.viewer:
+            return ()
         from dynabarn.live.viewer import MujocoViewer
 
-        self.sim.reset(self.protocol.spawn)
-        self._viewer = MujocoViewer(self.sim, goal_tolerance=self.protocol.goal_tolerance, rate=self.args.rate)
+        sim.reset(self.protocol.spawn)
+        self._viewer = MujocoViewer(sim, goal_tolerance=self.protocol.goal_tolerance, rate=self.args.rate)
         self._viewer.open()
-        return self._viewer
+        return (self._viewer,)
 
     def __exit__(self, *exc) -> None:
         if self._viewer is not None:

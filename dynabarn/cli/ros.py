@@ -163,19 +163,20 @@ def ros_main(argv: Sequence[str] | None = None) -> int:
 
 def _ros_episode(args: argparse.Namespace) -> int:
     from dynabarn.interfaces.planner import check_relations
+    from dynabarn.mjcf import read_world
     from dynabarn.protocol import get_protocol
     from dynabarn.recording import default_run_path
     from dynabarn.ros.bridge import BridgeConfig, RosMaster, RosPlanner, bridge_overhead, ros_python
     from dynabarn.ros.stacks import stack_command
     from dynabarn.runner import EpisodeSpec, run_spec
-    from dynabarn.sim import Simulation
     from dynabarn.worldset import resolve_world
 
     for remap in args.remap:
         source, sep, target = remap.partition(":=")
         if not sep or not source.startswith("/") or not target.startswith("/"):
             raise DynabarnError(f"--remap {remap!r}: use /from:=/to, e.g. /front/scan:=/scan")
-    sim = Simulation(resolve_world(args.world))
+    world_path = resolve_world(args.world)
+    world_name = read_world(world_path).name  # parsed and checked; compiled by run_spec
     protocol = get_protocol(args.protocol)
     ros_python()  # one clear line when ROS is missing, before a master is started
     workspace = args.nav_workspace.expanduser().resolve() if args.nav_workspace else None
@@ -185,7 +186,7 @@ def _ros_episode(args: argparse.Namespace) -> int:
     log_path = (
         None
         if args.no_log
-        else args.log or default_run_path(args.runs_dir, sim.world.name, "ros", protocol.name, args.seed)
+        else args.log or default_run_path(args.runs_dir, world_name, "ros", protocol.name, args.seed)
     )
     stack_log = None
     if launch:
@@ -221,8 +222,8 @@ def _ros_episode(args: argparse.Namespace) -> int:
         print(
             f"ROS master {master.uri}; {mode}" + (f"; stack output: {stack_log}" if stack_log else ""), file=sys.stderr
         )
-        spec = EpisodeSpec.make(sim.world_path, "ros", protocol, seed=args.seed)
-        result = run_spec(spec, planner=planner, sim=sim, record_to=log_path)
+        spec = EpisodeSpec.make(world_path, "ros", protocol, seed=args.seed)
+        result = run_spec(spec, planner=planner, record_to=log_path)
     finally:
         planner.finish("interrupted")  # run_episode has done so already unless something broke
         master.close()

@@ -72,9 +72,8 @@ def _run_episode(args: argparse.Namespace) -> int:
 
     from dynabarn.planners import get_planner, planner_spec
     from dynabarn.protocol import get_protocol
-    from dynabarn.recording import default_run_path
     from dynabarn.runner import EpisodeSpec, run_spec
-    from dynabarn.sim import SimConfig, Simulation
+    from dynabarn.sim import SimConfig
     from dynabarn.worldset import resolve_world
 
     world_path = resolve_world(args.world)
@@ -83,14 +82,13 @@ def _run_episode(args: argparse.Namespace) -> int:
     config = preset | planner_config(args.planner_config)
     if args.policy is not None:
         config["policy"] = str(args.policy)
-    planner = get_planner(name, **config)  # here: a bad configuration is one line before anything starts
+    get_planner(name, **config)  # checked here: a bad configuration is one line before a live output opens
     settings = SimConfig(dt=args.dt, control_rate=args.control_rate)
-    sim = Simulation(world_path, config=settings)
     spec = EpisodeSpec.make(world_path, name, protocol, config=config, seed=args.seed, sim=settings, label=args.planner)
     log_path = None
     video = video_settings(args, args.video) if args.video is not None else None
     if not args.no_log:
-        log_path = args.log or default_run_path(args.runs_dir, sim.world.name, args.planner, protocol.name, args.seed)
+        log_path = args.log  # else the default name in --runs-dir (run_spec names it)
     elif args.video is not None:  # the video is rendered from a recording: keep a temporary one
         import tempfile
 
@@ -101,18 +99,18 @@ def _run_episode(args: argparse.Namespace) -> int:
         recorders.append(recorder)
         live.attach(recorder)
 
-    with LiveOutputs(args, sim, protocol) as live:
+    with LiveOutputs(args, protocol) as live:
         result = run_spec(
             spec,
-            planner=planner,
-            sim=sim,
             record_to=log_path,
+            record_in=None if args.no_log else args.runs_dir,
             live_contexts=live.contexts,
             observers=live.observers,
+            on_built=live.watch,
             on_recorder=attach,
         )
     # Where the recording is now: None when its writer died (run_spec said so on stderr).
-    kept = recorders[0].kept if recorders and log_path is not None else None
+    kept = recorders[0].kept if recorders else None
     print_result(result, as_json=args.json, recording=None if args.no_log else kept)
     if args.video is not None and kept is None:
         raise DynabarnError(f"no recording to render {args.video} from: its writer ended early")

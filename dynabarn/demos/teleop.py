@@ -223,27 +223,33 @@ def run_teleop(
     """Open the viewer, run one episode driven by the operator, record it; returns the result."""
     from dynabarn.live.viewer import MujocoViewer
     from dynabarn.runner import EpisodeSpec, run_spec
-    from dynabarn.sim import Simulation
 
-    sim = Simulation(world_path)
     state = TeleopState()
     recorder = McapRecorder(out, extra_channels=(INPUT,), extra_metadata={"source": "human", "operator": operator})
     gamepad = Gamepad()
     planner = TeleopPlanner(state, recorder, gamepad)
-    sim.reset(protocol.spawn)
-    # The operator's keys drive; closing the window ends the episode as Escape does.
-    viewer = MujocoViewer(
-        sim,
-        goal_tolerance=protocol.goal_tolerance,
-        rate=speed,
-        key_callback=state.press,
-        own_keys=False,
-        closed_reason=OperatorStop.REASON,
-    )
-    viewer.open()
+    viewers: list = []
+
+    def watch(sim) -> tuple:
+        """The operator's window on the compiled world: their keys drive; closing it ends
+        the episode as Escape does."""
+        sim.reset(protocol.spawn)
+        viewer = MujocoViewer(
+            sim,
+            goal_tolerance=protocol.goal_tolerance,
+            rate=speed,
+            key_callback=state.press,
+            own_keys=False,
+            closed_reason=OperatorStop.REASON,
+        )
+        viewers.append(viewer)
+        viewer.open()
+        return (viewer,)
+
     try:
         spec = EpisodeSpec.make(world_path, "teleop", protocol, seed=seed)
-        result = run_spec(spec, planner=planner, sim=sim, recorder=recorder, observers=[viewer])
+        result = run_spec(spec, planner=planner, recorder=recorder, on_built=watch)
     finally:
-        viewer.close()
+        for viewer in viewers:
+            viewer.close()
     return result, gamepad.name
