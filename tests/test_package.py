@@ -152,3 +152,24 @@ def test_the_command_table_is_pyprojects_scripts():
     assert scripts == expected
     for name, main in COMMANDS.items():
         assert main.__module__ == f"dynabarn.cli.{name}" and main.__name__ == f"{name}_main"
+
+
+def test_the_command_table_is_the_documentations_navigation():
+    """Each command has its page (`docs/commands/NAME.md`, its options generated from its
+    parser by the `<!-- cli: NAME -->` marker) and that page is in mkdocs.yml's navigation
+    under Commands, in the same order as `[project.scripts]`; no page for a command that is
+    not one."""
+    import re
+    import tomllib
+
+    from dynabarn.cli.dispatch import COMMANDS
+    from tests.conftest import REPO
+
+    nav = re.findall(r"^\s+- dynabarn-(\w+): commands/(\w+)\.md$", (REPO / "mkdocs.yml").read_text(), re.M)
+    scripts = list(tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["scripts"])
+    assert [f"dynabarn-{name}" for name, _ in nav] == scripts
+    assert all(name == page for name, page in nav) and {name for name, _ in nav} == set(COMMANDS)
+    pages = {p.stem for p in (REPO / "docs" / "commands").glob("*.md")}
+    assert pages == set(COMMANDS)
+    for name in COMMANDS:
+        assert f"<!-- cli: {name} -->" in (REPO / "docs" / "commands" / f"{name}.md").read_text(), name
