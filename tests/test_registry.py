@@ -22,6 +22,7 @@ GROUPS = {
     "dynabarn.profile_sets": "ext_profiles = dynabarn_ext:PROFILES\nbroken = dynabarn_ext_missing:NOTHING",
     "dynabarn.topics": "ext_speed = dynabarn_ext:SPEED",
     "dynabarn.commands": "hello = dynabarn_ext:hello_main",
+    "dynabarn.importers": "ext-json = dynabarn_ext:IMPORTER",
 }
 
 
@@ -59,6 +60,18 @@ def installed(tmp_path, monkeypatch):
                 print("hello", *argv)
                 return 0
             PROFILES = dataclasses.replace(get_profile_set("table1"), name="ext_profiles")
+
+            import json
+            from dynabarn.worlds.importers import WorldImporter
+            from dynabarn.worlds.spec import WorldSpec
+            IMPORTER = WorldImporter(
+                "ext-json",
+                "empty arenas, as many as the file's count",
+                lambda path: json.loads(path.read_text()),
+                lambda data, name, declared: [
+                    WorldSpec(f"{name}_{i}", i, "easy", ()) for i in range(int(data["count"]))
+                ],
+            )
             """
         )
     )
@@ -71,9 +84,11 @@ def installed(tmp_path, monkeypatch):
 
 
 def test_every_named_kind_is_one_registry():
-    for registry in (PLANNERS, BEHAVIORS, PROTOCOLS, PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS):
+    from dynabarn.worlds.importers import IMPORTERS
+
+    for registry in (PLANNERS, BEHAVIORS, PROTOCOLS, PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS, IMPORTERS):
         assert isinstance(registry, Registry) and registry.builtin <= set(registry.names())
-    assert {PLANNERS.group, BEHAVIORS.group, PROTOCOLS.group, PROFILE_SETS.group} | {
+    assert {PLANNERS.group, BEHAVIORS.group, PROTOCOLS.group, PROFILE_SETS.group, IMPORTERS.group} | {
         "dynabarn.topics",
         "dynabarn.commands",
     } == set(GROUPS)
@@ -87,6 +102,20 @@ def test_an_installed_package_adds_one_of_each_kind(installed):
     assert get_profile_set("ext_profiles").name == "ext_profiles"
     with pytest.raises(ProfileError, match=r"'broken' failed to load from dynabarn_ext_missing:NOTHING"):
         get_profile_set("broken")
+
+
+def test_an_installed_import_format_is_offered_and_imports(installed, tmp_path, capsys):
+    from dynabarn.cli.worlds import worlds_main
+    from dynabarn.worldset import read_index
+
+    with pytest.raises(SystemExit):
+        worlds_main(["import", "--help"])
+    assert "ext-json, empty arenas" in " ".join(capsys.readouterr().out.split())
+    source = tmp_path / "two.json"
+    source.write_text('{"count": 2}')
+    out = tmp_path / "ext_worlds"
+    assert worlds_main(["import", str(source), "--format", "ext-json", "--out", str(out), "--name", "ext"]) == 0
+    assert [w["name"] for w in read_index(out)["worlds"]] == ["ext_0", "ext_1"]
 
 
 def test_unknown_names_are_one_line_listing_what_exists(installed):

@@ -140,16 +140,16 @@ class Mismatch:
 # -- worlds ------------------------------------------------------------------------------
 
 
+IMPORTED = {"release": "dynabarn-release", "barn": "barn-static"}
+"""The golden set's imported sources: the set's name -> its import format."""
+
+
 def _imported(source: str, reference: Path) -> list:
-    if source == "release":
-        from dynabarn.worlds.importers.release import import_release, load_release_json
+    from dynabarn.worlds.importers import IMPORTERS, import_worlds
 
-        path = reference / "dynabarn60.json"
-        return import_release(load_release_json(path)) if path.is_file() else []
-    from dynabarn.worlds.importers.barn import import_barn_static, load_barn_json
-
-    path = reference / "barn300_static.json"
-    return import_barn_static(load_barn_json(path)) if path.is_file() else []
+    fmt = IMPORTED[source]
+    path = reference / IMPORTERS.get_item(fmt).reference_file
+    return import_worlds(fmt, path, name=source) if path.is_file() else []
 
 
 def _generated(source: str, world_id: int):

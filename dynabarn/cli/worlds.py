@@ -16,7 +16,7 @@ from dynabarn.cli.common import (
 )
 from dynabarn.cli.worlds_certify import add_certify_arguments, worlds_certify
 from dynabarn.cli.worlds_generate import add_generate_arguments, worlds_generate
-from dynabarn.errors import DynabarnError, ImportFormatError
+from dynabarn.errors import DynabarnError
 from dynabarn.files import file_name_part
 
 
@@ -26,6 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
     # Imported once the parser exists: make_parser chose MuJoCo's OpenGL platform, which
     # MuJoCo reads when first imported (these modules import it).
     from dynabarn.provenance import WORLDS_ENV
+    from dynabarn.worlds.importers import IMPORTERS
 
     sub = subcommands(parser)
 
@@ -42,9 +43,10 @@ def build_parser() -> argparse.ArgumentParser:
     im.add_argument("file", type=Path, help="file to import (e.g. ../shared/reference/dynabarn60.json)")
     im.add_argument(
         "--format",
-        choices=["dynabarn-release", "barn-static"],
+        choices=IMPORTERS.names(),
         default="dynabarn-release",
-        help="input format: the DynaBARN release's 60 worlds, or the 300 static BARN worlds",
+        help="input format: "
+        + "; ".join(f"{name}, {IMPORTERS.get_item(name).description}" for name in IMPORTERS.names()),
     )
     im.add_argument("--out", type=Path, default=Path("imported_worlds"), help="output directory")
     im.add_argument(
@@ -106,21 +108,11 @@ def worlds_main(argv: Sequence[str] | None = None) -> int:
 
 
 def _worlds_import(args: argparse.Namespace) -> int:
+    from dynabarn.worlds.importers import import_worlds
     from dynabarn.worldset import PAPER_SET, write_worlds
 
     name = args.name if args.name is not None else file_name_part(args.file.stem)
-    if args.format == "barn-static":
-        from dynabarn.worlds.importers.barn import import_barn_static, load_barn_json
-
-        worlds = import_barn_static(load_barn_json(args.file), name=name)
-    else:
-        from dynabarn.worlds.importers.release import import_release, load_release_json
-
-        data = load_release_json(args.file)
-        try:
-            worlds = import_release(data, name=name, use_effective=not args.declared_obstacles)
-        except ImportFormatError as exc:
-            raise ImportFormatError(f"{args.file}:\n  " + str(exc).replace("\n", "\n  ")) from None
+    worlds = import_worlds(args.format, args.file, name=name, declared=args.declared_obstacles)
     sets = {
         "all": [w.world_id for w in worlds],
         "easy": [w.world_id for w in worlds if w.difficulty == "easy"],
