@@ -211,6 +211,15 @@ def test_every_kind_registers_the_same_way_and_keeps_its_contract():
             registry.pop(name, None)
 
 
+def test_a_topic_is_added_by_installing_it_not_at_run_time():
+    from dynabarn.recording.topics import TOPIC_REGISTRY, Topic
+
+    topic = Topic("/robot/odd", "x.Odd", "10 Hz", "odd", json_schema={}, per_tick=lambda tick: {})
+    with pytest.raises(DynabarnError, match=r"installing it under the entry-point group dynabarn.topics"):
+        TOPIC_REGISTRY.register(topic)
+    assert TOPIC_REGISTRY.group == "dynabarn.topics" and "/robot/odd" not in TOPIC_REGISTRY
+
+
 def test_the_loop_refuses_what_is_not_a_planner():
     from dynabarn.sim import run_episode
     from dynabarn.worldset import resolve_world

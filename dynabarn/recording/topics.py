@@ -30,6 +30,7 @@ from dynabarn.recording.schemas import (
     obj,
     result_schema,
 )
+from dynabarn.registry import Registry
 
 DEBUG_RESOLUTION = 1e-4
 """[m] Planner debug geometry is recorded on this grid: DWA's and the oracle's rollouts use
@@ -298,35 +299,52 @@ TOPICS_GROUP = "dynabarn.topics"
 """Entry-point group under which other packages add JSON per-tick topics (name = "module:TOPIC")."""
 
 
+def _check_topic(topic: object) -> None:
+    """What may be added to the table: a JSON topic made each tick under a new name."""
+    if not isinstance(topic, Topic) or topic.json_schema is None or topic.per_tick is None:
+        raise TypeError("an added topic is a Topic with a json_schema and a per_tick function")
+    if topic.name in {t.name for t in TOPICS}:
+        raise ValueError(f"topic {topic.name} is already recorded")
+
+
+class _InstalledTopics(Registry[Topic]):
+    """Topics are added by installing them: the recording's writer process (`background`)
+    finds what is installed, not what one process registered."""
+
+    def register(self, item, legacy=None, *, name=None):
+        raise self.error(
+            "a recording topic is added by installing it under the entry-point group "
+            f"{TOPICS_GROUP} (the recording's writer process finds it there), not at run time"
+        )
+
+
+TOPIC_REGISTRY: Registry[Topic] = _InstalledTopics("recording topic", {}, group=TOPICS_GROUP, check=_check_topic)
+"""The topics beyond the table: installed by other packages under `TOPICS_GROUP`, each
+checked (`_check_topic`) when loaded."""
+
+
 def recorded_topics() -> tuple[Topic, ...]:
-    """The table, then the JSON per-tick topics installed by other packages (by name): what
-    the recorder writes and the replay plots. An installed topic that is not a JSON topic
-    made each tick, or that reuses a name, is one clear error."""
+    """The table, then the topics installed by other packages (by name): what the recorder
+    writes and the replay plots. An installed topic that is not a JSON topic made each
+    tick, or that reuses a name, is one clear error."""
     import sys
 
-    return _with_installed(tuple(sys.path))
+    return (*TOPICS, *_installed(tuple(sys.path)))
 
 
 @functools.lru_cache(maxsize=4)
-def _with_installed(path: tuple[str, ...]) -> tuple[Topic, ...]:
-    """`recorded_topics` for one sys.path (scanning the installed packages costs ~2 ms: once
-    per process, again only when the path changes)."""
-    from importlib.metadata import entry_points
-
+def _installed(path: tuple[str, ...]) -> tuple[Topic, ...]:
+    """The installed topics for one sys.path (scanning the installed packages costs ~2 ms:
+    once per process, again only when the path changes), each checked by the registry."""
     from dynabarn.errors import DynabarnError
 
-    extra = []
-    for ep in sorted(entry_points(group=TOPICS_GROUP), key=lambda e: e.name):
-        try:
-            topic = ep.load()
-        except Exception as exc:  # a broken third-party package: say which one
-            raise DynabarnError(f"recording topic {ep.name!r} failed to load from {ep.value}: {exc}") from None
-        if not isinstance(topic, Topic) or topic.json_schema is None or topic.per_tick is None:
-            raise DynabarnError(f"{ep.value}: an installed topic is a Topic with a json_schema and a per_tick function")
-        if topic.name in {t.name for t in (*TOPICS, *extra)}:
-            raise DynabarnError(f"{ep.value}: topic {topic.name} is already recorded")
+    extra: list[Topic] = []
+    for name in sorted(TOPIC_REGISTRY.installed()):
+        topic = TOPIC_REGISTRY.get_item(name)
+        if topic.name in {t.name for t in extra}:
+            raise DynabarnError(f"recording topic {name!r}: topic {topic.name} is already recorded")
         extra.append(topic)
-    return (*TOPICS, *extra)
+    return tuple(extra)
 
 
 def markdown_table() -> str:
