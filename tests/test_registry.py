@@ -234,3 +234,32 @@ def test_the_loop_refuses_what_is_not_a_planner():
 
     with pytest.raises(DynabarnError, match=r"DuckTyped, not a dynabarn.interfaces.Planner"):
         run_episode(resolve_world(0), DuckTyped(), get_protocol("barn"))
+
+
+def test_the_tracker_a_planner_uses_is_chosen_by_its_configuration():
+    from dynabarn.perception import ObstacleTracker
+    from dynabarn.perception.trackers import TRACKERS
+    from dynabarn.sim import run_episode
+    from dynabarn.worldset import resolve_world
+
+    updates = []
+
+    class Counting(ObstacleTracker):
+        def update(self, time, scan, pose):
+            updates.append(time)
+            return super().update(time, scan, pose)
+
+    TRACKERS.register(Counting, name="counting")
+    try:
+        default = get_planner("dwa", include_dynamic_obstacles=True)
+        assert "kind" not in default.config()["tracker"]  # the default is recorded as before the choice
+        chosen = get_planner("dwa", include_dynamic_obstacles=True, **{"tracker.kind": "counting"})
+        assert chosen.config()["tracker"]["kind"] == "counting"
+        result = run_episode(resolve_world(3), chosen, get_protocol("barn"))
+        assert len(updates) == result.n_ticks > 0
+        with pytest.raises(DynabarnError, match="unknown tracker 'nope'"):
+            get_planner("predictive", **{"tracker.kind": "nope"})
+        with pytest.raises(DynabarnError, match="has no for_episode"):
+            TRACKERS.register(dict, name="not_a_tracker")
+    finally:
+        TRACKERS.pop("counting", None)

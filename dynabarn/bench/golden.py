@@ -140,16 +140,16 @@ class Mismatch:
 # -- worlds ------------------------------------------------------------------------------
 
 
-IMPORTED = {"release": "dynabarn-release", "barn": "barn-static"}
-"""The golden set's imported sources: the set's name -> its import format."""
+IMPORTED = {"release": ("dynabarn-release", "release"), "barn-static": ("barn-static", "barn")}
+"""The golden set's imported sources: source -> (its import format, the set's name)."""
 
 
 def _imported(source: str, reference: Path) -> list:
     from dynabarn.worlds.importers import IMPORTERS, import_worlds
 
-    fmt = IMPORTED[source]
+    fmt, name = IMPORTED[source]
     path = reference / IMPORTERS.get_item(fmt).reference_file
-    return import_worlds(fmt, path, name=source) if path.is_file() else []
+    return import_worlds(fmt, path, name=name) if path.is_file() else []
 
 
 def _generated(source: str, world_id: int):

@@ -42,6 +42,10 @@ _NO_MATCH = 1e6
 
 @dataclass
 class TrackerConfig:
+    kind: str = "kalman"
+    """Which tracker (`perception.trackers.TRACKERS`): `kalman`, this module's, or one
+    registered or installed under `dynabarn.trackers`. Recorded with a planner's
+    configuration only where it is not `kalman` (`planners.tracking.recorded_config`)."""
     accel_std: float = 2.0
     """White-noise acceleration of the motion model [m/s^2] (the paper's obstacles change
     speed and turn along polynomial paths)."""

@@ -25,17 +25,18 @@ them (`dwa.max_vel_x=1.5` style keys, or a JSON file).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from dynabarn.determinism import SCORE_RESOLUTION, hypot, sincos, snap_array
 from dynabarn.interfaces import EpisodeInfo, Observation, Planner, config_from_kwargs
-from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
+from dynabarn.perception import TrackerConfig, Tracks
+from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.planners.tracking import track_moving, with_tracker
+from dynabarn.planners.tracking import recorded_config, track_moving, with_tracker
 
 
 @dataclass
@@ -169,7 +170,7 @@ class DWAPlanner(Planner):
         self._last_plan = np.zeros((0, 2))
 
     def config(self) -> dict:
-        return asdict(self.cfg)
+        return recorded_config(self.cfg)
 
     def reset(self, info: EpisodeInfo) -> None:
         self.info = info
@@ -179,9 +180,7 @@ class DWAPlanner(Planner):
         self._last_plan = np.zeros((0, 2))
         self._global_plan = np.zeros((0, 2))
         self._prev = np.zeros(2)
-        self.tracker = (
-            ObstacleTracker.for_episode(self.cfg.tracker, info) if self.cfg.include_dynamic_obstacles else None
-        )
+        self.tracker = make_tracker(self.cfg.tracker, info) if self.cfg.include_dynamic_obstacles else None
         self._tracks: Tracks | None = None
 
     def tracks(self) -> Tracks | None:

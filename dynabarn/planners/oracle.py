@@ -20,7 +20,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
@@ -29,6 +29,7 @@ from dynabarn.determinism import SCORE_RESOLUTION, hypot, sincos, snap_array
 from dynabarn.interfaces import EpisodeInfo, Observation, ObstacleState, Planner, config_from_kwargs
 from dynabarn.perception.map_distance import MapDistance, grid_indices
 from dynabarn.planners.global_planner import GlobalPlanner
+from dynabarn.planners.tracking import recorded_config
 
 
 @dataclass
@@ -204,7 +205,7 @@ class OraclePlanner(Planner):
         self._last: np.ndarray | None = None
 
     def config(self) -> dict:
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self.cfg).items()}
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in recorded_config(self.cfg).items()}
 
     def reset(self, info: EpisodeInfo) -> None:
         self.info = info

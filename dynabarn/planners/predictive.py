@@ -18,7 +18,8 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.interfaces import EpisodeInfo, Observation, config_from_kwargs
-from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
+from dynabarn.perception import TrackerConfig, Tracks
+from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners.oracle import OracleConfig, OraclePlanner
 from dynabarn.planners.tracking import with_tracker
 
@@ -56,7 +57,7 @@ class PredictivePlanner(OraclePlanner):
 
     def reset(self, info: EpisodeInfo) -> None:
         super().reset(info)
-        self.tracker = ObstacleTracker.for_episode(self.cfg.tracker, info)
+        self.tracker = make_tracker(self.cfg.tracker, info)
         self._tracks = Tracks.empty()
 
     def tracks(self) -> Tracks:

@@ -30,19 +30,20 @@ band's first poses stay in collision, the planner backs up (recovery), as move_b
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from dynabarn.determinism import STATE_RESOLUTION, exp, hypot, sincos, snap_array
 from dynabarn.interfaces import EpisodeInfo, Observation, Planner, config_from_kwargs
-from dynabarn.perception import ObstacleTracker, TrackerConfig, Tracks
+from dynabarn.perception import TrackerConfig, Tracks
+from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners.coloured_jacobian import Colouring, residuals_and_jacobian
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.levenberg_marquardt import Evaluation, minimise
-from dynabarn.planners.tracking import track_moving, with_tracker
+from dynabarn.planners.tracking import recorded_config, track_moving, with_tracker
 
 
 @dataclass
@@ -165,7 +166,7 @@ class TEBPlanner(Planner):
         self._colourings: dict[tuple, Colouring] = {}
 
     def config(self) -> dict:
-        return asdict(self.cfg)
+        return recorded_config(self.cfg)
 
     def reset(self, info: EpisodeInfo) -> None:
         self.info = info
@@ -176,9 +177,7 @@ class TEBPlanner(Planner):
         self._rerouted = self._was_rerouted = False
         self.costmap = LocalCostmap(self.cfg.costmap)
         self._beams = np.arange(0, len(info.laser_angles), self.cfg.obstacle_stride)
-        self.tracker = (
-            ObstacleTracker.for_episode(self.cfg.tracker, info) if self.cfg.include_dynamic_obstacles else None
-        )
+        self.tracker = make_tracker(self.cfg.tracker, info) if self.cfg.include_dynamic_obstacles else None
         self._tracks: Tracks | None = None
 
     def tracks(self) -> Tracks | None:

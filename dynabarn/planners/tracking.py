@@ -1,14 +1,19 @@
 """What every planner that tracks obstacles shares: its tracker's configuration (the
 `tracker.*` and `tracker.detector.*` keys), and each scan split into the tracked, moving
 obstacles and what stands still (so a planner can leave the moving ones out of its static
-picture). A planner's tracker: `ObstacleTracker.for_episode(cfg.tracker, info)`."""
+picture). A planner's tracker: `perception.trackers.make_tracker(cfg.tracker, info)`, of
+the kind its configuration names (`tracker.kind`)."""
 
 from __future__ import annotations
 
+from dataclasses import asdict
+
 import numpy as np
 
+from dynabarn.errors import DynabarnError
 from dynabarn.interfaces import Observation, config_from_kwargs, nested_config
 from dynabarn.perception import DetectorConfig, ObstacleTracker, TrackerConfig, Tracks
+from dynabarn.perception.trackers import TRACKERS
 
 
 def with_tracker(kwargs: dict, what: str) -> dict:
@@ -19,9 +24,25 @@ def with_tracker(kwargs: dict, what: str) -> dict:
         sub = nested_config(
             sub, "detector", lambda d: config_from_kwargs(DetectorConfig, d, f"{what} tracker detector"), what
         )
-        return config_from_kwargs(TrackerConfig, sub, f"{what} tracker")
+        cfg = config_from_kwargs(TrackerConfig, sub, f"{what} tracker")
+        try:
+            TRACKERS.get_item(cfg.kind)  # an unknown kind: one line, before anything runs
+        except DynabarnError as exc:
+            raise TypeError(str(exc)) from None
+        return cfg
 
     return nested_config(kwargs, "tracker", build, what)
+
+
+def recorded_config(cfg) -> dict:
+    """A planner's configuration as results and recordings keep it (`asdict`), without the
+    tracker's `kind` where it is the default `kalman`: every result before the choice
+    existed used it and keeps its configuration (and the golden set its bytes)."""
+    d = asdict(cfg)
+    tracker = d.get("tracker")
+    if isinstance(tracker, dict) and tracker.get("kind") == TrackerConfig.kind:
+        del tracker["kind"]
+    return d
 
 
 def track_moving(tracker: ObstacleTracker, obs: Observation, range_max: float) -> tuple[Tracks, np.ndarray, np.ndarray]:

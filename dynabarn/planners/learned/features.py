@@ -22,15 +22,16 @@ output vector.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from dynabarn.interfaces import EpisodeInfo, Observation, config_from_kwargs
 from dynabarn.perception import ObstacleTracker, TrackerConfig
+from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.planners.tracking import with_tracker
+from dynabarn.planners.tracking import recorded_config, with_tracker
 from dynabarn.robot import JACKAL
 
 TRACK_FIELDS = 6
@@ -74,7 +75,7 @@ class FeatureConfig:
         return config_from_kwargs(cls, {**d, **built}, "features")
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        return recorded_config(self)
 
     def size(self, n_beams: int = JACKAL.laser_beams) -> int:
         """Length of the feature vector for a laser of `n_beams` beams (the Jackal's by default)."""
@@ -120,7 +121,7 @@ class Features:
         self.n_beams = len(info.laser_angles)
         self.size = c.size(self.n_beams)
         self.global_planner = GlobalPlanner.for_robot(info.walls, info.goal, info.footprint, info.static_obstacles)
-        self.tracker = ObstacleTracker.for_episode(c.tracker, info) if c.tracks else None
+        self.tracker = make_tracker(c.tracker, info) if c.tracks else None
         self.last_tracks = None
         pooled = math.ceil(self.n_beams / c.history_pool)
         self._pad = pooled * c.history_pool - self.n_beams
