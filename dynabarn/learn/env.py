@@ -105,7 +105,7 @@ from dynabarn.protocol import get_protocol
 from dynabarn.provenance import has_display
 from dynabarn.render import CAMERAS, NO_GL_PLATFORM, offscreen_renderer, place_camera
 from dynabarn.robot import JACKAL
-from dynabarn.sim import Episode, SimConfig, Simulation
+from dynabarn.sim import Episode, EpisodeLoop, SimConfig, Simulation
 from dynabarn.worlds.profiles import Difficulty
 from dynabarn.worldset import world_set as resolve_world_set
 
@@ -265,9 +265,9 @@ class DynaBARNEnv(gymnasium.Env):
         sim = self._sims[file]
         self._file = file
         self.global_planner = self._planners[file]
-        # Privileged episodes let a demonstrator (the oracle) see the obstacles' true states;
-        # the policy's observation is the same either way.
+        # Privileged: a demonstrator sees the obstacles' true states (the policy's observation is the same).
         self.episode = Episode(sim, self.protocol, seed=trial, privileged=bool(options.get("privileged", False)))
+        self.loop = EpisodeLoop(self.episode, None)  # the loop step run_episode takes, without observers
         self._info = {
             "world": sim.world.name,
             "world_id": wid,
@@ -295,7 +295,7 @@ class DynaBARNEnv(gymnasium.Env):
         if self.episode is None:
             raise RuntimeError("call reset() before step()")
         v, w = action_to_command(checked_actions(action))
-        return self.episode.apply(v, w)
+        return self.loop.period(v, w)
 
     def conclude(self, outcome: Outcome | None, observation: np.ndarray):
         """`step`'s five values once the observation after the period is known."""

@@ -88,7 +88,7 @@ class WorldBatch:
                 env.begin(None, None)
                 fresh.append(i)
                 continue
-            outcome = env.episode.apply(float(v[i]), float(w[i]))
+            outcome = env.loop.period(float(v[i]), float(w[i]))
             if outcome is None:
                 running.append(i)
             else:

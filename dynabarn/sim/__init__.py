@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from dynabarn.interfaces.observation import EpisodeInfo, Observation, ObstacleState
     from dynabarn.sim.episode import Episode
     from dynabarn.sim.laser import Laser
-    from dynabarn.sim.loop import run_episode
+    from dynabarn.sim.loop import EpisodeLoop, run_episode
     from dynabarn.sim.simulation import Simulation
     from dynabarn.sim_config import SimConfig
 
@@ -31,6 +31,7 @@ _HOMES = {
     "SimConfig": "dynabarn.sim_config",
     "Episode": "dynabarn.sim.episode",
     "Laser": "dynabarn.sim.laser",
+    "EpisodeLoop": "dynabarn.sim.loop",
     "run_episode": "dynabarn.sim.loop",
     "Simulation": "dynabarn.sim.simulation",
 }
@@ -43,6 +44,7 @@ __getattr__, __dir__ = lazy_exports(__name__, _HOMES)
 __all__ = [
     "Episode",
     "EpisodeInfo",
+    "EpisodeLoop",
     "EpisodeObserver",
     "EpisodeStart",
     "Laser",

@@ -73,11 +73,7 @@ def run_episode(
         versions=versions() | planner.versions(),
         world_xml=sim.world_xml,
     )
-    for obs_ in observers:
-        check_hooks(obs_)
-    for obs_ in observers:
-        obs_.on_start(start)
-    tick_hooks, pose_hooks = observer_hooks(observers)
+    loop = EpisodeLoop(episode, start, observers)
     try:
         planner.reset(episode.info)
         while episode.outcome is None:
@@ -94,30 +90,67 @@ def run_episode(
             except Exception as exc:  # the planner is foreign code: report, don't crash
                 episode.end(Outcome.ERROR, f"planner raised {type(exc).__name__}: {exc}")
                 break
-            episode.planner_ms[episode.n_ticks] = _planning_ms(planner, c0)
+            planning_ms = _planning_ms(planner, c0)
             tracks = episode.score_tracks(planner.tracks())
-            first = episode.step
-            if episode.apply(raw_v, raw_w) is Outcome.ERROR:
+            if loop.period(raw_v, raw_w, planner_ms=planning_ms, debug=planner.debug, tracks=tracks) is Outcome.ERROR:
                 break
-            if observers:
-                # The Tick and the poses are made when an observer first asks for them.
-                period = PeriodRecord(episode, planner.debug(), tracks, first)
-                try:
-                    for on_tick in tick_hooks:
-                        on_tick(period)
-                except EndEpisode as exc:  # a person watching ended it (closed the viewer)
-                    if episode.outcome is None:
-                        episode.end(Outcome.ERROR, str(exc) or "ended by an observer")
-                for on_poses in pose_hooks:
-                    on_poses(period)
     except KeyboardInterrupt:
         _end_interrupted(episode, start, observers, planner)
         raise
     _finish(planner, episode.outcome.value if episode.outcome else "error")
-    result = episode_result(episode, start)
-    for obs_ in observers:
-        obs_.on_end(result)
-    return result
+    return loop.result()
+
+
+class EpisodeLoop:
+    """The loop step every driver of an episode shares: one control period of a command,
+    then the period handed to the observers. `run_episode` drives it with a planner's
+    commands; the Gymnasium environments (`learn.env`, `learn.vector_env`) with the actions
+    they are given, and so DAgger's and the demonstrations' collectors, which step them.
+
+    Args:
+        episode: the episode, started.
+        start: what observers learn at its start (None: no observers, no result).
+        observers: its observers (`on_start` is called here).
+    """
+
+    def __init__(self, episode: Episode, start: EpisodeStart | None, observers: Sequence[EpisodeObserver] = ()) -> None:
+        if observers and start is None:
+            raise ValueError("observers need the episode's start")
+        self.episode, self.start, self.observers = episode, start, tuple(observers)
+        for observer in self.observers:
+            check_hooks(observer)
+        for observer in self.observers:
+            observer.on_start(start)
+        self._tick_hooks, self._pose_hooks = observer_hooks(self.observers)
+
+    def period(self, raw_v: float, raw_w: float, *, planner_ms: float = 0.0, debug=None, tracks=None) -> Outcome | None:
+        """Drive (raw_v, raw_w) for one control period (`Episode.apply`: limited, stepped,
+        judged) and hand the period to the observers, with the planner's time, its `debug()`
+        (called only when an observer listens) and its scored tracks; the outcome if it ended."""
+        episode = self.episode
+        episode.planner_ms[episode.n_ticks] = planner_ms
+        first = episode.step
+        if episode.apply(raw_v, raw_w) is Outcome.ERROR:
+            return Outcome.ERROR
+        if self.observers:
+            # The Tick and the poses are made when an observer first asks for them.
+            period = PeriodRecord(episode, debug() if debug is not None else {}, tracks, first)
+            try:
+                for on_tick in self._tick_hooks:
+                    on_tick(period)
+            except EndEpisode as exc:  # a person watching ended it (closed the viewer)
+                if episode.outcome is None:
+                    episode.end(Outcome.ERROR, str(exc) or "ended by an observer")
+            for on_poses in self._pose_hooks:
+                on_poses(period)
+        return episode.outcome
+
+    def result(self) -> EpisodeResult:
+        """The ended episode's result, handed to the observers."""
+        result = episode_result(self.episode, self.start)
+        for observer in self.observers:
+            observer.on_end(result)
+        return result
 
 
 def _end_interrupted(episode: Episode, start: EpisodeStart, observers: Sequence[EpisodeObserver], planner) -> None:
