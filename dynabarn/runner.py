@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from dynabarn.errors import DynabarnError
-from dynabarn.interfaces import EpisodeObserver
+from dynabarn.interfaces import EpisodeObserver, Planner
 from dynabarn.protocol import EvalProtocol
 from dynabarn.sim import SimConfig, Simulation
 
@@ -122,7 +122,7 @@ def run_spec(
     record_in: Path | None = None,
     live_contexts: tuple = (),
     observers: Sequence[EpisodeObserver] = (),
-    on_built: Callable[[Simulation], Sequence[EpisodeObserver] | None] | None = None,
+    on_built: Callable[[Simulation, Planner], Sequence[EpisodeObserver] | None] | None = None,
     on_recorder: Callable | None = None,
     planner=None,
     recorder=None,
@@ -137,8 +137,9 @@ def run_spec(
             the planner as results show it, protocol, seed).
         live_contexts: foxglove contexts the recorder also streams to.
         observers: further observers (pacing, live views), after the recorder.
-        on_built: called with the compiled simulation before the episode starts; returns
-            observers that need it (a viewer of its MuJoCo model), which run after the others.
+        on_built: called with the compiled simulation and the planner before the episode
+            starts; returns observers that need them (a viewer of the MuJoCo model), which run
+            after the others.
         on_recorder: called with the recorder before the episode starts.
         planner: a planner that lives beyond one episode and is not built from a name (a ROS
             master's bridge, an operator's keys); `spec.planner` names it in results.
@@ -152,7 +153,7 @@ def run_spec(
     if planner is None:  # before the world is compiled: a bad configuration is one line at once
         planner = get_planner(spec.planner, **dict(spec.planner_config))
     sim = Simulation(spec.world, config=spec.sim_config)
-    observers = [*observers, *((on_built(sim) or ()) if on_built is not None else ())]
+    observers = [*observers, *((on_built(sim, planner) or ()) if on_built is not None else ())]
     if record_to is None and record_in is not None:
         record_to = default_run_path(record_in, sim.world.name, spec.shown, spec.protocol["name"], spec.seed)
     if recorder is None and (record_to is not None or live_contexts):

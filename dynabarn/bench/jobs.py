@@ -88,7 +88,9 @@ def run_job(job: Job) -> dict:
             # Registered at run time in the sweep's process: this worker learns it the same way.
             register_planner(job.factory, name=spec.planner)
         record_in = Path(job.recordings_dir) if job.record != "none" else None  # NAME.part until whole
-        result = run_spec(spec, record_in=record_in, on_built=built.append, on_recorder=recorders.append)
+        result = run_spec(
+            spec, record_in=record_in, on_built=lambda sim, planner: built.append(sim), on_recorder=recorders.append
+        )
         row.update(result.to_dict())
         # The profile the world was drawn from (the sweep's worlds.json has its numbers).
         row["profile_set"] = built[0].world.profile_set

@@ -143,7 +143,7 @@ class LiveOutputs:
         if os.environ.get("MUJOCO_GL") not in (None, "", "glfw"):
             raise DynabarnError(f"--viewer needs MuJoCo's windowed GL; MUJOCO_GL={os.environ['MUJOCO_GL']} is set")
 
-    def watch(self, sim) -> tuple:
+    def watch(self, sim, planner) -> tuple:
         """`run_spec`'s `on_built`: with --viewer, MuJoCo's viewer opened on the compiled
         world (an observer after the others), closed when this context ends."""
         if not self.args.viewer:

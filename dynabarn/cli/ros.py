@@ -162,11 +162,10 @@ def ros_main(argv: Sequence[str] | None = None) -> int:
 
 
 def _ros_episode(args: argparse.Namespace) -> int:
-    from dynabarn.interfaces.planner import check_relations
     from dynabarn.mjcf import read_world
     from dynabarn.protocol import get_protocol
     from dynabarn.recording import default_run_path
-    from dynabarn.ros.bridge import BridgeConfig, RosMaster, RosPlanner, bridge_overhead, ros_python
+    from dynabarn.ros.bridge import bridge_overhead, ros_python
     from dynabarn.ros.stacks import stack_command
     from dynabarn.runner import EpisodeSpec, run_spec
     from dynabarn.worldset import resolve_world
@@ -196,37 +195,43 @@ def _ros_episode(args: argparse.Namespace) -> int:
             else Path.home() / ".ros" / "log" / f"dynabarn-ros-{time.strftime('%Y%m%d-%H%M%S')}.log"
         )
         stack_log.parent.mkdir(parents=True, exist_ok=True)
-    config = BridgeConfig(
-        lockstep=args.rate is None,
-        rate=args.rate or 1.0,
-        timeout=args.timeout,
-        grace=args.grace,
-        ready=args.ready,
-        ready_timeout=args.ready_timeout,
-        clock_step=args.clock_step,
-        stack_rate=args.stack_rate,
-        remaps=list(args.remap),
-        launch=args.launch,
-        stack=args.stack,
-        nav_workspace=str(workspace) if workspace else None,
-        stack_log=str(stack_log) if stack_log else None,
-    )
-    try:
-        check_relations(config, "dynabarn-ros")  # an unbalanced quote in --launch, before a master starts
-    except TypeError as exc:
-        raise DynabarnError(str(exc)) from None
-    master = RosMaster.start(args.master)
-    planner = RosPlanner(master, config)
-    try:
-        mode = "lockstep" if config.lockstep else f"paced at {config.rate:g}x"
+    config = {
+        "lockstep": args.rate is None,
+        "rate": args.rate or 1.0,
+        "timeout": args.timeout,
+        "grace": args.grace,
+        "ready": args.ready,
+        "ready_timeout": args.ready_timeout,
+        "clock_step": args.clock_step,
+        "stack_rate": args.stack_rate,
+        "remaps": list(args.remap),
+        "launch": args.launch,
+        "stack": args.stack,
+        "nav_workspace": str(workspace) if workspace else None,
+        "stack_log": str(stack_log) if stack_log else None,
+        "master": args.master,
+    }
+    built: list = []
+
+    def announce(sim, planner) -> None:
+        """The bridge is built (its master up): say where, before the stack starts."""
+        built.append(planner)
+        mode = "lockstep" if planner.cfg.lockstep else f"paced at {planner.cfg.rate:g}x"
         print(
-            f"ROS master {master.uri}; {mode}" + (f"; stack output: {stack_log}" if stack_log else ""), file=sys.stderr
+            f"ROS master {planner.master.uri}; {mode}" + (f"; stack output: {stack_log}" if stack_log else ""),
+            file=sys.stderr,
         )
-        spec = EpisodeSpec.make(world_path, "ros", protocol, seed=args.seed)
-        result = run_spec(spec, planner=planner, record_to=log_path)
+
+    # The `ros` planner of the registry (`ros.bridge.ros_planner`): a bad setting (an
+    # unbalanced quote in --launch) is one line before a master starts.
+    spec = EpisodeSpec.make(world_path, "ros", protocol, config=config, seed=args.seed)
+    try:
+        result = run_spec(spec, record_to=log_path, on_built=announce)
     finally:
-        planner.finish("interrupted")  # run_episode has done so already unless something broke
-        master.close()
+        for planner in built:
+            planner.finish("interrupted")  # run_episode has done so already unless something broke
+            planner.master.close()
+    (planner,) = built
     overhead = bridge_overhead(planner)
     extra = {
         "bridge_ms_per_tick": None if overhead is None else round(overhead, 3),

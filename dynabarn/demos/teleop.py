@@ -230,7 +230,7 @@ def run_teleop(
     planner = TeleopPlanner(state, recorder, gamepad)
     viewers: list = []
 
-    def watch(sim) -> tuple:
+    def watch(sim, built) -> tuple:
         """The operator's window on the compiled world: their keys drive; closing it ends
         the episode as Escape does."""
         sim.reset(protocol.spawn)
