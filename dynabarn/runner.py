@@ -124,8 +124,7 @@ def run_spec(
     observers: Sequence[EpisodeObserver] = (),
     on_built: Callable[[Simulation, Planner], Sequence[EpisodeObserver] | None] | None = None,
     on_recorder: Callable | None = None,
-    planner=None,
-    recorder=None,
+    record_options: dict | None = None,
 ):
     """Build what `spec` describes (the simulation with its settings, the planner with its
     configuration, the recorder) and run the episode; its `EpisodeResult`. Each setting is
@@ -141,26 +140,29 @@ def run_spec(
             starts; returns observers that need them (a viewer of the MuJoCo model), which run
             after the others.
         on_recorder: called with the recorder before the episode starts.
-        planner: a planner that lives beyond one episode and is not built from a name (a ROS
-            master's bridge, an operator's keys); `spec.planner` names it in results.
-        recorder: a recorder with channels of its own (teleop's input channel) instead.
+        record_options: the recorder's options (`McapRecorder`: channels and metadata of its
+            own, e.g. teleop's input channel); with them it records in this process, where
+            the planner can write to it.
     """
     from dynabarn.planners import get_planner
     from dynabarn.recording import McapRecorder, default_run_path
     from dynabarn.recording.background import BackgroundRecorder
     from dynabarn.sim import run_episode
 
-    if planner is None:  # before the world is compiled: a bad configuration is one line at once
-        planner = get_planner(spec.planner, **dict(spec.planner_config))
+    # Before the world is compiled: a bad configuration is one line at once.
+    planner = get_planner(spec.planner, **dict(spec.planner_config))
     sim = Simulation(spec.world, config=spec.sim_config)
     observers = [*observers, *((on_built(sim, planner) or ()) if on_built is not None else ())]
     if record_to is None and record_in is not None:
         record_to = default_run_path(record_in, sim.world.name, spec.shown, spec.protocol["name"], spec.seed)
-    if recorder is None and (record_to is not None or live_contexts):
+    recorder = None
+    if record_to is not None or live_contexts:
         try:
             # A file alone is written by a writer process beside the episode (the same bytes,
-            # on the other core); a live view streams from this process.
-            recorder = McapRecorder(record_to, live=live_contexts) if live_contexts else BackgroundRecorder(record_to)
+            # on the other core); a live view, or a planner writing to it, from this process.
+            here = live_contexts or record_options is not None
+            options = record_options or {}
+            recorder = McapRecorder(record_to, live=live_contexts, **options) if here else BackgroundRecorder(record_to)
         except OSError as exc:  # a full disk, a missing or read-only folder
             raise RecordingFailed(f"cannot record to {record_to}: {exc.strerror or exc}") from None
     if recorder is not None and on_recorder is not None:

@@ -152,10 +152,12 @@ class TeleopPlanner(Planner):
 
     name = "teleop"
 
-    def __init__(self, state: TeleopState, recorder: McapRecorder | None = None, gamepad: Gamepad | None = None):
-        self.state = state
+    def __init__(
+        self, state: TeleopState | None = None, recorder: McapRecorder | None = None, gamepad: Gamepad | None = None
+    ):
+        self.state = state if state is not None else TeleopState()
         self.recorder = recorder
-        self.gamepad = gamepad
+        self.gamepad = gamepad if gamepad is not None else Gamepad()
 
     def reset(self, info: EpisodeInfo) -> None:
         self.info = info
@@ -222,23 +224,24 @@ def run_teleop(
 ):
     """Open the viewer, run one episode driven by the operator, record it; returns the result."""
     from dynabarn.live.viewer import MujocoViewer
+    from dynabarn.planners.registry import PLANNERS, register_planner
     from dynabarn.runner import EpisodeSpec, run_spec
 
-    state = TeleopState()
-    recorder = McapRecorder(out, extra_channels=(INPUT,), extra_metadata={"source": "human", "operator": operator})
-    gamepad = Gamepad()
-    planner = TeleopPlanner(state, recorder, gamepad)
+    if "teleop" not in PLANNERS:
+        register_planner(TeleopPlanner)  # this process's alone: the operator's keys reach only it
+    built: list[TeleopPlanner] = []
     viewers: list = []
 
-    def watch(sim, built) -> tuple:
+    def watch(sim, planner: TeleopPlanner) -> tuple:
         """The operator's window on the compiled world: their keys drive; closing it ends
         the episode as Escape does."""
+        built.append(planner)
         sim.reset(protocol.spawn)
         viewer = MujocoViewer(
             sim,
             goal_tolerance=protocol.goal_tolerance,
             rate=speed,
-            key_callback=state.press,
+            key_callback=planner.state.press,
             own_keys=False,
             closed_reason=OperatorStop.REASON,
         )
@@ -246,10 +249,14 @@ def run_teleop(
         viewer.open()
         return (viewer,)
 
+    def log_inputs(recorder: McapRecorder) -> None:
+        built[0].recorder = recorder  # every input the operator gives, on the recording's INPUT channel
+
     try:
         spec = EpisodeSpec.make(world_path, "teleop", protocol, seed=seed)
-        result = run_spec(spec, planner=planner, recorder=recorder, on_built=watch)
+        options = {"extra_channels": (INPUT,), "extra_metadata": {"source": "human", "operator": operator}}
+        result = run_spec(spec, record_to=out, record_options=options, on_built=watch, on_recorder=log_inputs)
     finally:
         for viewer in viewers:
             viewer.close()
-    return result, gamepad.name
+    return result, built[0].gamepad.name if built else None
