@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -32,13 +33,6 @@ INTERRUPTED = "interrupted"
 def is_interrupted(result) -> bool:
     """An episode a person or a signal ended, not one the robot or the planner did."""
     return result.outcome == Outcome.ERROR and result.reason == INTERRUPTED
-
-
-RESULT_NUMBERS = (
-    "time", "sim_time", "path_length", "score", "spl", "min_clearance", "mean_abs_jerk", "sum_abs_dw",
-    "time_stalled", "planner_ms_mean", "planner_ms_p95", "rtf", "wall_time", "clock_offset",
-)  # fmt: skip
-"""The fields of a result that are numbers (or null when no finite value exists)."""
 
 
 def numbers_ok(result: dict) -> bool:
@@ -307,3 +301,89 @@ def compute_percentiles(ms: np.ndarray) -> tuple[float, float]:
     if len(ms) == 0:
         return 0.0, 0.0
     return float(np.mean(ms)), float(np.percentile(ms, 95))
+
+
+@dataclass(frozen=True)
+class EpisodeFacts:
+    """What an ended episode's metrics are computed from (`sim.result` gathers it)."""
+
+    success: bool
+    time: float
+    """Episode time as the protocol counts it [s]."""
+    sim_time: float
+    path_length: float
+    optimal_length: float
+    """SPL's shortest path [m]."""
+    score: float
+    """The protocol's score (`EvalProtocol.score`)."""
+    min_clearance: float
+    tick_v: np.ndarray
+    """Measured forward speed at each control tick [m/s]."""
+    tick_w: np.ndarray
+    tick_w_cmd: np.ndarray
+    """Commanded yaw rate at each control tick [rad/s]."""
+    control_period: float
+    planner_ms: np.ndarray
+    wall_time: float
+    clock_offset: float
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One number of every result, defined once: its name (an `EpisodeResult` field, a
+    results column, a key of the recording's `/episode/result`), unit, meaning, how it is
+    computed from an ended episode's facts, and how a sweep's summary aggregates it
+    (`mean` over episodes, `successes`: the mean over successful episodes, as NAME_success;
+    None: not summarised). The result's schema, the summary and the docs' table read it."""
+
+    name: str
+    unit: str
+    doc: str
+    compute: Callable[[EpisodeFacts], float]
+    summary: str | None = None
+    when_missing: float | None = None
+    """What a results row without it counts as in a summary (None: left out); a score is 0
+    for an episode whose row has none (it ended in an error before it was judged)."""
+
+
+def _percentile(f: EpisodeFacts, which: int) -> float:
+    return compute_percentiles(f.planner_ms)[which]
+
+
+METRICS: tuple[Metric, ...] = (
+    Metric("time", "s", "episode time as the protocol counts it (barn: from the first 0.1 m of motion)",
+           lambda f: f.time, "successes"),
+    Metric("sim_time", "s", "simulated time from the start to the end of the episode", lambda f: f.sim_time),
+    Metric("path_length", "m", "length of the path the robot drove", lambda f: f.path_length),
+    Metric("score", "", "the protocol's score (BARN: success x OT / clip(AT, 2 OT, 8 OT))",
+           lambda f: f.score, "mean", 0.0),
+    Metric("spl", "", "success weighted by path length: optimal / max(path, optimal) on success",
+           lambda f: spl(f.success, f.optimal_length, f.path_length), "mean", 0.0),
+    Metric("min_clearance", "m", "smallest distance between the footprint and any obstacle's surface (every step)",
+           lambda f: f.min_clearance, "mean"),
+    Metric("mean_abs_jerk", "m/s^3", "mean |d^3 x / dt^3| of the forward motion, from measured speed per tick",
+           lambda f: mean_abs_jerk(f.tick_v, f.control_period)),
+    Metric("sum_abs_dw", "rad/s", "sum of |change| of the commanded yaw rate between ticks",
+           lambda f: sum_abs_change(f.tick_w_cmd)),
+    Metric("time_stalled", "s", f"time with |v| < {STALL_SPEED} m/s and |w| < 0.1 rad/s",
+           lambda f: stalled_time(f.tick_v, f.tick_w, f.control_period)),
+    Metric("planner_ms_mean", "ms", "the planner's compute per call, mean", lambda f: _percentile(f, 0)),
+    Metric("planner_ms_p95", "ms", "the planner's compute per call, 95th percentile", lambda f: _percentile(f, 1)),
+    Metric("rtf", "", "real-time factor: simulated seconds per wall-clock second",
+           lambda f: f.sim_time / f.wall_time if f.wall_time > 0 else math.inf),
+    Metric("wall_time", "s", "wall-clock time of the episode", lambda f: f.wall_time),
+    Metric("clock_offset", "s", "the obstacles' clock offset the trial's seed drew", lambda f: f.clock_offset),
+)  # fmt: skip
+"""Every number of a result, in the order `EpisodeResult` holds them."""
+
+RESULT_NUMBERS = tuple(m.name for m in METRICS)
+"""The fields of a result that are numbers (or null when no finite value exists)."""
+
+
+def metrics_table() -> str:
+    """The metric table of docs/concepts/protocols.md (`tests/test_docs.py` keeps it there)."""
+    rows = ["| metric | unit | what it is | in a sweep's summary |", "|---|---|---|---|"]
+    summary = {"mean": "mean over episodes", "successes": "mean over successes", None: "-"}
+    for m in METRICS:
+        rows.append(f"| `{m.name}` | {m.unit or '-'} | {m.doc.replace('|', chr(92) + '|')} | {summary[m.summary]} |")
+    return "\n".join(rows)

@@ -129,3 +129,27 @@ def test_the_results_page_renders_with_its_figure_in_chromium(site, tmp_path):
     pixels = iio.imread(io.BytesIO(shot))[..., :3].astype(int)
     coloured = (pixels.max(axis=-1) - pixels.min(axis=-1)) > 80
     assert coloured.sum() > 5000, f"no figure in the screenshot; see {tmp_path}/results.png"
+
+
+def test_every_metric_is_defined_once_and_everything_reads_it():
+    """A metric is one entry of `metrics.METRICS`: the result's number fields, their JSON
+    schema, a summary's columns and the protocols page's table all follow it."""
+    import dataclasses
+
+    from dynabarn.bench.summary import summarise
+    from dynabarn.metrics import METRICS, RESULT_NUMBERS, EpisodeResult, metrics_table
+    from dynabarn.recording.schemas import MACHINE_FIELDS, result_schema
+
+    names = [m.name for m in METRICS]
+    floats = [f.name for f in dataclasses.fields(EpisodeResult) if f.type == "float"]
+    assert floats == names == list(RESULT_NUMBERS)
+    schema = result_schema()["properties"]
+    assert all(schema[name]["type"] == ["number", "null"] for name in names if name not in MACHINE_FIELDS)
+    assert {"time", "score", "spl", "min_clearance"} <= set(schema)
+    row = {"planner": "dwa", "difficulty": "easy", "outcome": "success", "seed": 0, "world": "w"}
+    row |= {name: 1.0 for name in names}
+    (summary, _) = summarise([row, row | {"outcome": "collision", "seed": 1}])[:2]
+    shown = {m.name if m.summary == "mean" else f"{m.name}_success" for m in METRICS if m.summary}
+    assert shown <= set(summary) and {"time_success", "score", "spl", "min_clearance"} == shown
+    page = (REPO / "docs" / "concepts" / "protocols.md").read_text()
+    assert metrics_table() in page, "docs/concepts/protocols.md's metric table: regenerate it from metrics_table()"

@@ -18,7 +18,9 @@ import math
 from collections import defaultdict
 from pathlib import Path
 
+from dynabarn.bench.stats import mean_finite, median_finite, skill_over_floor, wilson_interval
 from dynabarn.files import save_atomically, write_atomically
+from dynabarn.metrics import METRICS
 from dynabarn.worlds.profiles import Difficulty
 
 PAPER_FIG5 = {
@@ -35,47 +37,17 @@ FLOOR = "straight"
 """The blind floor every planner is measured against."""
 
 
-def skill_over_floor(rows: list[dict], floor_rows: list[dict]) -> dict:
-    """Success minus the floor's on the shared (world, seed) episodes, with a 95% interval
-    clustered by world. Empty dict when no episode is shared."""
-    from scipy.stats import t as student_t
-
-    floor = {(r["world"], r["seed"]): r["outcome"] == "success" for r in floor_rows if "world" in r}
-    by_world: dict[str, list[float]] = defaultdict(list)
-    floor_hits = 0
-    for r in rows:
-        key = (r.get("world"), r["seed"])
-        if key in floor:
-            by_world[key[0]].append(float(r["outcome"] == "success") - float(floor[key]))
-            floor_hits += floor[key]
-    n = sum(len(v) for v in by_world.values())
-    if n == 0:
-        return {}
-    diff = sum(sum(v) for v in by_world.values()) / n
-    m = len(by_world)
-    if m < 2:
-        return {"floor": floor_hits / n, "skill": diff, "skill_lo": float("nan"), "skill_hi": float("nan")}
-    # Cluster-robust standard error of a mean (worlds as clusters, small-sample factor m/(m-1)).
-    se = math.sqrt(sum((sum(v) - len(v) * diff) ** 2 for v in by_world.values()) * m / (m - 1)) / n
-    half = float(student_t.ppf(0.975, m - 1)) * se
-    return {"floor": floor_hits / n, "skill": diff, "skill_lo": diff - half, "skill_hi": diff + half}
-
-
-def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
-    """95% Wilson score interval of a binomial proportion."""
-    if n == 0:
-        return 0.0, 1.0
-    p = successes / n
-    denom = 1 + z * z / n
-    centre = (p + z * z / (2 * n)) / denom
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
-    # The interval always contains p; rounding could otherwise put p = 1 just above it.
-    return max(0.0, min(p, centre - half)), min(1.0, max(p, centre + half))
-
-
-def _mean(values: list[float]) -> float:
-    vals = [v for v in values if v is not None and math.isfinite(v)]
-    return sum(vals) / len(vals) if vals else float("nan")
+def summarised_metrics(rows: list[dict], successes: list[dict]) -> dict:
+    """Each metric a summary shows (`metrics.METRICS`, `summary`): the mean over the rows
+    (`NAME`; a row without it counts as its `when_missing`) or over the successful ones
+    (`NAME_success`), in the table's order."""
+    out = {}
+    for m in METRICS:
+        if m.summary == "mean":
+            out[m.name] = mean_finite([r.get(m.name, m.when_missing) for r in rows])
+        elif m.summary == "successes":
+            out[f"{m.name}_success"] = mean_finite([r.get(m.name) for r in successes])
+    return out
 
 
 PAPER_PROTOCOLS = ("barn", "paper2022")
@@ -104,14 +76,6 @@ TRACKING_SUMMARY = {
 episodes of the episode's value (identity switches: the mean per episode)."""
 
 
-def _median(values: list) -> float | None:
-    vals = sorted(v for v in values if v is not None and math.isfinite(v))
-    if not vals:
-        return None
-    mid = len(vals) // 2
-    return vals[mid] if len(vals) % 2 else 0.5 * (vals[mid - 1] + vals[mid])
-
-
 def tracking_summary(rows: list[dict]) -> dict:
     """The tracking columns for a group of rows: all None when no row has a tracker."""
     tracked = [r["tracking"] for r in rows if isinstance(r.get("tracking"), dict)]
@@ -119,7 +83,7 @@ def tracking_summary(rows: list[dict]) -> dict:
     if tracked:
         for column, key in TRACKING_SUMMARY.items():
             values = [t.get(key) for t in tracked]
-            out[column] = _mean(values) if key == "id_switches" else _median(values)
+            out[column] = mean_finite(values) if key == "id_switches" else median_finite(values)
     return out
 
 
@@ -187,10 +151,7 @@ def summarise(rows: list[dict], paper_worlds: set[str] = frozenset(), certified:
                 "collision": sum(r["outcome"] == "collision" for r in rs) / n,
                 "timeout": sum(r["outcome"] == "timeout" for r in rs) / n,
                 "error": sum(r["outcome"] == "error" for r in rs) / n,
-                "time_success": _mean([r.get("time") for r in succ]),
-                "score": _mean([r.get("score", 0.0) for r in rs]),
-                "spl": _mean([r.get("spl", 0.0) for r in rs]),
-                "min_clearance": _mean([r.get("min_clearance") for r in rs]),
+                **summarised_metrics(rs, succ),
                 "privileged": privileged(planner),
                 # The paper's Fig. 5 only compares with runs in the paper's worlds under its protocols.
                 "paper": PAPER_FIG5.get(paper_planner(planner) or "", {}).get(difficulty)

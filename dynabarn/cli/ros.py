@@ -161,6 +161,27 @@ def ros_main(argv: Sequence[str] | None = None) -> int:
     return run_command(_ros_episode, args)
 
 
+def _bridge_config(args: argparse.Namespace, workspace: Path | None, stack_log: Path | None) -> dict:
+    """The `ros` planner's configuration from the command's options (`ros.bridge.BridgeConfig`,
+    and the master to use)."""
+    return {
+        "lockstep": args.rate is None,
+        "rate": args.rate or 1.0,
+        "timeout": args.timeout,
+        "grace": args.grace,
+        "ready": args.ready,
+        "ready_timeout": args.ready_timeout,
+        "clock_step": args.clock_step,
+        "stack_rate": args.stack_rate,
+        "remaps": list(args.remap),
+        "launch": args.launch,
+        "stack": args.stack,
+        "nav_workspace": str(workspace) if workspace else None,
+        "stack_log": str(stack_log) if stack_log else None,
+        "master": args.master,
+    }
+
+
 def _ros_episode(args: argparse.Namespace) -> int:
     from dynabarn.mjcf import read_world
     from dynabarn.protocol import get_protocol
@@ -195,22 +216,7 @@ def _ros_episode(args: argparse.Namespace) -> int:
             else Path.home() / ".ros" / "log" / f"dynabarn-ros-{time.strftime('%Y%m%d-%H%M%S')}.log"
         )
         stack_log.parent.mkdir(parents=True, exist_ok=True)
-    config = {
-        "lockstep": args.rate is None,
-        "rate": args.rate or 1.0,
-        "timeout": args.timeout,
-        "grace": args.grace,
-        "ready": args.ready,
-        "ready_timeout": args.ready_timeout,
-        "clock_step": args.clock_step,
-        "stack_rate": args.stack_rate,
-        "remaps": list(args.remap),
-        "launch": args.launch,
-        "stack": args.stack,
-        "nav_workspace": str(workspace) if workspace else None,
-        "stack_log": str(stack_log) if stack_log else None,
-        "master": args.master,
-    }
+    config = _bridge_config(args, workspace, stack_log)
     built: list = []
 
     def announce(sim, planner) -> None:

@@ -2,22 +2,12 @@
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
 
 from dynabarn.interfaces.events import EpisodeStart
-from dynabarn.metrics import (
-    EpisodeResult,
-    Outcome,
-    compute_percentiles,
-    mean_abs_jerk,
-    path_length,
-    spl,
-    stalled_time,
-    sum_abs_change,
-)
+from dynabarn.metrics import METRICS, EpisodeFacts, EpisodeResult, Outcome, path_length
 from dynabarn.protocol import EvalProtocol
 from dynabarn.provenance import machine, portable_path
 from dynabarn.sim.episode import Episode
@@ -58,10 +48,25 @@ def episode_result(episode: Episode, start: EpisodeStart) -> EpisodeResult:
     success = outcome is Outcome.SUCCESS
     length = path_length(traj[:, :2])
     clearance = _min_clearance(episode, traj, step)
-    mean_ms, p95_ms = compute_percentiles(episode.planner_ms[:n_ticks])
     wall = time.perf_counter() - episode.wall_t0
     goal = (float(sim.goal[0]), float(sim.goal[1]))
-    tick_v, tick_w, tick_w_cmd = episode.tick_v, episode.tick_w, episode.tick_w_cmd
+    reference = sim.world.provenance.get("reference_path_length") if protocol.reference_from_world else None
+    facts = EpisodeFacts(
+        success=success,
+        time=ep_time,
+        sim_time=sim_time,
+        path_length=length,
+        optimal_length=_optimal_length(protocol, sim.world, goal),
+        score=protocol.score(success, ep_time, reference),
+        min_clearance=clearance,
+        tick_v=episode.tick_v[:n_ticks],
+        tick_w=episode.tick_w[:n_ticks],
+        tick_w_cmd=episode.tick_w_cmd[:n_ticks],
+        control_period=cfg.control_period,
+        planner_ms=episode.planner_ms[:n_ticks],
+        wall_time=wall,
+        clock_offset=start.clock_offset,
+    )
     return EpisodeResult(
         world=sim.world.name,
         planner=start.planner,
@@ -69,24 +74,7 @@ def episode_result(episode: Episode, start: EpisodeStart) -> EpisodeResult:
         seed=start.seed,
         outcome=outcome,
         reason=reason,
-        time=ep_time,
-        sim_time=sim_time,
-        path_length=length,
-        score=protocol.score(
-            success,
-            ep_time,
-            sim.world.provenance.get("reference_path_length") if protocol.reference_from_world else None,
-        ),
-        spl=spl(success, _optimal_length(protocol, sim.world, goal), length),
-        min_clearance=clearance,
-        mean_abs_jerk=mean_abs_jerk(tick_v[:n_ticks], cfg.control_period),
-        sum_abs_dw=sum_abs_change(tick_w_cmd[:n_ticks]),
-        time_stalled=stalled_time(tick_v[:n_ticks], tick_w[:n_ticks], cfg.control_period),
-        planner_ms_mean=mean_ms,
-        planner_ms_p95=p95_ms,
-        rtf=sim_time / wall if wall > 0 else math.inf,
-        wall_time=wall,
-        clock_offset=start.clock_offset,
+        **{m.name: m.compute(facts) for m in METRICS},  # each metric as `metrics.METRICS` defines it
         n_ticks=n_ticks,
         world_file=portable_path(sim.world_path),
         world_sha256=sim.world_sha256,
