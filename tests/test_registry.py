@@ -263,3 +263,38 @@ def test_the_tracker_a_planner_uses_is_chosen_by_its_configuration():
             TRACKERS.register(dict, name="not_a_tracker")
     finally:
         TRACKERS.pop("counting", None)
+
+
+def test_what_a_package_installs_is_in_help_a_sweep_and_a_generated_set(installed, tmp_path, capsys):
+    """One of each kind from outside the package, used as a user would: offered by `--help`,
+    run in a sweep under its own protocol, drawn into worlds with its profiles and behaviour."""
+    import json
+
+    from dynabarn.cli.bench import bench_main
+    from dynabarn.cli.dispatch import main
+    from dynabarn.cli.run import run_main
+    from dynabarn.cli.worlds import worlds_main
+
+    for command, args in ((run_main, ["--help"]), (worlds_main, ["generate", "--help"]), (main, ["--help"])):
+        with pytest.raises(SystemExit) if command is not main else _nothing():
+            command(args)
+    shown = " ".join(capsys.readouterr().out.split())
+    assert "ext_planner" in shown and "ext_profiles" in shown and "ext_freeze" in shown and "hello" in shown
+    out = tmp_path / "sweep"
+    argv = ["--planner", "ext_planner", "--protocol", "ext_protocol", "--worlds", "3", "--jobs", "1", "--out", str(out)]
+    assert bench_main([*argv, "--trials", "1", "--no-floor"]) == 0
+    rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert [(r["planner"], r["protocol"]) for r in rows] == [("ext_planner", "ext_protocol")]
+    worlds = tmp_path / "ext_worlds"
+    gen = ["generate", "--profiles", "ext_profiles", "--behavior", "ext_freeze", "--out", str(worlds)]
+    assert worlds_main(gen) == 0
+    index = json.loads((worlds / "index.json").read_text())
+    assert "ext_profiles" in json.dumps(index) and "ext_freeze" in (worlds / "world_000.xml").read_text()
+
+
+class _nothing:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
