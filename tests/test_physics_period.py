@@ -95,7 +95,7 @@ def test_a_world_is_parsed_and_checked_once_per_load(monkeypatch, tmp_path):
     shutil.copy(resolve_world(137), world)
     world.write_bytes(world.read_bytes() + b"\n")  # bytes no other test compiled: a first load
     calls = {"parse": 0, "check": 0}
-    parse, check = mjcf._parse, mjcf.check_self_contained
+    parse, check = mjcf.parse_xml, mjcf.check_self_contained
 
     def counted(name, f):
         def wrapper(*a, **k):
@@ -104,7 +104,7 @@ def test_a_world_is_parsed_and_checked_once_per_load(monkeypatch, tmp_path):
 
         return wrapper
 
-    monkeypatch.setattr(mjcf, "_parse", counted("parse", parse))
+    monkeypatch.setattr(mjcf, "parse_xml", counted("parse", parse))
     monkeypatch.setattr(mjcf, "check_self_contained", counted("check", check))
     sim = Simulation(world)
     assert calls == {"parse": 1, "check": 1} and sim.model.nmocap == len(sim.world.obstacles)
