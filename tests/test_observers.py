@@ -71,3 +71,26 @@ def test_every_hook_the_loop_calls_is_declared():
     from dynabarn.recording.background import BackgroundRecorder  # the writer-process recorder's period hooks
 
     check_hooks(BackgroundRecorder.__new__(BackgroundRecorder))  # its on_tick_period, on_poses_period
+
+
+def test_the_loop_step_is_the_one_run_episode_takes():
+    """Driven period by period through `EpisodeLoop` (as the Gymnasium environments drive
+    it), the straight planner's commands give run_episode's result and its observers' ticks."""
+    from dynabarn.provenance import versions
+    from dynabarn.sim import Episode, EpisodeLoop, Simulation
+    from dynabarn.sim.loop import episode_start
+
+    world, protocol = resolve_world(3), get_protocol("barn")
+    counted = Counting()
+    reference = run_episode(world, get_planner("straight"), protocol, seed=4, observers=[counted])
+    planner, episode = get_planner("straight"), Episode(Simulation(world), protocol, seed=4)
+    start = episode_start(episode, protocol, planner="straight", planner_config=planner.config(), versions=versions())
+    stepped = Counting()
+    loop = EpisodeLoop(episode, start, [stepped])
+    planner.reset(episode.info)
+    while episode.outcome is None:
+        loop.period(*planner.act(episode.observe()))
+    result = loop.result()
+    clocks = {"wall_time": 0, "rtf": 0, "planner_ms_mean": 0, "planner_ms_p95": 0, "machine": 0}
+    assert result.to_dict() | clocks == reference.to_dict() | clocks
+    assert stepped.ticks == counted.ticks == result.n_ticks > 0

@@ -59,19 +59,12 @@ def run_episode(
     _check_planner(planner)
     sim = world if isinstance(world, Simulation) else Simulation(world, config=config)
     episode = Episode(sim, protocol, seed=seed, privileged=planner.privileged)
-    start = EpisodeStart(
-        world=sim.world,
-        world_path=sim.world_path,
-        world_sha256=sim.world_sha256,
-        protocol=protocol,
+    start = episode_start(
+        episode,
+        protocol,
         planner=planner_name or planner.name,
         planner_config=planner.config(),
-        seed=seed,
-        clock_offset=episode.clock_offset,
-        config=sim.config,
-        info=episode.info,
         versions=versions() | planner.versions(),
-        world_xml=sim.world_xml,
     )
     loop = EpisodeLoop(episode, start, observers)
     try:
@@ -99,6 +92,27 @@ def run_episode(
         raise
     _finish(planner, episode.outcome.value if episode.outcome else "error")
     return loop.result()
+
+
+def episode_start(
+    episode: Episode, protocol: EvalProtocol, *, planner: str, planner_config: dict, versions: dict
+) -> EpisodeStart:
+    """What observers learn when `episode` starts, driven by `planner` (its name in results)."""
+    sim = episode.sim
+    return EpisodeStart(
+        world=sim.world,
+        world_path=sim.world_path,
+        world_sha256=sim.world_sha256,
+        protocol=protocol,
+        planner=planner,
+        planner_config=planner_config,
+        seed=episode.seed,
+        clock_offset=episode.clock_offset,
+        config=sim.config,
+        info=episode.info,
+        versions=versions,
+        world_xml=sim.world_xml,
+    )
 
 
 class EpisodeLoop:
