@@ -60,3 +60,75 @@ def slow_recorded_episode(path: Path, recorder: str, *, say: str) -> str:
         run_episode(resolve_world(0), Slow(), get_protocol("barn"), observers=[recorder])
         """
     )
+
+
+GROUPS = {
+    "dynabarn.planners": "ext_planner = dynabarn_ext:ExtPlanner",
+    "dynabarn.behaviors": "ext_freeze = dynabarn_ext:Freeze",
+    "dynabarn.protocols": "ext_protocol = dynabarn_ext:PROTOCOL",
+    "dynabarn.profile_sets": "ext_profiles = dynabarn_ext:PROFILES\nbroken = dynabarn_ext_missing:NOTHING",
+    "dynabarn.topics": "ext_speed = dynabarn_ext:SPEED",
+    "dynabarn.commands": "hello = dynabarn_ext:hello_main",
+    "dynabarn.importers": "ext-json = dynabarn_ext:IMPORTER",
+}
+"""The entry points of the package `install_extension` installs: one of each kind."""
+
+
+def install_extension(folder: Path) -> Path:
+    """A real distribution, `dynabarn-ext`, outside this package in `folder` (put it on
+    sys.path, or PYTHONPATH for a child process): one planner, behaviour, protocol, profile
+    set, recording topic, command and world import format under their entry-point groups."""
+    tmp_path = folder
+    folder.mkdir(parents=True, exist_ok=True)
+    (tmp_path / "dynabarn_ext.py").write_text(
+        textwrap.dedent(
+            """
+            import dataclasses
+            import numpy as np
+            from dynabarn.planners.simple import StraightPlanner
+            from dynabarn.protocol import get_protocol
+            from dynabarn.sim.behaviors import ObstacleBehavior
+            from dynabarn.worlds.profiles import get_profile_set
+
+            class ExtPlanner(StraightPlanner):
+                name = "ext_planner"
+
+            class Freeze(ObstacleBehavior):
+                name = "ext_freeze"
+                def rates(self, s):
+                    return np.zeros(len(self.members))
+
+            PROTOCOL = dataclasses.replace(get_protocol("barn"), name="ext_protocol", time_limit=50.0)
+
+            from dynabarn.recording.topics import Topic
+            SPEED = Topic(
+                "/robot/speed", "ext.Speed", "10 Hz", "measured |v| [m/s]",
+                json_schema={"type": "object", "properties": {"speed": {"type": "number"}}},
+                per_tick=lambda tick: {"speed": abs(float(tick.velocity[0]))},
+                plots=("speed",),
+            )
+
+            def hello_main(argv):
+                print("hello", *argv)
+                return 0
+            PROFILES = dataclasses.replace(get_profile_set("table1"), name="ext_profiles")
+
+            import json
+            from dynabarn.worlds.importers import WorldImporter
+            from dynabarn.worlds.spec import WorldSpec
+            IMPORTER = WorldImporter(
+                "ext-json",
+                "empty arenas, as many as the file's count",
+                lambda path: json.loads(path.read_text()),
+                lambda data, name, declared: [
+                    WorldSpec(f"{name}_{i}", i, "easy", ()) for i in range(int(data["count"]))
+                ],
+            )
+            """
+        )
+    )
+    dist = tmp_path / "dynabarn_ext-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: dynabarn-ext\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("".join(f"[{g}]\n{lines}\n\n" for g, lines in GROUPS.items()))
+    return folder

@@ -23,11 +23,14 @@ from tests.conftest import require
 REPO = Path(__file__).resolve().parent.parent
 
 
-def _build(config: Path, site: Path) -> subprocess.CompletedProcess:
+def _build(config: Path, site: Path, path: tuple[Path, ...] = ()) -> subprocess.CompletedProcess:
+    """`mkdocs build --strict` of `config` into `site` (with `path` before the rest of PYTHONPATH)."""
     require("mkdocs", "docs")
     require("material", "docs")
     require("mkdocstrings_handlers.python", "docs")
     env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
+    if path:
+        env["PYTHONPATH"] = os.pathsep.join([*map(str, path), *filter(None, [env.get("PYTHONPATH")])])
     return subprocess.run(
         [sys.executable, "-m", "mkdocs", "build", "--strict", "--config-file", str(config), "--site-dir", str(site)],
         capture_output=True,
@@ -74,6 +77,20 @@ def test_the_api_page_documents_every_export(site):
     page = (site / "api.html").read_text()
     for name in dynabarn.__all__:
         assert f'id="{dynabarn._WHERE[name]}.{name}"' in page, name
+
+
+@pytest.mark.slow
+def test_what_a_package_installs_is_in_the_documentation_it_builds(tmp_path):
+    """The command pages' option tables are generated from the parsers, which offer what the
+    registries hold: built with another package installed, the site names its planner, its
+    profile set, its behaviour and its import format where the options list them."""
+    from tests.helpers import install_extension
+
+    build = _build(REPO / "mkdocs.yml", tmp_path / "site", path=(install_extension(tmp_path / "ext"),))
+    assert build.returncode == 0, build.stderr
+    run = (tmp_path / "site" / "commands" / "run.html").read_text()
+    worlds = (tmp_path / "site" / "commands" / "worlds.html").read_text()
+    assert "ext_planner" in run and "ext-json" in worlds and "ext_profiles" in worlds and "ext_freeze" in worlds
 
 
 def test_a_broken_link_fails_the_build(tmp_path):
