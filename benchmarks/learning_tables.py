@@ -115,3 +115,38 @@ def dagger_training() -> str:
             f"final fit, against {_final(t):.2f}."
         )
     return text
+
+
+STUDENT_VALIDATION = ROOT / "results" / "student_validation"
+"""`benchmarks/student_validation.py`'s records: students and references on the same
+procedural validation worlds (one JSON per group of profile sets)."""
+ENTRY_TITLES = {
+    "shipped": "shipped student (`mlp`, trained on `table1`, `release2022`; 12 iterations)",
+    "set": "`set` encoder, trained with the tiers' profiles too (10 iterations)",
+    "mlp_tiers": "`mlp`, the same data and seeds as `set` (5 iterations)",
+    "set_5": "`set`, the same run after 5 iterations",
+    "teacher": "the teacher, `oracle_present` (privileged)",
+    "predictive": "`predictive` (laser only)",
+    "floor": "blind floor (`straight`)",
+}
+
+
+def student_ablation() -> str:
+    """Success [95% interval] of each entry on the validation worlds of each group."""
+    records = sorted(STUDENT_VALIDATION.glob("*.json")) if STUDENT_VALIDATION.is_dir() else []
+    if not records:
+        return "(no student validation records yet: `python benchmarks/student_validation.py`)"
+    lines = [
+        "| validation worlds | entry | easy | medium | hard | all |",
+        "|---|---|---|---|---|---|",
+    ]
+    for path in records:
+        record = json.loads(path.read_text())
+        worlds = f"{record['worlds']} of {', '.join(f'`{p}`' for p in record['profile_sets'])}"
+        for name, row in record["success"].items():
+            cells = [
+                f"{c['rate']:.2f} [{c['interval'][0]:.2f}, {c['interval'][1]:.2f}]" if c["episodes"] else "-"
+                for c in (row[d] for d in (*DIFFICULTIES, "all"))
+            ]
+            lines.append(f"| {worlds} | {ENTRY_TITLES.get(name, name)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)

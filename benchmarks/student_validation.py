@@ -17,6 +17,7 @@ them to --out (JSON) when given.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import sys
 import tempfile
@@ -80,7 +81,9 @@ def main(argv: list[str] | None = None) -> int:
         ]
         print(f"{name:<24}" + "".join(f"{c:>22}" for c in cells))
     if args.out is not None:
-        record = {"worlds": args.worlds, "profile_sets": list(profile_sets), "entries": entries, "success": table}
+        shas = {n: hashlib.sha256(Path(w).read_bytes()).hexdigest() for n, w in entries.items() if w.endswith(".pt")}
+        record = {"worlds": args.worlds, "profile_sets": list(profile_sets), "entries": entries, "policy_sha256": shas}
+        record["success"] = table
         write_atomically(args.out, json.dumps(record, indent=1) + "\n")
     return 0
 
