@@ -128,3 +128,17 @@ def test_a_cpu_runs_policy_bytes_do_not_depend_on_its_workers_or_device_choice(t
         assert train_main([*args, "--workers", workers, "--device", device, "--out", str(out)]) == 0
         digests.append(hashlib.sha256(Path(out / "policy.pt").read_bytes()).hexdigest())
     assert digests[0] == digests[1]
+
+
+def test_the_traced_set_network_decides_as_the_network_does():
+    """`deciding()` traces the `set` network for speed: the same logits, bit for bit, on
+    inputs it was not traced with (and the flat network is left as it is)."""
+    actor, rng = _student(5), np.random.default_rng(6)
+    decide = actor.deciding()
+    for _ in range(20):
+        x = torch.from_numpy(_inputs(rng, batch=1, present=int(rng.integers(0, FEATURES.tracks + 1))))
+        with torch.inference_mode():
+            np.testing.assert_array_equal(decide(x).numpy(), actor.act(x).numpy())
+            np.testing.assert_array_equal(torch.jit.trace(actor.net, x)(x).numpy(), actor.net(x).numpy())
+    flat = student_for(FEATURES, None, "mlp")
+    assert flat.deciding() == flat.act

@@ -107,6 +107,7 @@ class DaggerPlanner(PolicyFilePlanner):
         path = Path(policy) if policy else SHIPPED / "dagger.pt"
         actor, self.features_config, self.header = load_student(path)
         self.actor = actor.double()  # float64, as LearnedPlanner: far from the command grid
+        self._decide = self.actor.deciding()
         self.features = Features(self.features_config)
         self.seen = trained_fingerprints(self.header["trained_on"])
         self._identify(path)
@@ -126,6 +127,6 @@ class DaggerPlanner(PolicyFilePlanner):
 
     def act(self, obs: Observation) -> tuple[float, float]:
         x = self.features(obs)[None]
-        with self._torch.no_grad():
-            a = self.actor.act(self._torch.from_numpy(x)).numpy()[0]
+        with self._torch.inference_mode():  # no autograd bookkeeping at all: the same numbers
+            a = self._decide(self._torch.from_numpy(x)).numpy()[0]
         return action_to_command(a)

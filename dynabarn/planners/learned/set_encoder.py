@@ -77,17 +77,17 @@ class SetEncoderNet(nn.Module):
         scan = x[:, :n]
         pad = pooled * self.pool - n
         if pad:  # beams beyond the last whole pool read as far away (as `Features` pads them)
-            scan = torch.cat([scan, scan.new_ones(len(x), pad)], dim=1)
+            scan = torch.cat([scan, scan.new_ones(x.shape[0], pad)], dim=1)
         now = -nn.functional.max_pool1d(-scan[:, None, :], self.pool)  # min-pooled, (batch, 1, pooled)
         a, b = lay["history"]
-        film = torch.cat([now, x[:, a:b].reshape(len(x), -1, pooled)], dim=1) if b > a else now
+        film = torch.cat([now, x[:, a:b].reshape(x.shape[0], -1, pooled)], dim=1) if b > a else now
         parts = [self.scan_out(self.scan(film)), x[:, n : n + 2]]
         if lay["velocity"]:
             a, b = lay["velocity"]
             parts.append(x[:, a:b])
         if self.track is not None:
             a, b = lay["tracks"]
-            slots = x[:, a:b].reshape(len(x), -1, TRACK_FIELDS)
+            slots = x[:, a:b].reshape(x.shape[0], -1, TRACK_FIELDS)
             present = slots[:, :, TRACK_FIELDS - 1 :]
             h = self.track(slots) * present  # an empty slot adds nothing to either pool
             count = present.sum(dim=1).clamp(min=1.0)
