@@ -150,3 +150,52 @@ def student_ablation() -> str:
             ]
             lines.append(f"| {worlds} | {ENTRY_TITLES.get(name, name)} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+SET_STUDENT_SETS = {
+    "original60_barn": "release's 60",
+    "paper60_barn": "paper60",
+    "unseen_barn": "unseen 240",
+    "tier_dense_barn": "`tier-dense`",
+    "tier_fast_barn": "`tier-fast`",
+    "tier_mixed_barn": "`tier-mixed`",
+    "tier_combined_barn": "`tier-combined`",
+}
+"""Where the set student was run (results/dagger_set_FOLDER) beside the sweep with the shipped
+student, its teacher and the floor (results/FOLDER), compared on the same episodes."""
+SET_STUDENT_ROWS = (
+    ("dagger_set", "`set` student (issue 44)"),
+    ("dagger", "shipped student"),
+    ("oracle_present", "its teacher (`oracle_present`, privileged)"),
+    ("predictive", "`predictive`"),
+    (FLOOR, "blind floor"),
+)
+
+
+def set_student_table() -> str:
+    """Success [95% interval] per difficulty of the set student and, on the same worlds and
+    trial seeds, the shipped student, its teacher, `predictive` and the floor."""
+    from dynabarn.bench.results import read_results
+    from dynabarn.bench.summary import summarise
+
+    lines = [
+        "| worlds | trials | planner | " + " | ".join(DIFFICULTIES) + " | all |",
+        "|---|---|---|" + "---|" * (len(DIFFICULTIES) + 1),
+    ]
+    for folder, title in SET_STUDENT_SETS.items():
+        ours = [
+            r for r in read_results(ROOT / "results" / f"dagger_set_{folder}" / "results.jsonl") if not r.get("retry")
+        ]
+        if not ours:
+            continue
+        episodes = {(r["world"], r["seed"]) for r in ours}
+        rest = [r for r in read_results(ROOT / "results" / folder / "results.jsonl") if not r.get("retry")]
+        same = [r for r in rest if (r.get("world"), r.get("seed")) in episodes]
+        rows = [r | {"planner": "dagger_set"} for r in ours if r["planner"] == "dagger"] + same
+        by = {(s["planner"], s["difficulty"]): s for s in summarise(rows)}
+        trials = len({r["seed"] for r in ours})
+        for planner, name in SET_STUDENT_ROWS:
+            cells = [_cell(by, planner, d, skill=False) for d in (*DIFFICULTIES, "all")]
+            if any(c != "-" for c in cells):
+                lines.append(f"| {title} | {trials} | {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
