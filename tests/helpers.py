@@ -70,6 +70,7 @@ GROUPS = {
     "dynabarn.topics": "ext_speed = dynabarn_ext:SPEED",
     "dynabarn.commands": "hello = dynabarn_ext:hello_main",
     "dynabarn.importers": "ext-json = dynabarn_ext:IMPORTER",
+    "dynabarn.trackers": "ext_tracker = dynabarn_ext:QuietTracker",
 }
 """The entry points of the package `install_extension` installs: one of each kind."""
 
@@ -124,6 +125,14 @@ def install_extension(folder: Path) -> Path:
                     WorldSpec(f"{name}_{i}", i, "easy", ()) for i in range(int(data["count"]))
                 ],
             )
+
+            from dynabarn.perception import ObstacleTracker
+            class QuietTracker(ObstacleTracker):
+                # The Kalman tracker, counting its scans (a tracker of another package).
+                scans = 0
+                def update(self, time, scan, pose):
+                    QuietTracker.scans += 1
+                    return super().update(time, scan, pose)
             """
         )
     )

@@ -28,7 +28,10 @@ def test_every_named_kind_is_one_registry():
 
     for registry in (PLANNERS, BEHAVIORS, PROTOCOLS, PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS, IMPORTERS):
         assert isinstance(registry, Registry) and registry.builtin <= set(registry.names())
-    assert {PLANNERS.group, BEHAVIORS.group, PROTOCOLS.group, PROFILE_SETS.group, IMPORTERS.group} | {
+    from dynabarn.perception.trackers import TRACKERS
+
+    groups = {PLANNERS.group, BEHAVIORS.group, PROTOCOLS.group, PROFILE_SETS.group, IMPORTERS.group, TRACKERS.group}
+    assert groups | {
         "dynabarn.topics",
         "dynabarn.commands",
     } == set(GROUPS)
@@ -225,6 +228,13 @@ def test_what_a_package_installs_is_in_help_a_sweep_and_a_generated_set(installe
     assert bench_main([*argv, "--trials", "1", "--no-floor"]) == 0
     rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     assert [(r["planner"], r["protocol"]) for r in rows] == [("ext_planner", "ext_protocol")]
+    # Its tracker, chosen by a planner's configuration, tracks in a sweep's episode.
+    tracked = tmp_path / "tracked"
+    argv = ["--planner", "predictive", "--planner-config", "tracker.kind=ext_tracker", "--worlds", "3"]
+    assert bench_main([*argv, "--trials", "1", "--no-floor", "--jobs", "1", "--out", str(tracked)]) == 0
+    (row,) = [json.loads(line) for line in (tracked / "results.jsonl").read_text().splitlines()]
+    assert row["planner_config"]["tracker"]["kind"] == "ext_tracker" and row["tracking"]["ticks"] > 0
+    assert sys.modules["dynabarn_ext"].QuietTracker.scans == row["n_ticks"]
     worlds = tmp_path / "ext_worlds"
     gen = ["generate", "--profiles", "ext_profiles", "--behavior", "ext_freeze", "--out", str(worlds)]
     assert worlds_main(gen) == 0
