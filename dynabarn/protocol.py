@@ -29,7 +29,7 @@ import numpy as np
 
 from dynabarn.errors import DynabarnError, unknown_choice
 from dynabarn.files import plain_name_problem
-from dynabarn.registry import Registry
+from dynabarn.registry import Registry, instances_of
 
 
 class GoalRegion(enum.StrEnum):
@@ -191,14 +191,9 @@ PROTOCOLS: Registry[EvalProtocol] = Registry(
         ),
     },
     group="dynabarn.protocols",
-    check=lambda item: _check_protocol(item),
+    check=instances_of(EvalProtocol),
 )
 """Every protocol by name: built in, registered at run time, installed."""
-
-
-def _check_protocol(item: object) -> None:
-    if not isinstance(item, EvalProtocol):
-        raise TypeError(f"{item!r} is not a dynabarn.protocol.EvalProtocol")
 
 
 def register_protocol(protocol: EvalProtocol) -> None:

@@ -25,6 +25,26 @@ from dynabarn.errors import DynabarnError, unknown_choice
 T = TypeVar("T")
 
 
+def instances_of(cls: type) -> Callable[[object], None]:
+    """A registry's `check` for items that are instances of `cls` (protocols, profile sets)."""
+
+    def check(item: object) -> None:
+        if not isinstance(item, cls):
+            raise TypeError(f"{item!r} is not a {cls.__module__}.{cls.__qualname__}")
+
+    return check
+
+
+def subclasses_of(cls: type) -> Callable[[object], None]:
+    """A registry's `check` for items that are subclasses of `cls` (obstacle behaviours)."""
+
+    def check(item: object) -> None:
+        if not (isinstance(item, type) and issubclass(item, cls)):
+            raise TypeError(f"{item!r} is not a subclass of {cls.__module__}.{cls.__qualname__}")
+
+    return check
+
+
 class Registry(dict[str, T], Generic[T]):
     """Built-in and registered items by name (the dict), and installed ones by entry point.
 

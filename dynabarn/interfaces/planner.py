@@ -18,6 +18,7 @@ import typing
 from dataclasses import fields
 from typing import ClassVar
 
+from dynabarn.errors import DynabarnError
 from dynabarn.interfaces.observation import EpisodeInfo, Observation
 
 __all__ = ["Planner", "check_planner", "check_planner_factory", "config_from_kwargs", "nested_config"]
@@ -150,10 +151,10 @@ class Planner(abc.ABC):
 
 
 def check_planner(planner: object, what: str = "planner") -> Planner:
-    """`planner` if it keeps the contract (an instance of `Planner`); TypeError with one line
-    otherwise (the callers make it their `DynabarnError`)."""
+    """`planner` if it keeps the contract (an instance of `Planner`); one `DynabarnError` line
+    otherwise."""
     if not isinstance(planner, Planner):
-        raise TypeError(f"{what} is a {type(planner).__name__}, not a dynabarn.interfaces.Planner (subclass it)")
+        raise DynabarnError(f"{what} is a {type(planner).__name__}, not a dynabarn.interfaces.Planner (subclass it)")
     return planner
 
 

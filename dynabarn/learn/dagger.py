@@ -59,7 +59,9 @@ def _log(out: Path, line: str) -> None:
         f.write(line + "\n")
 
 
-RUN_LENGTH = ("threads", "workers", "iterations", "final_updates", "device")
+HOW_IT_RUNS = ("threads", "workers", "device")
+"""Settings that say how a run runs, not what it does (left out of its policy file)."""
+RUN_LENGTH = ("iterations", "final_updates", *HOW_IT_RUNS)
 """Settings a run may change when resumed: where it ends and how it runs, not what it did."""
 
 
@@ -288,7 +290,7 @@ def _notes(cfg: DaggerConfig, report: DaggerReport, device: str) -> dict:
     """What the policy file says of its run: what it did, not how it ran (workers, threads,
     seconds: a CPU run's file is the same bytes whatever they were), except the device of a
     GPU run, whose kernels round differently."""
-    config = {k: v for k, v in asdict(cfg).items() if k not in RUN_LENGTH or k in ("iterations", "final_updates")}
+    config = {k: v for k, v in asdict(cfg).items() if k not in HOW_IT_RUNS}
     last = report.iterations[-1] if report.iterations else None
     notes = {"config": config, "last_iteration": last and {k: v for k, v in last.items() if k != "seconds"}}
     notes["final"] = report.final

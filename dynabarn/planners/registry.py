@@ -77,10 +77,7 @@ def get_planner(name: str, /, factory: Callable[..., Planner] | None = None, **c
         planner = factory(**config)
     except TypeError as exc:
         raise DynabarnError(f"planner {name!r}: bad configuration: {exc}") from None
-    try:
-        return check_planner(planner, f"what planner {name!r}'s factory built")
-    except TypeError as exc:
-        raise DynabarnError(str(exc)) from None
+    return check_planner(planner, f"what planner {name!r}'s factory built")
 
 
 PRESETS_DIR = Path(__file__).resolve().parent / "presets"

@@ -30,7 +30,7 @@ import numpy as np
 
 from dynabarn.determinism import OBSTACLE_SPEED_RESOLUTION, snap_array
 from dynabarn.errors import WorldError
-from dynabarn.registry import Registry
+from dynabarn.registry import Registry, subclasses_of
 from dynabarn.robot import JACKAL
 from dynabarn.worlds.schedule import SchedulePlayer
 from dynabarn.worlds.spec import SCRIPTED, Obstacle
@@ -185,15 +185,8 @@ class Avoid(ObstacleBehavior):
 
 
 _BUILTIN: dict[str, type[ObstacleBehavior]] = {b.name: b for b in (Scripted, Yield, Avoid)}
-
-
-def _check_behavior(item: object) -> None:
-    if not (isinstance(item, type) and issubclass(item, ObstacleBehavior)):
-        raise TypeError(f"{item!r} is not a subclass of dynabarn.sim.behaviors.ObstacleBehavior")
-
-
 BEHAVIORS: Registry[type[ObstacleBehavior]] = Registry(
-    "obstacle behaviour", _BUILTIN, group=ENTRY_POINT_GROUP, error=WorldError, check=_check_behavior
+    "obstacle behaviour", _BUILTIN, group=ENTRY_POINT_GROUP, error=WorldError, check=subclasses_of(ObstacleBehavior)
 )
 """Every obstacle behaviour by name: built in, registered at run time, installed."""
 

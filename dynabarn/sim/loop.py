@@ -22,7 +22,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from dynabarn.errors import DynabarnError, EndEpisode
+from dynabarn.errors import EndEpisode
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, check_hooks
 from dynabarn.interfaces.planner import Planner, check_planner
 from dynabarn.metrics import (
@@ -56,7 +56,7 @@ def run_episode(
     `error` and the reason. Ctrl-C ends it the same way (reason "interrupted"), lets the
     observers finish (the recording is closed and complete), then re-raises.
     """
-    _check_planner(planner)
+    check_planner(planner)  # before anything runs: one line
     sim = world if isinstance(world, Simulation) else Simulation(world, config=config)
     episode = Episode(sim, protocol, seed=seed, privileged=planner.privileged)
     start = episode_start(
@@ -88,7 +88,7 @@ def run_episode(
             if loop.period(raw_v, raw_w, planner_ms=planning_ms, debug=planner.debug, tracks=tracks) is Outcome.ERROR:
                 break
     except KeyboardInterrupt:
-        _end_interrupted(episode, start, observers, planner)
+        _end_interrupted(loop, planner)
         raise
     _finish(planner, episode.outcome.value if episode.outcome else "error")
     return loop.result()
@@ -167,23 +167,13 @@ class EpisodeLoop:
         return result
 
 
-def _end_interrupted(episode: Episode, start: EpisodeStart, observers: Sequence[EpisodeObserver], planner) -> None:
+def _end_interrupted(loop: EpisodeLoop, planner: Planner) -> None:
     """Ctrl-C or SIGTERM: the episode judged as interrupted and every observer ended (the
     recording closed whole), through a second, impatient Ctrl-C."""
     with no_interrupts():
-        episode.end(Outcome.ERROR, INTERRUPTED)
-        result = episode_result(episode, start)
-        for obs_ in observers:
-            obs_.on_end(result)
+        loop.episode.end(Outcome.ERROR, INTERRUPTED)
+        loop.result()
         _finish(planner, INTERRUPTED)
-
-
-def _check_planner(planner: object) -> None:
-    """The contract (`interfaces.planner.check_planner`), before anything runs: one line."""
-    try:
-        check_planner(planner)
-    except TypeError as exc:
-        raise DynabarnError(str(exc)) from None
 
 
 def _planning_ms(planner: Planner, since: float) -> float:

@@ -21,7 +21,7 @@ import enum
 from dataclasses import dataclass, field
 
 from dynabarn.errors import ProfileError, unknown_choice
-from dynabarn.registry import Registry
+from dynabarn.registry import Registry, instances_of
 from dynabarn.worlds.classes import (  # noqa: F401 (Fig. 2's classes, named here too)
     HIGH_COUNT,
     LOW_COUNT,
@@ -368,14 +368,9 @@ PROFILE_SETS: Registry[ProfileSet] = Registry(
     },
     group="dynabarn.profile_sets",
     error=ProfileError,
-    check=lambda item: _check_profile_set(item),
+    check=instances_of(ProfileSet),
 )
 """Profile sets by name: built in, registered at run time (`PROFILE_SETS.register`), installed."""
-
-
-def _check_profile_set(item: object) -> None:
-    if not isinstance(item, ProfileSet):
-        raise TypeError(f"{item!r} is not a dynabarn.worlds.profiles.ProfileSet")
 
 
 def get_profile_set(name: str) -> ProfileSet:

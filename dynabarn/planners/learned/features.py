@@ -79,13 +79,12 @@ class FeatureConfig:
 
     def size(self, n_beams: int = JACKAL.laser_beams) -> int:
         """Length of the feature vector for a laser of `n_beams` beams (the Jackal's by default)."""
-        pooled = math.ceil(n_beams / self.history_pool)
-        return n_beams + 2 + self.history * pooled + (2 if self.velocity else 0) + self.tracks * TRACK_FIELDS
+        return self.layout(n_beams)["size"]
 
     def layout(self, n_beams: int = JACKAL.laser_beams) -> dict:
         """Where each input lies in the vector (what `set_encoder` splits it by): the beams'
-        count and pooled width, and (start, end) of the history frames, the velocity and the
-        track slots (the velocity and the tracks None where not given)."""
+        count and pooled width, (start, end) of the history frames, the velocity and the track
+        slots (the velocity and the tracks None where not given), and the vector's size."""
         pooled = math.ceil(n_beams / self.history_pool)
         i = n_beams + 2
         history = (i, i + self.history * pooled)
@@ -93,7 +92,15 @@ class FeatureConfig:
         velocity = (i, i + 2) if self.velocity else None
         i += 2 if self.velocity else 0
         tracks = (i, i + self.tracks * TRACK_FIELDS) if self.tracks else None
-        return {"beams": n_beams, "pooled": pooled, "history": history, "velocity": velocity, "tracks": tracks}
+        i += self.tracks * TRACK_FIELDS
+        return {
+            "beams": n_beams,
+            "pooled": pooled,
+            "history": history,
+            "velocity": velocity,
+            "tracks": tracks,
+            "size": i,
+        }
 
     def names(self) -> list[str]:
         """The option names in use, for tables ("scan+goal", "history 2", ...)."""

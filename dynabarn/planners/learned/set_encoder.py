@@ -48,10 +48,9 @@ class SetEncoderNet(nn.Module):
     """Feature vector (batch, FeatureConfig.size()) -> (batch, n_out): tanh-bounded where
     `bounded` (a regressed action), else logits."""
 
-    def __init__(self, features: FeatureConfig, n_out: int, *, bounded: bool, n_beams: int | None = None) -> None:
+    def __init__(self, features: FeatureConfig, n_out: int, *, bounded: bool) -> None:
         super().__init__()
-        self.layout = features.layout(n_beams) if n_beams else features.layout()
-        lay = self.layout
+        lay = self.layout = features.layout()
         frames = 1 + features.history
         self.pool = features.history_pool
         c1, c2 = SCAN_CHANNELS

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dynabarn.errors import ImportFormatError
-from dynabarn.registry import Registry
+from dynabarn.registry import Registry, instances_of
 
 
 @dataclass(frozen=True)
@@ -52,11 +52,6 @@ def _barn_file(path: Path):
     return load_barn_json(path)
 
 
-def _check_importer(item: object) -> None:
-    if not isinstance(item, WorldImporter):
-        raise TypeError(f"{item!r} is not a dynabarn.worlds.importers.WorldImporter")
-
-
 IMPORTERS: Registry[WorldImporter] = Registry(
     "world import format",
     {
@@ -69,7 +64,7 @@ IMPORTERS: Registry[WorldImporter] = Registry(
     },
     group="dynabarn.importers",
     error=ImportFormatError,
-    check=_check_importer,
+    check=instances_of(WorldImporter),
 )
 """Every world import format by name: built in, registered at run time, installed."""
 
