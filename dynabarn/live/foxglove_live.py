@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import sys
 import threading
+import time
 
 import foxglove
 from foxglove.websocket import Capability, ChannelView, Client, ServerListener
@@ -24,6 +25,8 @@ from dynabarn.recording import McapRecorder
 HOST = "127.0.0.1"
 """Loopback only: a simulator has no business listening on every interface (use an SSH
 tunnel to watch from another machine)."""
+SETTLE = 0.2
+"""Seconds without a new subscription after which a waiting episode starts."""
 
 
 class _Latch(ServerListener):
@@ -33,6 +36,7 @@ class _Latch(ServerListener):
         self.live = live
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
+        self.live.last_subscription = time.monotonic()
         self.live.subscribed.set()
         self.live.resend(channel.topic)
 
@@ -51,6 +55,7 @@ class FoxgloveLive(EpisodeObserver):
         self.wait = wait
         self.context = foxglove.Context()
         self.subscribed = threading.Event()
+        self.last_subscription = 0.0
         self.recorder: McapRecorder | None = None
         self._lock = threading.Lock()
         self.server = foxglove.start_server(
@@ -85,8 +90,15 @@ class FoxgloveLive(EpisodeObserver):
                     channels[topic].log(data, log_time=ns)
 
     def wait_for_client(self, timeout: float | None) -> bool:
-        """Block until a client subscribes to something (or `timeout` seconds pass)."""
-        return self.subscribed.wait(timeout)
+        """Block until a client subscribes to something (or `timeout` seconds pass), then
+        until its subscriptions settle (SETTLE seconds without a new one): a client that
+        connected before the channels existed subscribes to them one advertisement at a time,
+        and the episode must not start between its first and its last."""
+        if not self.subscribed.wait(timeout):
+            return False
+        while (quiet := time.monotonic() - self.last_subscription) < SETTLE:
+            time.sleep(SETTLE - quiet)
+        return True
 
     # -- EpisodeObserver: the server's clock follows simulated time ---------------------
     def on_start(self, start) -> None:
