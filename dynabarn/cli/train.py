@@ -26,7 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     # After make_parser has chosen MuJoCo's OpenGL platform (Gymnasium's registration loads
     # MuJoCo); no PyTorch: --help works without the extra.
-    from dynabarn.learn.configs import DEVICES, DaggerConfig, TD3Config
+    from dynabarn.learn.configs import DEVICES, TEACHERS, DaggerConfig, TD3Config
     from dynabarn.planners.learned.spaces import ENCODERS, HEADS
 
     sub = subcommands(parser)
@@ -51,12 +51,19 @@ def build_parser() -> argparse.ArgumentParser:
     td.add_argument("--out", type=Path, required=True, help="folder for checkpoints, policy.pt and the learning curve")
     dg = sub.add_parser(
         "dagger",
-        help="DAgger with the present-state oracle as teacher on procedural training worlds "
+        help="DAgger with a search planner as teacher on procedural training worlds "
         "(resumes from --out's last iteration when run again)",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     add_protocol(dg)
     _add_options(dg, DaggerConfig)
+    dg.add_argument(
+        "--teacher",
+        choices=TEACHERS,
+        default=DaggerConfig.teacher,
+        help="who labels every state: the oracle told the obstacles' true present state (privileged), or "
+        "predictive, the same search on the laser tracker's predictions (what the student sees)",
+    )
     dg.add_argument(
         "--head",
         choices=HEADS,
@@ -164,6 +171,7 @@ def _train_dagger(args: argparse.Namespace, tqdm) -> int:
     profile_sets = [p for p in args.profile_sets.split(",") if p]
     cfg = DaggerConfig(  # checks the protocol and profile sets: one line before any worker starts
         protocol=args.protocol,
+        teacher=args.teacher,
         head=args.head,
         encoder=args.encoder,
         device=args.device,

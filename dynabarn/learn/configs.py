@@ -79,6 +79,10 @@ class TD3Config:
 
 DEVICES = ("auto", "cpu", "cuda")
 """Where `dynabarn-train dagger` fits the student (`--device`)."""
+TEACHERS = ("oracle_present", "predictive")
+"""Who labels DAgger's states (`--teacher`): the oracle told the obstacles' true present
+state (privileged), or `predictive`, the same search on the laser tracker's predictions
+(what the student itself sees). Both choose among the same grid of commands."""
 CORES = min(usable_cores(), MAX_JOBS)
 """DAgger's collection workers and fitting threads by default: collection and fitting take
 turns, so each may use every core this process may run on."""
@@ -93,6 +97,7 @@ class DaggerConfig:
     student that stalls early in training would otherwise fill the dataset with waiting."""
     beta_decay: float = option(0.5, 0.0, 1.0, "the teacher drives with probability beta_decay ** iteration")
     teacher: str = "oracle_present"
+    """Who labels every state (`TEACHERS`); recorded with the run and in the policy file."""
     head: str = "classify"
     """The student's output (`spaces.HEADS`): `classify` among the teacher's candidate
     commands (cross-entropy; the shipped student), or `regress` the teacher's action (mean
@@ -128,6 +133,8 @@ class DaggerConfig:
         from dynabarn.protocol import get_protocol
 
         get_protocol(self.protocol)
+        if self.teacher not in TEACHERS:
+            raise DynabarnError(f"teacher {self.teacher!r}: use one of {', '.join(TEACHERS)}")
         if isinstance(self.profile_sets, str) or not self.profile_sets:
             raise DynabarnError(f"profile_sets {self.profile_sets!r}: give one or more profile set or tier names")
         for name in self.profile_sets:
