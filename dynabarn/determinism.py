@@ -117,9 +117,9 @@ def sincos(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     sin_r = r + r * z * ps
     cos_r = (1.0 - 0.5 * z) + z * z * pc
     quadrant = k.astype(np.int64) & 3
-    sin_x = np.where(quadrant == 0, sin_r, np.where(quadrant == 1, cos_r, np.where(quadrant == 2, -sin_r, -cos_r)))
-    cos_x = np.where(quadrant == 0, cos_r, np.where(quadrant == 1, -sin_r, np.where(quadrant == 2, -cos_r, sin_r)))
-    return sin_x, cos_x
+    # Quadrant q: sin x is the q-th of (sin r, cos r, -sin r, -cos r), cos x the (q + 1)-th.
+    turns = (sin_r, cos_r, -sin_r, -cos_r)
+    return np.choose(quadrant, turns), np.choose((quadrant + 1) & 3, turns)
 
 
 def exp(x: np.ndarray) -> np.ndarray:

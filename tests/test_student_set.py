@@ -131,18 +131,22 @@ def test_a_cpu_runs_policy_bytes_do_not_depend_on_its_workers_or_device_choice(t
     assert digests[0] == digests[1]
 
 
-def test_the_traced_set_network_decides_as_the_network_does():
-    """`deciding()` traces the `set` network for speed: the same logits, bit for bit, on
-    inputs it was not traced with (and the flat network is left as it is)."""
-    actor, rng = _student(5), np.random.default_rng(6)
-    decide = actor.deciding()
-    for _ in range(20):
-        x = torch.from_numpy(_inputs(rng, batch=1, present=int(rng.integers(0, FEATURES.tracks + 1))))
-        with torch.inference_mode():
-            np.testing.assert_array_equal(decide(x).numpy(), actor.act(x).numpy())
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # PyTorch 2.13 calls tracing deprecated
-                traced = torch.jit.trace(actor.net, x)
-            np.testing.assert_array_equal(traced(x).numpy(), actor.net(x).numpy())
-    flat = student_for(FEATURES, None, "mlp")
-    assert flat.deciding() == flat.act
+@pytest.mark.parametrize("encoder", ["set", "mlp"])
+def test_the_traced_network_decides_as_the_network_does(encoder):
+    """`deciding()` traces the network for speed: the same actions and logits, bit for bit,
+    on inputs it was not traced with, in float32 and in the float64 the planner runs."""
+    rng = np.random.default_rng(6)
+    torch.manual_seed(5)
+    actor = student_for(FEATURES, CLASSES, encoder)
+    for dtype in (torch.float32, torch.float64):
+        actor = actor.to(dtype)
+        decide = actor.deciding()
+        for _ in range(20):
+            x = _inputs(rng, batch=1, present=int(rng.integers(0, FEATURES.tracks + 1)))
+            x = torch.from_numpy(x).to(dtype)
+            with torch.inference_mode():
+                np.testing.assert_array_equal(decide(x).numpy(), actor.act(x).numpy())
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # PyTorch 2.13 calls tracing deprecated
+                    traced = torch.jit.trace(actor.net, x)
+                np.testing.assert_array_equal(traced(x).numpy(), actor.net(x).numpy())

@@ -41,17 +41,26 @@ def _env(cfg, split: str):
 
     key = (split, cfg.seed, tuple(cfg.profile_sets), cfg.protocol)
     if _WORKER.get("key") != key:
-        if "env" in _WORKER:
-            _WORKER["env"].close()
+        _close_env()
         torch.set_num_threads(1)
         _WORKER["env"] = DynaBARNEnv(
             split=split, split_seed=cfg.seed, split_profile_sets=tuple(cfg.profile_sets), protocol=cfg.protocol
         )
         _WORKER["key"] = key
-        # The split's world files live in a temporary folder the environment removes on
-        # close; a pool's worker ends through sys.exit, which runs this.
-        atexit.register(_WORKER["env"].close)
+        if not _WORKER.get("atexit"):
+            # The split's world files live in a temporary folder the environment removes on
+            # close; a pool's worker ends through sys.exit, which runs this. Registered once:
+            # an entry per environment would keep every closed one (and its worlds) alive.
+            atexit.register(_close_env)
+            _WORKER["atexit"] = True
     return _WORKER["env"]
+
+
+def _close_env() -> None:
+    env = _WORKER.pop("env", None)
+    _WORKER.pop("key", None)
+    if env is not None:
+        env.close()
 
 
 def episode(cfg, split: str, k: int, beta: float, actor: StudentActor | None, label: bool) -> EpisodeData:

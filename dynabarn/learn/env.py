@@ -383,6 +383,11 @@ class DynaBARNEnv(gymnasium.Env):
 
     def close(self) -> None:
         self._closed = True
+        # The simulations and plans go with it: something may still hold the closed
+        # environment (an `atexit` entry, a wrapper), and each world's buffers are megabytes.
+        self._sims.clear()
+        self._planners.clear()
+        self.episode = self.loop = self._observation = None
         for renderer in self._renderers.values():
             renderer.close()
         self._renderers.clear()

@@ -142,8 +142,13 @@ class ObstacleTracker:
             self.size[track_rows] = det.sizes[det_cols]
             self.seen[track_rows] = time
             self.unseen_in_view[track_rows] = 0.0
-        self._age_unmatched(np.setdiff1d(np.arange(len(self.ids)), track_rows), scan, pose, dt)
-        born = np.setdiff1d(np.arange(len(det)), det_cols)
+        # The rows and columns left unmatched, in order (a mask: setdiff1d sorts, costing more).
+        unmatched = np.ones(len(self.ids), dtype=bool)
+        unmatched[track_rows] = False
+        self._age_unmatched(np.flatnonzero(unmatched), scan, pose, dt)
+        unclaimed = np.ones(len(det), dtype=bool)
+        unclaimed[det_cols] = False
+        born = np.flatnonzero(unclaimed)
         if len(born):
             self._birth(det.centres[born], det.sizes[born], var[born], time)
         # On a fixed grid: the state carried to the next scan is the same bits everywhere.

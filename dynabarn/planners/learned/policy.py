@@ -9,7 +9,9 @@ the policy shipped in `dynabarn/policies/` is used. Files load with
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+from collections.abc import Iterator
 from pathlib import Path
 
 from dynabarn.errors import LEARN_EXTRA, DynabarnError
@@ -34,6 +36,23 @@ class PolicyFilePlanner(Planner):
             raise DynabarnError(f"planner {what!r} needs {LEARN_EXTRA}") from None
         self._torch = torch
         return torch
+
+    @contextlib.contextmanager
+    def _one_decision(self) -> Iterator[None]:
+        """Around one network call: no autograd, and one intra-op thread. A decision is a
+        batch of one, which more threads cannot share out; on a busy machine they wait on
+        each other (the set student's call took 1.8 ms with two threads where one took 0.75,
+        both cores busy). The process's own thread count is back after the call."""
+        torch = self._torch
+        threads = torch.get_num_threads()
+        if threads != 1:
+            torch.set_num_threads(1)
+        try:
+            with torch.inference_mode():
+                yield
+        finally:
+            if threads != 1:
+                torch.set_num_threads(threads)
 
     def _identify(self, path: Path) -> None:
         """After the file loaded: its path and sha256."""
@@ -75,7 +94,7 @@ class LearnedPlanner(PolicyFilePlanner):
     def act(self, obs: Observation) -> tuple[float, float]:
         g = self.global_planner.local_goal_in_robot(obs.pose, self.lookahead)
         x = policy_input(obs.scan, g)[None]
-        with self._torch.no_grad():
+        with self._one_decision():
             a = self.actor(self._torch.from_numpy(x)).numpy()[0]
         return action_to_command(a)
 
@@ -127,6 +146,6 @@ class DaggerPlanner(PolicyFilePlanner):
 
     def act(self, obs: Observation) -> tuple[float, float]:
         x = self.features(obs)[None]
-        with self._torch.inference_mode():  # no autograd bookkeeping at all: the same numbers
+        with self._one_decision():
             a = self._decide(self._torch.from_numpy(x)).numpy()[0]
         return action_to_command(a)

@@ -87,12 +87,11 @@ class StudentActor(nn.Module):
         return self.classes.to(out.dtype)[out.argmax(dim=-1)]
 
     def deciding(self):
-        """`act` for one decision at a time, as fast as it is the same: the `set` network
-        traced (TorchScript runs its two dozen small operations without Python between
-        them: half the time per call, the same operations and bits; a test holds them
-        equal), the flat one as it is. Call on the network in its final dtype."""
-        if self.encoder != "set":
-            return self.act
+        """`act` for one decision at a time, as fast as it is the same: the network traced
+        (TorchScript runs its small operations without Python between them: the `set`
+        network's two dozen in half the time per call, the flat one's seven some 10 % faster;
+        the same operations and bits, a test holds them equal). Call on the network in its
+        final dtype."""
         example = torch.zeros(1, self.n_inputs, dtype=next(self.parameters()).dtype)
         try:
             with torch.no_grad(), warnings.catch_warnings():
