@@ -199,3 +199,42 @@ def set_student_table() -> str:
             if any(c != "-" for c in cells):
                 lines.append(f"| {title} | {trials} | {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+DAGGER_RUNS = {
+    "dagger_set_training": "`set`, teacher `oracle_present`",
+    "dagger_set_predictive_training": "`set`, teacher `predictive`",
+    "dagger_mlp_tiers_training": "`mlp`, teacher `oracle_present`",
+}
+"""Training runs on the same split, seeds and profile sets (the tiers' too), compared
+iteration by iteration: the encoder ablation and the teacher ablation (issue 44)."""
+
+
+def dagger_curves() -> str:
+    """Each run's validation success [95% interval] per iteration, on the same 60 validation
+    worlds, with the teacher's share of control: the ablations at equal budget."""
+    from dynabarn.bench.summary import wilson_interval
+
+    runs = {}
+    for folder, title in DAGGER_RUNS.items():
+        path = ROOT / "results" / folder / "training.json"
+        if path.is_file():
+            runs[title] = json.loads(path.read_text())["iterations"]
+    if not runs:
+        return "(no training records)"
+    depth = max(len(its) for its in runs.values())
+    lines = [
+        "| iteration | teacher's share | " + " | ".join(runs) + " |",
+        "|---|---|" + "---|" * len(runs),
+    ]
+    for i in range(depth):
+        cells, share = [], None
+        for its in runs.values():
+            if i >= len(its):
+                cells.append("-")
+                continue
+            v, share = its[i]["validation"], its[i]["beta"]
+            lo, hi = wilson_interval(round(v["success"] * v["episodes"]), v["episodes"])
+            cells.append(f"{v['success']:.2f} [{lo:.2f}, {hi:.2f}]")
+        lines.append(f"| {i} | {share:.3f} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)

@@ -96,7 +96,7 @@ from gymnasium import spaces
 
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces.observation import Observation
-from dynabarn.learn.shared_worlds import shared_world
+from dynabarn.learn.shared_worlds import forget_world, shared_world
 from dynabarn.learn.split import DEFAULT_PROFILE_SETS, ProceduralWorlds, reserved_fingerprints
 from dynabarn.metrics import Outcome
 from dynabarn.planners.global_planner import GlobalPlanner
@@ -254,6 +254,7 @@ class DynaBARNEnv(gymnasium.Env):
             wid, file, difficulty = k, str(drawn.path), drawn.difficulty
             for old in set(self._sims) - self.procedural.paths():  # dropped from the split's cache
                 del self._sims[old], self._planners[old]
+                forget_world(old)
         elif "world_index" in options:
             wid, file, difficulty = self.entries[int(options["world_index"]) % len(self.entries)]
         else:

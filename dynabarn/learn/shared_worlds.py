@@ -41,3 +41,10 @@ def shared_world(file: str) -> tuple[Simulation, GlobalPlanner]:
             _worlds.popitem(last=False)
     _worlds.move_to_end(key)
     return hit
+
+
+def forget_world(file: str) -> None:
+    """Drop every compiled version of `file` (a procedural world whose file was removed:
+    nobody meets it again, and a world of static cylinders holds some 9 MB)."""
+    for key in [k for k in _worlds if k[0] == file]:
+        del _worlds[key]
