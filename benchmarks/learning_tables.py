@@ -161,20 +161,25 @@ SET_STUDENT_SETS = {
     "tier_mixed_barn": "`tier-mixed`",
     "tier_combined_barn": "`tier-combined`",
 }
-"""Where the set student was run (results/dagger_set_FOLDER) beside the sweep with the shipped
-student, its teacher and the floor (results/FOLDER), compared on the same episodes."""
+"""Where the issue-44 students were run (results/PREFIX_FOLDER, PREFIX one of NEW_STUDENTS)
+beside the sweep with the shipped student, its teacher and the floor (results/FOLDER),
+compared on the same episodes."""
+NEW_STUDENTS = {
+    "dagger_predictive": "`set` student taught by `predictive` (`dagger_predictive.pt`)",
+    "dagger_set": "`set` student taught by `oracle_present` (`dagger_set.pt`)",
+}
 SET_STUDENT_ROWS = (
-    ("dagger_set", "`set` student (issue 44)"),
-    ("dagger", "shipped student"),
-    ("oracle_present", "its teacher (`oracle_present`, privileged)"),
+    *NEW_STUDENTS.items(),
+    ("dagger", "shipped student (`dagger.pt`)"),
+    ("oracle_present", "`oracle_present` (privileged; the shipped student's teacher)"),
     ("predictive", "`predictive`"),
     (FLOOR, "blind floor"),
 )
 
 
 def set_student_table() -> str:
-    """Success [95% interval] per difficulty of the set student and, on the same worlds and
-    trial seeds, the shipped student, its teacher, `predictive` and the floor."""
+    """Success [95% interval] per difficulty of the issue-44 students and, on the same worlds
+    and trial seeds, the shipped student, both teachers and the floor."""
     from dynabarn.bench.results import read_results
     from dynabarn.bench.summary import summarise
 
@@ -183,23 +188,23 @@ def set_student_table() -> str:
         "|---|---|---|" + "---|" * (len(DIFFICULTIES) + 1),
     ]
     for folder, title in SET_STUDENT_SETS.items():
-        ours = [
-            r for r in read_results(ROOT / "results" / f"dagger_set_{folder}" / "results.jsonl") if not r.get("retry")
-        ]
+        ours = []
+        for prefix in NEW_STUDENTS:
+            path = ROOT / "results" / f"{prefix}_{folder}" / "results.jsonl"
+            rows = read_results(path) if path.is_file() else []
+            ours += [r | {"planner": prefix} for r in rows if r["planner"] == "dagger" and not r.get("retry")]
         if not ours:
             continue
         episodes = {(r["world"], r["seed"]) for r in ours}
         rest = [r for r in read_results(ROOT / "results" / folder / "results.jsonl") if not r.get("retry")]
         same = [r for r in rest if (r.get("world"), r.get("seed")) in episodes]
-        rows = [r | {"planner": "dagger_set"} for r in ours if r["planner"] == "dagger"] + same
-        by = {(s["planner"], s["difficulty"]): s for s in summarise(rows)}
+        by = {(s["planner"], s["difficulty"]): s for s in summarise(ours + same)}
         trials = len({r["seed"] for r in ours})
         for planner, name in SET_STUDENT_ROWS:
             cells = [_cell(by, planner, d, skill=False) for d in (*DIFFICULTIES, "all")]
             if any(c != "-" for c in cells):
                 lines.append(f"| {title} | {trials} | {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
-
 
 DAGGER_RUNS = {
     "dagger_set_training": "`set`, teacher `oracle_present`",

@@ -1,10 +1,9 @@
 """`DynaBARN-v0`: the benchmark as a Gymnasium environment.
 
 ## Description
-A Clearpath Jackal must cross a DynaBARN world (Nair et al. 2022) from its spawn to the
-goal among moving cylinders, with the observation of the paper's learned baselines: the
-720-beam laser scan and the local goal from the Dijkstra global planner (Sec. IV-b,
-Fig. 4). One step is one control period (0.1 s: 20 MuJoCo steps at 5 ms).
+A Clearpath Jackal must cross a DynaBARN world (Nair et al. 2022) from its spawn to the goal among moving cylinders,
+with the observation of the paper's learned baselines: the 720-beam laser scan and the local goal from the Dijkstra
+global planner (Sec. IV-b, Fig. 4). One step is one control period (0.1 s: 20 MuJoCo steps at 5 ms).
 
 ## Action space
 `Box(-1, 1, (2,), float32)`, normalised; mapped linearly onto the paper's command ranges:
@@ -28,26 +27,24 @@ After the TD3 navigation work of the paper's group (progress, collision and succ
 Each term is in `info`.
 
 ## Starting state
-World drawn uniformly from the chosen set (and difficulty); trial seed drawn from the
-environment's generator (sets the obstacles' clock offset and the laser noise); robot at
-the protocol's spawn ((11, 0, yaw pi) for `barn`). `reset(options=...)`: `world_index`
-(an index into the chosen worlds), `trial_seed`, and `privileged=True` (the obstacles'
-true states in `env.unwrapped.observation`, for a demonstrator such as the oracle; the
-policy's observation is unchanged).
+World drawn uniformly from the chosen set (and difficulty); trial seed drawn from the environment's generator (sets
+the obstacles' clock offset and the laser noise); robot at the protocol's spawn ((11, 0, yaw pi) for `barn`).
+`reset(options=...)`: `world_index` (an index into the chosen worlds), `trial_seed`, and `privileged=True` (the
+obstacles' true states in `env.unwrapped.observation`, for a demonstrator such as the oracle; the policy's
+observation is unchanged).
 
 ## Episode end
-Terminated on success or collision; truncated on the protocol's time limit (100 s of
-simulated time once the robot has moved 0.1 m, about 1,000 steps) or an error.
-`info["is_success"]` says whether the goal was reached (Stable-Baselines3 logs it as the
-success rate). The registered `spec.max_episode_steps` (2,000 for `barn`) is the longest an
-episode can last under the protocol (its clock may start up to one time limit late), so
-the protocol always truncates first and Gymnasium's `TimeLimit` is only a safety net.
+Terminated on success or collision; truncated on the protocol's time limit (100 s of simulated time once the robot
+has moved 0.1 m, about 1,000 steps) or an error. `info["is_success"]` says whether the goal was reached
+(Stable-Baselines3 logs it as the success rate). The registered `spec.max_episode_steps` (2,000 for `barn`) is the
+longest an episode can last under the protocol (its clock may start up to one time limit late), so the protocol
+always truncates first and Gymnasium's `TimeLimit` is only a safety net.
 
 ## Rendering
-`render_mode="rgb_array"`: `render()` returns an (height, width, 3) uint8 frame from
-MuJoCo's renderer (headless machines: set `MUJOCO_GL=egl` before importing mujoco), so
-`gymnasium.wrappers.RecordVideo` works. `render_mode="human"`: MuJoCo's viewer window,
-paced to real time (needs a display). `camera`: `top` (the arena) or `follow`.
+`render_mode="rgb_array"`: `render()` returns an (height, width, 3) uint8 frame from MuJoCo's renderer (headless
+machines: set `MUJOCO_GL=egl` before importing mujoco), so `gymnasium.wrappers.RecordVideo` works.
+`render_mode="human"`: MuJoCo's viewer window, paced to real time (needs a display). `camera`: `top` (the arena) or
+`follow`.
 
 ## Arguments
 | parameter | type | default | description |
@@ -384,10 +381,7 @@ class DynaBARNEnv(gymnasium.Env):
 
     def close(self) -> None:
         self._closed = True
-        # The simulations and plans go with it: something may still hold the closed
-        # environment (an `atexit` entry, a wrapper), and each world's buffers are megabytes.
-        self._sims.clear()
-        self._planners.clear()
+        self._sims, self._planners = {}, {}  # megabytes a world, whoever still holds the closed environment
         self.episode = self.loop = self._observation = None
         for renderer in self._renderers.values():
             renderer.close()
