@@ -128,8 +128,9 @@ def test_features_history_and_tracks_see_motion():
     assert np.abs(tracks[-1, :, 2:4]).max() > 0.05  # and moves
 
 
-def test_dagger_aggregates_student_states_with_teacher_labels(tmp_path):
-    cfg = DaggerConfig(episodes=2, validation_episodes=1, updates=2, workers=1, max_steps=60)
+@pytest.mark.parametrize("teacher", ["oracle_present", "predictive"])
+def test_dagger_aggregates_student_states_with_teacher_labels(tmp_path, teacher):
+    cfg = DaggerConfig(episodes=2, validation_episodes=1, updates=2, workers=1, max_steps=60, teacher=teacher)
     actor = StudentActor(cfg.features().size())
     data = episode(cfg, "train", 0, 0.0, actor, label=True)  # beta 0: the student drives every step
     assert data.teacher_share == 0.0 and len(data.features) == data.steps
@@ -137,7 +138,7 @@ def test_dagger_aggregates_student_states_with_teacher_labels(tmp_path):
     env = DynaBARNEnv(split="train", split_seed=cfg.seed)
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0, 0]))
     env.reset(options={"world_index": 0, "trial_seed": int(rng.integers(2**31)), "privileged": True})
-    teacher = get_planner("oracle_present")
+    teacher = get_planner(cfg.teacher)
     teacher.reset(env.episode.info)
     feats = Features(cfg.features())
     feats.reset(env.episode.info)
@@ -185,6 +186,11 @@ def test_short_dagger_run_learns_saves_resumes_and_drives(tmp_path, capsys):
     capsys.readouterr()
     assert train_main([*args, "--iterations", "3"]) == 2
     assert "cannot resume from its checkpoint" in capsys.readouterr().err
+
+
+def test_a_teacher_that_is_not_offered_is_refused_where_the_run_is_configured():
+    with pytest.raises(DynabarnError, match="teacher 'oracle': use one of oracle_present, predictive"):
+        DaggerConfig(teacher="oracle")
 
 
 def test_classifier_student_classifies_the_teachers_grid_and_keeps_it_in_its_file(tmp_path):
