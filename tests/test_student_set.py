@@ -150,3 +150,28 @@ def test_the_traced_network_decides_as_the_network_does(encoder):
                     warnings.simplefilter("ignore")  # PyTorch 2.13 calls tracing deprecated
                     traced = torch.jit.trace(actor.net, x)
                 np.testing.assert_array_equal(traced(x).numpy(), actor.net(x).numpy())
+
+
+@pytest.mark.parametrize(
+    ("policy", "teacher", "encoder"),
+    [
+        ("dagger.pt", "oracle_present", "mlp"),
+        ("dagger_set.pt", "oracle_present", "set"),
+        ("dagger_predictive.pt", "predictive", "set"),
+    ],
+)
+def test_each_shipped_student_names_its_teacher_and_drives(policy, teacher, encoder):
+    """The package's students: each file says which teacher labelled its states and what
+    network reads them, and drives an episode of a shipped world (none of them trained on one)."""
+    from dynabarn.metrics import Outcome
+    from dynabarn.planners import get_planner
+    from dynabarn.planners.learned.policy import SHIPPED
+    from dynabarn.protocol import get_protocol
+    from dynabarn.sim import run_episode
+    from dynabarn.worldset import resolve_world
+
+    actor, _, header = load_student(SHIPPED / policy)
+    assert header["notes"]["config"]["teacher"] == teacher and actor.encoder == encoder
+    planner = get_planner("dagger", policy=str(SHIPPED / policy))
+    result = run_episode(resolve_world(3), planner, get_protocol("barn"), seed=0)
+    assert result.outcome in (Outcome.SUCCESS, Outcome.COLLISION, Outcome.TIMEOUT) and result.n_ticks > 5
