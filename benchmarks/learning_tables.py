@@ -31,8 +31,17 @@ LEARNED = (
         "among the teacher's 42 commands, not Fig. 4's)",
     ),
     ("oracle_present", "- (privileged)", "its teacher (`oracle_present`)"),
+    (
+        "dagger_predictive",
+        "procedural worlds only (the tiers' profiles too)",
+        "DAgger `set` student taught by `predictive` (`dagger --policy dynabarn/policies/dagger_predictive.pt`; "
+        "issue 44: the scans by convolution, the tracks as a set)",
+    ),
+    ("predictive", "- (laser only)", "its teacher (`predictive`)"),
 )
-"""(planner, what it trained on, row title)."""
+"""(planner, what it trained on, row title). A planner of `STUDENT_SWEEPS` reads its own
+sweeps (results/PLANNER_FOLDER: the student and the floor on the same episodes)."""
+STUDENT_SWEEPS = ("dagger_predictive",)
 SEEN = {("td3", "paper60_barn"), ("bc", "paper60_barn"), ("bc", "unseen_barn")}
 """Cells where the policy trained on the worlds it is evaluated on (marked, not generalisation)."""
 
@@ -61,7 +70,8 @@ def generalisation_table(summaries: dict[str, list[dict]]) -> str:
                 continue
             cells = []
             for folder in GENERALISATION_SETS:
-                by = {(s["planner"], s["difficulty"]): s for s in summaries.get(folder, [])}
+                rows = _student_summaries(planner, folder) if planner in STUDENT_SWEEPS else summaries.get(folder, [])
+                by = {(s["planner"], s["difficulty"]): s for s in rows}
                 mark = "\\*" if (planner, folder) in SEEN else ""
                 cells += [
                     _cell(by, planner, d, skill=skill) + (mark if (planner, d) in by else "") for d in DIFFICULTIES
@@ -70,6 +80,16 @@ def generalisation_table(summaries: dict[str, list[dict]]) -> str:
                 lines.append(f"| {title} | {trained} | " + " | ".join(cells) + " |")
         out.append("\n".join(lines))
     return "\n\n".join(out)
+
+
+def _student_summaries(student: str, folder: str) -> list[dict]:
+    """The summaries of a student's own sweep of a set (its rows named `student`), [] if none."""
+    from dynabarn.bench.results import read_results
+    from dynabarn.bench.summary import summarise
+
+    path = ROOT / "results" / f"{student}_{folder}" / "results.jsonl"
+    rows = [r for r in read_results(path) if not r.get("retry")] if path.is_file() else []
+    return summarise([r | {"planner": student} if r["planner"] == "dagger" else r for r in rows])
 
 
 def _curve(t: dict) -> str:
