@@ -226,6 +226,7 @@ def set_student_table() -> str:
                 lines.append(f"| {title} | {trials} | {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
+
 DAGGER_RUNS = {
     "dagger_set_training": "`set`, teacher `oracle_present`",
     "dagger_set_predictive_training": "`set`, teacher `predictive`",
