@@ -142,6 +142,7 @@ STUDENT_VALIDATION = ROOT / "results" / "student_validation"
 procedural validation worlds (one JSON per group of profile sets)."""
 ENTRY_TITLES = {
     "shipped": "shipped student (`mlp`, trained on `table1`, `release2022`; 12 iterations)",
+    "set_predictive": "`set`, taught by `predictive` (`dagger_predictive.pt`; 10 iterations, no final fit)",
     "set": "`set` encoder, trained with the tiers' profiles too (10 iterations, no final fit)",
     "mlp_tiers": "`mlp`, the same data and seeds as `set` (5 iterations)",
     "set_5": "`set`, the same run after 5 iterations",
