@@ -82,14 +82,21 @@ def generalisation_table(summaries: dict[str, list[dict]]) -> str:
     return "\n\n".join(out)
 
 
-def _student_summaries(student: str, folder: str) -> list[dict]:
-    """The summaries of a student's own sweep of a set (its rows named `student`), [] if none."""
+def _student_rows(student: str, folder: str) -> list[dict]:
+    """The rows of a student's own sweep of a set (results/STUDENT_FOLDER; its `dagger` rows
+    named `student`, the floor's as they are), retries left out; [] where there is none."""
     from dynabarn.bench.results import read_results
-    from dynabarn.bench.summary import summarise
 
     path = ROOT / "results" / f"{student}_{folder}" / "results.jsonl"
     rows = [r for r in read_results(path) if not r.get("retry")] if path.is_file() else []
-    return summarise([r | {"planner": student} if r["planner"] == "dagger" else r for r in rows])
+    return [r | {"planner": student} if r["planner"] == "dagger" else r for r in rows]
+
+
+def _student_summaries(student: str, folder: str) -> list[dict]:
+    """The summaries of a student's own sweep of a set, the floor's beside them."""
+    from dynabarn.bench.summary import summarise
+
+    return summarise(_student_rows(student, folder))
 
 
 def _curve(t: dict) -> str:
@@ -209,11 +216,7 @@ def set_student_table() -> str:
         "|---|---|---|" + "---|" * (len(DIFFICULTIES) + 1),
     ]
     for folder, title in SET_STUDENT_SETS.items():
-        ours = []
-        for prefix in NEW_STUDENTS:
-            path = ROOT / "results" / f"{prefix}_{folder}" / "results.jsonl"
-            rows = read_results(path) if path.is_file() else []
-            ours += [r | {"planner": prefix} for r in rows if r["planner"] == "dagger" and not r.get("retry")]
+        ours = [r for prefix in NEW_STUDENTS for r in _student_rows(prefix, folder) if r["planner"] == prefix]
         if not ours:
             continue
         episodes = {(r["world"], r["seed"]) for r in ours}

@@ -47,12 +47,6 @@ def _env(cfg, split: str):
             split=split, split_seed=cfg.seed, split_profile_sets=tuple(cfg.profile_sets), protocol=cfg.protocol
         )
         _WORKER["key"] = key
-        if not _WORKER.get("atexit"):
-            # The split's world files live in a temporary folder the environment removes on
-            # close; a pool's worker ends through sys.exit, which runs this. Registered once:
-            # an entry per environment would keep every closed one (and its worlds) alive.
-            atexit.register(_close_env)
-            _WORKER["atexit"] = True
     return _WORKER["env"]
 
 
@@ -61,6 +55,12 @@ def _close_env() -> None:
     _WORKER.pop("key", None)
     if env is not None:
         env.close()
+
+
+# The split's world files live in a temporary folder the environment removes on close; a
+# pool's worker ends through sys.exit, which runs this. One entry for whichever environment
+# is current: an entry per environment would keep every closed one (and its worlds) alive.
+atexit.register(_close_env)
 
 
 def episode(cfg, split: str, k: int, beta: float, actor: StudentActor | None, label: bool) -> EpisodeData:
