@@ -223,22 +223,19 @@ def test_shipped_policies_complete_an_episode(planner):
     assert r.n_ticks > 5
 
 
-@pytest.mark.parametrize("planner", ["td3", "dagger"])
+@pytest.mark.parametrize("planner", ["td3", "bc"])
 def test_a_decision_runs_on_one_thread_and_leaves_the_processs_count(planner):
     """A decision is a batch of one: the network runs on one PyTorch thread (more only wait
     on each other on a busy machine), and the process's own count is back after each call."""
     p = get_planner(planner)
     seen: list[int] = []
-    net = p._decide if planner == "dagger" else p.actor
+    net = p.actor
 
     def counting(x):
         seen.append(torch.get_num_threads())
         return net(x)
 
-    if planner == "dagger":
-        p._decide = counting
-    else:
-        p.actor = counting
+    p.actor = counting
     before = torch.get_num_threads()
     torch.set_num_threads(2)
     try:
@@ -247,6 +244,20 @@ def test_a_decision_runs_on_one_thread_and_leaves_the_processs_count(planner):
     finally:
         torch.set_num_threads(before)
     assert r.n_ticks >= 5 and len(seen) >= 5 and set(seen) == {1}
+
+
+def test_the_dagger_planner_decides_without_pytorch():
+    """`dagger` reads its network into numpy when it loads (`NumpyStudent`): no decision
+    calls PyTorch, so none waits on its threads, however many the process has."""
+    p = get_planner("dagger")
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a decision called the PyTorch network")
+
+    p.actor.net.forward = refuse
+    p.actor.forward = refuse
+    r = run_episode(resolve_world(0), p, get_protocol("barn"), seed=0)
+    assert r.n_ticks >= 5
 
 
 def test_bad_policy_files(tmp_path):

@@ -4,7 +4,6 @@ training split's tiers, and a CPU run's policy bytes whatever its workers and de
 from __future__ import annotations
 
 import hashlib
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -131,25 +130,46 @@ def test_a_cpu_runs_policy_bytes_do_not_depend_on_its_workers_or_device_choice(t
     assert digests[0] == digests[1]
 
 
-@pytest.mark.parametrize("encoder", ["set", "mlp"])
-def test_the_traced_network_decides_as_the_network_does(encoder):
-    """`deciding()` traces the network for speed: the same actions and logits, bit for bit,
-    on inputs it was not traced with, in float32 and in the float64 the planner runs."""
+@pytest.mark.parametrize(
+    ("encoder", "features", "classes"),
+    [
+        ("set", FEATURES, CLASSES),
+        ("set", FeatureConfig(history_pool=7), CLASSES),  # no history, velocity or tracks; 720 = 7 * 103 - 1
+        ("set", FeatureConfig(history=3, history_pool=6, tracks=3), None),  # the regression head
+        ("mlp", FEATURES, CLASSES),
+        ("mlp", FeatureConfig(history=1, velocity=True), None),
+    ],
+)
+def test_the_numpy_network_decides_as_the_pytorch_network(encoder, features, classes):
+    """The `dagger` planner decides with `NumpyStudent`: its outputs within 1e-12 of the
+    PyTorch network's in float64 (only the order of a matrix product's additions may
+    differ) and the same commands chosen, on inputs with every count of tracks."""
+    from dynabarn.planners.learned.numpy_student import NumpyStudent
+
     rng = np.random.default_rng(6)
     torch.manual_seed(5)
-    actor = student_for(FEATURES, CLASSES, encoder)
-    for dtype in (torch.float32, torch.float64):
-        actor = actor.to(dtype)
-        decide = actor.deciding()
-        for _ in range(20):
-            x = _inputs(rng, batch=1, present=int(rng.integers(0, FEATURES.tracks + 1)))
-            x = torch.from_numpy(x).to(dtype)
-            with torch.inference_mode():
-                np.testing.assert_array_equal(decide(x).numpy(), actor.act(x).numpy())
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")  # PyTorch 2.13 calls tracing deprecated
-                    traced = torch.jit.trace(actor.net, x)
-                np.testing.assert_array_equal(traced(x).numpy(), actor.net(x).numpy())
+    actor = student_for(features, None if classes is None else classes.astype(np.float32), encoder).double().eval()
+    decide = NumpyStudent(actor)
+    n = features.size()
+    x = rng.uniform(0.0, 1.0, (40, n))
+    if features.tracks:
+        a, b = features.layout()["tracks"]
+        slots = rng.uniform(-1.0, 1.0, (40, features.tracks, TRACK_FIELDS))
+        present = np.arange(features.tracks)[None, :] < rng.integers(0, features.tracks + 1, 40)[:, None]
+        slots[..., TRACK_FIELDS - 1] = present
+        slots[~present] = 0.0
+        x[:, a:b] = slots.reshape(40, -1)
+    with torch.no_grad():
+        logits = actor(torch.from_numpy(x)).numpy()
+        actions = actor.act(torch.from_numpy(x)).numpy()
+    mine = np.array([decide.forward(row) for row in x])
+    assert mine.shape == logits.shape
+    np.testing.assert_allclose(mine, logits, rtol=0, atol=1e-12)
+    chosen = np.array([decide(row) for row in x])
+    if classes is None:  # tanh is numpy's and PyTorch's own: their last bits may differ
+        np.testing.assert_allclose(chosen, actions, rtol=0, atol=1e-12)
+    else:
+        np.testing.assert_array_equal(chosen, actions)
 
 
 @pytest.mark.parametrize(

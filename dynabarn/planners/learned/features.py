@@ -38,6 +38,8 @@ TRACK_FIELDS = 6
 """Per track slot: x, y, vx, vy (robot frame), size, present."""
 SPEED_SCALE = 2.0
 """Velocities [m/s] and turn rates [rad/s] are divided by this."""
+_TURNED_LOW = np.array([-1.0, -1.0, -2.0, -2.0])
+"""Lower bounds of a track slot's scaled (x, y, vx, vy); the upper are their negatives."""
 
 
 @dataclass
@@ -131,7 +133,8 @@ class Features:
         self.tracker = make_tracker(c.tracker, info) if c.tracks else None
         self.last_tracks = None
         pooled = math.ceil(self.n_beams / c.history_pool)
-        self._pad = pooled * c.history_pool - self.n_beams
+        # The scan padded to whole pools with 1.0 (far away) beyond its last beam.
+        self._padded = np.ones(pooled * c.history_pool)
         # Ring of pooled frames: the last history * history_every ticks (frame 0 repeated
         # until the episode is old enough, as a robot standing still would see).
         self._ring = np.zeros((max(1, c.history * c.history_every), pooled))
@@ -149,7 +152,8 @@ class Features:
         out[n : n + 2] = self.local_goal(obs) / c.lookahead
         i = n + 2
         if c.history:
-            pooled = np.pad(scan, (0, self._pad), constant_values=1.0).reshape(-1, c.history_pool).min(axis=1)
+            self._padded[:n] = scan
+            pooled = self._padded.reshape(-1, c.history_pool).min(axis=1)
             ring, m = self._ring, len(self._ring)
             if self._ticks == 0:
                 ring[:] = pooled
@@ -174,15 +178,23 @@ class Features:
             x, y, yaw = obs.pose
             cs, sn = math.cos(yaw), math.sin(yaw)
             d = tracks.positions - (x, y)
-            rel = np.column_stack([cs * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + cs * d[:, 1]])
             v = tracks.velocities
-            vel = np.column_stack([cs * v[:, 0] + sn * v[:, 1], -sn * v[:, 0] + cs * v[:, 1]])
-            gap = np.hypot(rel[:, 0], rel[:, 1]) - tracks.sizes
+            # Robot-frame positions and velocities, one (n, 4) array: [x, y, vx, vy].
+            turned = np.empty((len(tracks), 4))
+            turned[:, 0] = cs * d[:, 0] + sn * d[:, 1]
+            turned[:, 1] = -sn * d[:, 0] + cs * d[:, 1]
+            turned[:, 2] = cs * v[:, 0] + sn * v[:, 1]
+            turned[:, 3] = -sn * v[:, 0] + cs * v[:, 1]
+            gap = np.hypot(turned[:, 0], turned[:, 1]) - tracks.sizes
             # Nearest first; equal gaps by track id, so the order never depends on the sort.
             order = np.lexsort((tracks.ids, gap))[: c.tracks]
             k = len(order)
-            slots[:k, 0:2] = np.clip(rel[order] / c.range_scale, -1.0, 1.0)
-            slots[:k, 2:4] = np.clip(vel[order] / SPEED_SCALE, -2.0, 2.0)
+            # np.clip's bits without its Python wrapper: positions within +-1, speeds +-2.
+            chosen = turned[order]
+            chosen /= (c.range_scale, c.range_scale, SPEED_SCALE, SPEED_SCALE)
+            np.maximum(chosen, _TURNED_LOW, out=chosen)
+            np.minimum(chosen, -_TURNED_LOW, out=chosen)
+            slots[:k, 0:4] = chosen
             slots[:k, 4] = tracks.sizes[order]
             slots[:k, 5] = 1.0
         return slots.ravel()

@@ -22,7 +22,6 @@ head and `trained_on` (what it trained on, for the refusal check of
 from __future__ import annotations
 
 import itertools
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -85,21 +84,6 @@ class StudentActor(nn.Module):
         if self.classes is None:
             return out
         return self.classes.to(out.dtype)[out.argmax(dim=-1)]
-
-    def deciding(self):
-        """`act` for one decision at a time, as fast as it is the same: the network traced
-        (TorchScript runs its small operations without Python between them: the `set`
-        network's two dozen in half the time per call, the flat one's seven some 10 % faster;
-        the same operations and bits, a test holds them equal). Call on the network in its
-        final dtype."""
-        example = torch.zeros(1, self.n_inputs, dtype=next(self.parameters()).dtype)
-        try:
-            with torch.no_grad(), warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # PyTorch 2.13 calls tracing deprecated; it still runs
-                traced = torch.jit.trace(self.net, example)
-        except (AttributeError, RuntimeError):  # a PyTorch without tracing: the network as it is
-            return self.act
-        return lambda x: self.action_of(traced(x))
 
     def class_labels(self, actions: np.ndarray) -> np.ndarray:
         """The class index of each of the teacher's actions (N, 2); an action off the grid is
