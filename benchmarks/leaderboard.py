@@ -33,7 +33,7 @@ SEES = {
 TRAINED_ON = {
     "bc": "oracle demonstrations on all 300 generated worlds",
     "td3": "`paper60`'s worlds (as the paper)",
-    "dagger": "procedural worlds of its own seed namespace only",
+    "dagger": "procedural worlds of its own seed namespace only (the paper's and the tiers' profiles)",
 }
 """Where a learned planner's weights come from (docs/tutorials/training.md); the others are not trained."""
 

@@ -13,8 +13,10 @@ from dynabarn.bench import DIFFICULTIES
 from dynabarn.bench.summary import FLOOR
 
 ROOT = Path(__file__).resolve().parents[1]
-DAGGER_TRAINING = ROOT / "results" / "dagger_training" / "training.json"
-REGRESS_TRAINING = ROOT / "results" / "dagger_training_regress" / "training.json"
+DAGGER_TRAINING = ROOT / "results" / "dagger_set_predictive_training" / "training.json"
+"""The shipped student's run (`dagger_predictive.pt`)."""
+FIRST_TRAINING = ROOT / "results" / "dagger_training" / "training.json"
+"""The first student's run (`dagger.pt`, the default until issue 44)."""
 GENERALISATION_SETS = {
     "original60_barn": "release's 60",
     "unseen_barn": "unseen 240",
@@ -26,22 +28,15 @@ LEARNED = (
     ("td3", "paper60", "TD3, paper-faithful (`td3`)"),
     (
         "dagger",
-        "procedural worlds only",
-        "DAgger student (`dagger`; departures: history, velocity and tracker inputs, a ReLU network classifying "
-        "among the teacher's 42 commands, not Fig. 4's)",
-    ),
-    ("oracle_present", "- (privileged)", "its teacher (`oracle_present`)"),
-    (
-        "dagger_predictive",
         "procedural worlds only (the tiers' profiles too)",
-        "DAgger `set` student taught by `predictive` (`dagger --policy dynabarn/policies/dagger_predictive.pt`; "
-        "issue 44: the scans by convolution, the tracks as a set)",
+        "DAgger student (`dagger`, shipped `dagger_predictive.pt`; departures: the scans' history by convolution, "
+        "the tracker's tracks as a set, the measured velocity, a ReLU network classifying among the teacher's 42 "
+        "commands, not Fig. 4's; taught by `predictive`)",
     ),
     ("predictive", "- (laser only)", "its teacher (`predictive`)"),
+    ("oracle_present", "- (privileged)", "the privileged oracle (`oracle_present`; the earlier students' teacher)"),
 )
-"""(planner, what it trained on, row title). A planner of `STUDENT_SWEEPS` reads its own
-sweeps (results/PLANNER_FOLDER: the student and the floor on the same episodes)."""
-STUDENT_SWEEPS = ("dagger_predictive",)
+"""(planner, what it trained on, row title), each read from the main sweeps of the sets."""
 SEEN = {("td3", "paper60_barn"), ("bc", "paper60_barn"), ("bc", "unseen_barn")}
 """Cells where the policy trained on the worlds it is evaluated on (marked, not generalisation)."""
 
@@ -70,8 +65,7 @@ def generalisation_table(summaries: dict[str, list[dict]]) -> str:
                 continue
             cells = []
             for folder in GENERALISATION_SETS:
-                rows = _student_summaries(planner, folder) if planner in STUDENT_SWEEPS else summaries.get(folder, [])
-                by = {(s["planner"], s["difficulty"]): s for s in rows}
+                by = {(s["planner"], s["difficulty"]): s for s in summaries.get(folder, [])}
                 mark = "\\*" if (planner, folder) in SEEN else ""
                 cells += [
                     _cell(by, planner, d, skill=skill) + (mark if (planner, d) in by else "") for d in DIFFICULTIES
@@ -92,13 +86,6 @@ def _student_rows(student: str, folder: str) -> list[dict]:
     return [r | {"planner": student} if r["planner"] == "dagger" else r for r in rows]
 
 
-def _student_summaries(student: str, folder: str) -> list[dict]:
-    """The summaries of a student's own sweep of a set, the floor's beside them."""
-    from dynabarn.bench.summary import summarise
-
-    return summarise(_student_rows(student, folder))
-
-
 def _curve(t: dict) -> str:
     return ", ".join(f"{e['validation']['success']:.2f}" for e in t["iterations"])
 
@@ -109,13 +96,13 @@ def _final(t: dict) -> float:
 
 def dagger_training() -> str:
     """The shipped student's run: time, data, worlds, its validation curve, and the first
-    shipped student's (the regression head) beside it."""
+    student's run beside it."""
     if not DAGGER_TRAINING.is_file():
         return "(no training record)"
     t = json.loads(DAGGER_TRAINING.read_text())
-    its = t["iterations"]
+    its, cfg = t["iterations"], t["config"]
     last = its[-1]
-    head = t["config"].get("head", "regress")
+    head = cfg.get("head", "regress")
     loss = "mean squared, normalised actions"
     if head == "classify":
         loss = "cross-entropy of the teacher's command among its 42"
@@ -124,22 +111,24 @@ def dagger_training() -> str:
         f" The shipped weights: a final fit of {final['updates']:,} updates on all of it (learning rate falling to "
         f"0), imitation loss {final['loss']:.4f}, validation success {final['validation']['success']:.2f}."
         if final
-        else ""
+        else " The shipped weights are the last iteration's (no final fit)."
     )
     text = (
-        f"Head `{head}`. {len(its)} iterations in {t['seconds'] / 60:.0f} min on this machine's 2 cores; "
+        f"Teacher `{cfg.get('teacher', 'oracle_present')}`, encoder `{cfg.get('encoder', 'mlp')}`, head `{head}`, "
+        f"training worlds of {', '.join(f'`{p}`' for p in cfg.get('profile_sets', ['table1', 'release2022']))}. "
+        f"{len(its)} iterations in {t['seconds'] / 60:.0f} min on this machine's 2 cores; "
         f"{last['dataset']:,} states labelled by the teacher, from {len(set(t['fingerprints'])):,} procedural "
         f"training worlds (none of them a shipped or imported one); the teacher's share of control "
         f"{its[0]['beta']:.2f} -> {last['beta']:.4f}; imitation loss ({loss}, on the "
         f"growing dataset of the student's own states) {its[0]['loss']:.4f} -> {last['loss']:.4f}; the student "
         f"alone on {last['validation']['episodes']} validation worlds, success per iteration: {_curve(t)}.{tail}"
     )
-    if REGRESS_TRAINING.is_file():
-        r = json.loads(REGRESS_TRAINING.read_text())
+    if FIRST_TRAINING.is_file():
+        r = json.loads(FIRST_TRAINING.read_text())
         text += (
-            f" The first shipped student (head `regress`, otherwise the same configuration and the same training "
-            f"worlds; `{REGRESS_TRAINING.parent.relative_to(ROOT)}`): {_curve(r)}, and {_final(r):.2f} after its "
-            f"final fit, against {_final(t):.2f}."
+            f" The first student (`dagger.pt`: teacher `oracle_present`, encoder `mlp`, the paper's profiles only, "
+            f"{len(r['iterations'])} iterations; `{FIRST_TRAINING.parent.relative_to(ROOT)}`), on validation worlds "
+            f"of its own profiles: {_curve(r)}, and {_final(r):.2f} after its final fit."
         )
     return text
 
@@ -148,8 +137,8 @@ STUDENT_VALIDATION = ROOT / "results" / "student_validation"
 """`benchmarks/student_validation.py`'s records: students and references on the same
 procedural validation worlds (one JSON per group of profile sets)."""
 ENTRY_TITLES = {
-    "shipped": "shipped student (`mlp`, trained on `table1`, `release2022`; 12 iterations)",
-    "set_predictive": "`set`, taught by `predictive` (`dagger_predictive.pt`; 10 iterations, no final fit)",
+    "shipped": "first student (`dagger.pt`: `mlp`, trained on `table1`, `release2022`; 12 iterations)",
+    "set_predictive": "`set`, taught by `predictive` (`dagger_predictive.pt`, the shipped `dagger`; 10 iterations)",
     "set": "`set` encoder, trained with the tiers' profiles too (10 iterations, no final fit)",
     "mlp_tiers": "`mlp`, the same data and seeds as `set` (5 iterations)",
     "set_5": "`set`, the same run after 5 iterations",
@@ -193,14 +182,13 @@ SET_STUDENT_SETS = {
 beside the sweep with the shipped student, its teacher and the floor (results/FOLDER),
 compared on the same episodes."""
 NEW_STUDENTS = {
-    "dagger_predictive": "`set` student taught by `predictive` (`dagger_predictive.pt`)",
     "dagger_set": "`set` student taught by `oracle_present` (`dagger_set.pt`)",
 }
 SET_STUDENT_ROWS = (
+    ("dagger", "`dagger`: the `set` student taught by `predictive` (shipped `dagger_predictive.pt`)"),
     *NEW_STUDENTS.items(),
-    ("dagger", "shipped student (`dagger.pt`)"),
-    ("oracle_present", "`oracle_present` (privileged; the shipped student's teacher)"),
-    ("predictive", "`predictive`"),
+    ("predictive", "`predictive` (the shipped student's teacher)"),
+    ("oracle_present", "`oracle_present` (privileged; the `dagger_set.pt` student's teacher)"),
     (FLOOR, "blind floor"),
 )
 

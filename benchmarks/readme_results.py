@@ -73,7 +73,7 @@ PLANNERS = {
     "teb@teb_ros_defaults": "TEB, teb_local_planner's defaults as the authors ran it (`teb@teb_ros_defaults`)",
     "bc": "BC (shipped `bc.pt`)",
     "td3": "TD3 (shipped `td3.pt`)",
-    "dagger": "DAgger student, procedural training worlds only (shipped `dagger.pt`)",
+    "dagger": "DAgger student taught by `predictive`, procedural training worlds only (shipped `dagger_predictive.pt`)",
     "dwa@dwa_dynamic": "DWA with the laser tracker's predictions (`dwa@dwa_dynamic`)",
     "teb@teb_dynamic": "TEB with the laser tracker's predictions (`teb@teb_dynamic`)",
     "predictive": "The laser tracker feeding the oracle's search (`predictive`)",

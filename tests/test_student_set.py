@@ -195,3 +195,13 @@ def test_each_shipped_student_names_its_teacher_and_drives(policy, teacher, enco
     planner = get_planner("dagger", policy=str(SHIPPED / policy))
     result = run_episode(resolve_world(3), planner, get_protocol("barn"), seed=0)
     assert result.outcome in (Outcome.SUCCESS, Outcome.COLLISION, Outcome.TIMEOUT) and result.n_ticks > 5
+
+
+def test_the_default_dagger_is_the_student_taught_by_predictive():
+    """`dagger` without `policy=` drives `DEFAULT_STUDENT` (issue 44), and results name it by
+    its place in the package, so they read the same wherever the package is installed."""
+    from dynabarn.planners import get_planner
+
+    config = get_planner("dagger").config()
+    assert config["policy"] == "dynabarn/policies/dagger_predictive.pt"
+    assert config["features"] == ["scan+goal", "history 2x0.2s", "velocity", "tracks 16"]

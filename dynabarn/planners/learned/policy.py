@@ -22,6 +22,11 @@ from dynabarn.planners.learned.spaces import action_to_command, policy_input
 from dynabarn.planners.learned.trained_on import check_unseen, trained_fingerprints
 
 SHIPPED = Path(__file__).resolve().parents[2] / "policies"
+DEFAULT_STUDENT = "dagger_predictive.pt"
+"""The student `dagger` drives without `policy=`: the `set` network taught by `predictive`
+(issue 44). The earlier students stay in `SHIPPED` under their own names (`dagger.pt`, the
+first; `dagger_set.pt`, taught by `oracle_present`), so every result that names one still
+runs it."""
 
 
 class PolicyFilePlanner(Planner):
@@ -124,7 +129,7 @@ class DaggerPlanner(PolicyFilePlanner):
         from dynabarn.planners.learned.numpy_student import NumpyStudent
         from dynabarn.planners.learned.student import load_student
 
-        path = Path(policy) if policy else SHIPPED / "dagger.pt"
+        path = Path(policy) if policy else SHIPPED / DEFAULT_STUDENT
         actor, self.features_config, self.header = load_student(path)
         self.actor = actor.double()  # float64, as LearnedPlanner: far from the command grid
         # One decision at a time in numpy (a tenth of a millisecond; PyTorch's own cost per
