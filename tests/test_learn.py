@@ -246,6 +246,26 @@ def test_a_decision_runs_on_one_thread_and_leaves_the_processs_count(planner):
     assert r.n_ticks >= 5 and len(seen) >= 5 and set(seen) == {1}
 
 
+def test_the_dagger_planner_decides_on_one_blas_thread_and_leaves_the_processs_count():
+    """numpy's BLAS runs each decision on one thread (a second only waits on a busy
+    machine); the process's own count is back after the call."""
+    p = get_planner("dagger")
+    blas = p._decide._blas
+    forward = p._decide.forward
+    seen: list[int] = []
+
+    def counting(x):
+        seen.extend(info["num_threads"] for info in blas.info())
+        return forward(x)
+
+    p._decide.forward = counting
+    with blas.limit(limits=2):  # as an unconfigured process on 2 cores has (a sweep's workers have 1)
+        before = [info["num_threads"] for info in blas.info()]
+        r = run_episode(resolve_world(0), p, get_protocol("barn"), seed=0)
+        assert [info["num_threads"] for info in blas.info()] == before
+    assert r.n_ticks >= 5 and seen and set(seen) == {1}
+
+
 def test_the_dagger_planner_decides_without_pytorch():
     """`dagger` reads its network into numpy when it loads (`NumpyStudent`): no decision
     calls PyTorch, so none waits on its threads, however many the process has."""
