@@ -135,7 +135,7 @@ def test_dagger_aggregates_student_states_with_teacher_labels(tmp_path, teacher)
     data = episode(cfg, "train", 0, 0.0, actor, label=True)  # beta 0: the student drives every step
     assert data.teacher_share == 0.0 and len(data.features) == data.steps
     # Replay the episode: the student drove (its actions), the labels are the teacher's.
-    env = DynaBARNEnv(split="train", split_seed=cfg.seed)
+    env = DynaBARNEnv(split="train", split_seed=cfg.seed, split_profile_sets=tuple(cfg.profile_sets))
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0, 0]))
     env.reset(options={"world_index": 0, "trial_seed": int(rng.integers(2**31)), "privileged": True})
     teacher = get_planner(cfg.teacher)
@@ -178,7 +178,7 @@ def test_short_dagger_run_learns_saves_resumes_and_drives(tmp_path, capsys):
     assert log[1]["loss"] < 2.0
     _, features, header = load_student(out / "policy.pt")
     assert header["trained_on"]["split"] == "procedural-train" and header["trained_on"]["worlds"] == 8
-    assert features.tracks == 8 and features.history == 2
+    assert features.tracks == 16 and features.history == 2
     result = run_episode(resolve_world(3), get_planner("dagger", policy=str(out / "policy.pt")), get_protocol("barn"))
     assert result.outcome is not None
     # A damaged checkpoint is refused in one line, not unpickled.
@@ -224,7 +224,7 @@ def test_classifier_student_classifies_the_teachers_grid_and_keeps_it_in_its_fil
         load_student(tmp_path / "bad.pt")
     # A DAgger worker rebuilds the classifier from its weights alone, and it drives.
     weights = {k: t.clone() for k, t in actor.state_dict().items()}
-    (data,) = _job(DaggerConfig(head="classify", max_steps=30), "train", [0], 0.0, weights, False)
+    (data,) = _job(DaggerConfig(head="classify", max_steps=30, encoder="mlp"), "train", [0], 0.0, weights, False)
     assert data.steps > 0 and data.outcome in ("success", "collision", "timeout", "cut", "error")
 
 
@@ -234,6 +234,22 @@ def test_a_run_from_before_the_classifier_resumes_as_the_regression_it_was():
     old = {k: v for k, v in asdict(DaggerConfig()).items() if k != "head"}  # its config.json had no head
     assert _identity(old)["head"] == "regress" and DaggerConfig().head == "classify"
     assert _identity(old) == _identity(asdict(DaggerConfig(head="regress")))
+
+
+def test_the_default_run_is_the_shipped_students_recipe_and_the_first_students_run_reads_as_it_was():
+    """`dynabarn-train dagger --out DIR` trains what `dagger` drives (the committed run of
+    `dagger_predictive.pt`, apart from where it ends and how it ran); the first student's
+    run, written before `--encoder`, still reads as the flat network it trained."""
+    from dataclasses import asdict
+    from pathlib import Path
+
+    results = Path(__file__).resolve().parents[1] / "results"
+    shipped = json.loads((results / "dagger_set_predictive_training" / "config.json").read_text())
+    assert _identity(shipped) == _identity(asdict(DaggerConfig()))
+    first = json.loads((results / "dagger_training" / "config.json").read_text())
+    assert "encoder" not in first
+    assert _identity(first)["encoder"] == "mlp" and _identity(first)["teacher"] == "oracle_present"
+    assert _identity(first) != _identity(asdict(DaggerConfig()))
 
 
 def test_classifier_fit_learns_a_rule_with_cross_entropy():

@@ -26,7 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     # After make_parser has chosen MuJoCo's OpenGL platform (Gymnasium's registration loads
     # MuJoCo); no PyTorch: --help works without the extra.
-    from dynabarn.learn.configs import DEVICES, TEACHERS, DaggerConfig, TD3Config
+    from dynabarn.learn.configs import DEVICES, SHIPPED_STUDENT_PROFILE_SETS, TEACHERS, DaggerConfig, TD3Config
     from dynabarn.planners.learned.spaces import ENCODERS, HEADS
 
     sub = subcommands(parser)
@@ -88,7 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     dg.add_argument(
         "--profile-sets",
-        default="table1,release2022",
+        default=",".join(SHIPPED_STUDENT_PROFILE_SETS),
         help="comma-separated profile sets (table1, release2022) or tiers (tier-dense, tier-fast, tier-mixed, "
         "tier-combined: their profiles, never their worlds) the training worlds are drawn from",
     )

@@ -77,6 +77,10 @@ class TD3Config:
         }
 
 
+SHIPPED_STUDENT_PROFILE_SETS = (*DEFAULT_PROFILE_SETS, "tier-dense", "tier-fast", "tier-mixed", "tier-combined")
+"""What `dynabarn-train dagger` draws training worlds from by default: the paper's and the
+release's profiles and the tiers' (their profiles, never their worlds), as the shipped
+student did. The defaults are its recipe: `dynabarn-train dagger --out DIR` trains it."""
 DEVICES = ("auto", "cpu", "cuda")
 """Where `dynabarn-train dagger` fits the student (`--device`)."""
 TEACHERS = ("oracle_present", "predictive")
@@ -90,21 +94,22 @@ turns, so each may use every core this process may run on."""
 
 @dataclass
 class DaggerConfig:
-    iterations: int = option(12, 1, 10_000, "DAgger iterations (collect, relabel, aggregate, fit, validate)")
+    iterations: int = option(10, 1, 10_000, "DAgger iterations (collect, relabel, aggregate, fit, validate)")
     episodes: int = option(240, 1, 1_000_000, "training episodes per iteration, each in a fresh procedural world")
     max_steps: int = option(400, 10, 100_000, "steps after which a training episode is cut")
     """A training episode ends after this many steps (40 s; the protocol allows 100 s): a
     student that stalls early in training would otherwise fill the dataset with waiting."""
     beta_decay: float = option(0.5, 0.0, 1.0, "the teacher drives with probability beta_decay ** iteration")
-    teacher: str = "oracle_present"
-    """Who labels every state (`TEACHERS`); recorded with the run and in the policy file."""
+    teacher: str = "predictive"
+    """Who labels every state (`TEACHERS`); recorded with the run and in the policy file.
+    `predictive` taught the shipped student; `oracle_present` the earlier ones."""
     head: str = "classify"
     """The student's output (`spaces.HEADS`): `classify` among the teacher's candidate
     commands (cross-entropy; the shipped student), or `regress` the teacher's action (mean
     squared error; the first shipped student)."""
-    encoder: str = "mlp"
-    """How the student reads its inputs (`student.ENCODERS`): `mlp`, the flat vector (the
-    students shipped so far), or `set`, the scans by convolution and the tracks as a set."""
+    encoder: str = "set"
+    """How the student reads its inputs (`student.ENCODERS`): `set`, the scans by convolution
+    and the tracks as a set (the shipped student), or `mlp`, the flat vector (the first)."""
     device: str = "auto"
     """Where the student is fitted (`auto`: a CUDA GPU when PyTorch sees one, else the CPU).
     Collection and validation run on the CPU in the workers whatever it is."""
@@ -118,12 +123,12 @@ class DaggerConfig:
     history: int = option(2, 0, 16, "earlier scans the student sees (0: the paper's single scan)")
     history_every: int = option(2, 1, 50, "control ticks between history frames")
     velocity: bool = True
-    tracks: int = option(8, 0, 64, "nearest laser-tracker tracks the student sees (0: no tracker)")
+    tracks: int = option(16, 0, 64, "laser-tracker tracks the student sees, nearest first (0: no tracker)")
     protocol: str = "barn"
     workers: int = option(CORES, 1, MAX_JOBS, "collection processes (default: the cores this process may use)")
     threads: int = option(CORES, 1, MAX_JOBS, "PyTorch threads for fitting (default: the cores this process may use)")
     seed: int = option(0, 0, MAX_SEED, "seed of the split, the trials, the coin and torch")
-    profile_sets: list[str] = field(default_factory=lambda: list(DEFAULT_PROFILE_SETS))
+    profile_sets: list[str] = field(default_factory=lambda: list(SHIPPED_STUDENT_PROFILE_SETS))
 
     def __post_init__(self) -> None:
         """Names checked here, where the run is configured (a `DynabarnError` line), not first

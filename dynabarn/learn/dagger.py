@@ -36,7 +36,7 @@ from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically, write_atomically
 from dynabarn.learn.configs import DEVICES, DaggerConfig, resuming, saved_config
 from dynabarn.learn.dagger_rollout import EpisodeData, run_episodes
-from dynabarn.learn.split import describe_split
+from dynabarn.learn.split import DEFAULT_PROFILE_SETS, describe_split
 from dynabarn.planners.learned.models import load_tensors, save_tensors
 from dynabarn.planners.learned.spaces import HEADS, command_to_action
 from dynabarn.planners.learned.student import StudentActor, save_student, student_for
@@ -65,9 +65,16 @@ RUN_LENGTH = ("iterations", "final_updates", *HOW_IT_RUNS)
 """Settings a run may change when resumed: where it ends and how it runs, not what it did."""
 
 
-BEFORE_THE_FIELD = {"head": "regress"}
-"""What a run written before a field existed did, where that is not the field's default
-(every student before the classifier regressed)."""
+BEFORE_THE_FIELD = {
+    "head": "regress",
+    "teacher": "oracle_present",
+    "encoder": "mlp",
+    "profile_sets": list(DEFAULT_PROFILE_SETS),
+}
+"""What a run written before a field existed did, where that is not the field's default:
+every student before the classifier regressed; before `--teacher`, `--encoder` and
+`--profile-sets` every run was taught by `oracle_present`, flat, on the paper's and the
+release's profiles."""
 
 
 def _identity(cfg: dict | None) -> dict | None:
@@ -222,9 +229,16 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
     config_path = out / "config.json"
     done = 0
     if (out / STATE).is_file():
-        old = saved_config(config_path)
-        if _identity(old) != _identity(json.loads(json.dumps(asdict(cfg)))):
-            raise DynabarnError(f"{out} holds a run with another configuration; choose another --out")
+        old, new = _identity(saved_config(config_path)), _identity(json.loads(json.dumps(asdict(cfg))))
+        if old != new:
+            differ = ", ".join(
+                f"{k} {old.get(k)!r} (asked: {new.get(k)!r})"
+                for k in sorted(old.keys() | new.keys())
+                if old.get(k) != new.get(k)
+            )
+            raise DynabarnError(
+                f"{out} holds a run with another configuration ({differ}): give its options, or choose another --out"
+            )
         done, report = _resume(out, actor, opt, data)
     write_atomically(config_path, json.dumps(asdict(cfg), indent=1))
     bar = progress(total=cfg.iterations, initial=done) if progress else None
