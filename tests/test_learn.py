@@ -250,7 +250,7 @@ def test_the_dagger_planner_decides_on_one_blas_thread_and_leaves_the_processs_c
     """numpy's BLAS runs each decision on one thread (a second only waits on a busy
     machine); the process's own count is back after the call."""
     p = get_planner("dagger")
-    blas = p._decide._blas
+    blas = p._blas
     forward = p._decide.forward
     seen: list[int] = []
 

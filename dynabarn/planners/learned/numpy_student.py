@@ -13,7 +13,7 @@ chosen command is the same (`tests/test_student_set.py` holds both).
 
 The convolutions run as one gather and one matrix product each ("im2col"), on signals kept
 as (length, channels) in buffers that live as long as the planner; nothing is allocated per
-call but the small outputs of each layer.
+call but each convolution's gathered windows and the small outputs of each layer.
 """
 
 from __future__ import annotations
@@ -149,24 +149,16 @@ class _SetForward:
 
 class NumpyStudent:
     """A `StudentActor`'s `act` for one feature vector (n_inputs,) -> normalised action (2,):
-    the regressed action, or the likeliest class's.
-
-    Each call runs numpy's BLAS on one thread (the process's count is back after it): a
-    matrix-vector product this small gains nothing from a second thread, and on a busy
-    machine it waits for one (the flat student's call took 4.3-6.5 ms beside two busy
-    loops with the default threads). A sweep's workers have one thread already."""
+    the regressed action, or the likeliest class's. The planner runs each call on one BLAS
+    thread (`PolicyFilePlanner._one_decision`)."""
 
     def __init__(self, actor: nn.Module) -> None:
-        from threadpoolctl import ThreadpoolController
-
         net = actor.net
         self.forward = _SetForward(net) if isinstance(net, SetEncoderNet) else _chain(net)
         self.classes = None if actor.classes is None else _array(actor.classes)
-        self._blas = ThreadpoolController().select(user_api="blas")
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
-        with self._blas.limit(limits=1):
-            out = self.forward(np.asarray(x, dtype=np.float64))
+        out = self.forward(np.asarray(x, dtype=np.float64))
         if self.classes is None:
             return out
         return self.classes[int(np.argmax(out))]

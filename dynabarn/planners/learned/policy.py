@@ -39,21 +39,27 @@ class PolicyFilePlanner(Planner):
             import torch
         except ImportError:
             raise DynabarnError(f"planner {what!r} needs {LEARN_EXTRA}") from None
+        from threadpoolctl import ThreadpoolController
+
         self._torch = torch
+        self._blas = ThreadpoolController().select(user_api="blas")  # the BLAS libraries loaded by now
         return torch
 
     @contextlib.contextmanager
     def _one_decision(self) -> Iterator[None]:
-        """Around one network call: no autograd, and one intra-op thread. A decision is a
-        batch of one, which more threads cannot share out; on a busy machine they wait on
-        each other (the set student's call took 1.8 ms with two threads where one took 0.75,
-        both cores busy). The process's own thread count is back after the call."""
+        """Around one network call: no autograd, one PyTorch intra-op thread and one BLAS
+        thread (numpy's, where `dagger` runs its network). A decision is a batch of one,
+        which more threads cannot share out; on a busy machine they wait on each other (the
+        set student's call took 1.8 ms with two PyTorch threads where one took 0.75, both
+        cores busy; the flat student's in numpy 4.3-6.5 ms with BLAS's default threads
+        beside two busy loops, 2.2-2.7 with one). The process's own counts are back after
+        the call; a sweep's workers have one thread of each already."""
         torch = self._torch
         threads = torch.get_num_threads()
         if threads != 1:
             torch.set_num_threads(1)
         try:
-            with torch.inference_mode():
+            with torch.inference_mode(), self._blas.limit(limits=1):
                 yield
         finally:
             if threads != 1:
@@ -132,8 +138,7 @@ class DaggerPlanner(PolicyFilePlanner):
         path = Path(policy) if policy else SHIPPED / DEFAULT_STUDENT
         actor, self.features_config, self.header = load_student(path)
         self.actor = actor.double()  # float64, as LearnedPlanner: far from the command grid
-        # One decision at a time in numpy (a tenth of a millisecond; PyTorch's own cost per
-        # operation was twice that), with no intra-op threads to wait on a busy machine.
+        # One decision at a time in numpy: a tenth of a millisecond, half the PyTorch call.
         self._decide = NumpyStudent(self.actor)
         self.features = Features(self.features_config)
         self.seen = trained_fingerprints(self.header["trained_on"])
@@ -153,4 +158,7 @@ class DaggerPlanner(PolicyFilePlanner):
         return self.features.last_tracks
 
     def act(self, obs: Observation) -> tuple[float, float]:
-        return action_to_command(self._decide(self.features(obs)))
+        x = self.features(obs)
+        with self._one_decision():
+            a = self._decide(x)
+        return action_to_command(a)
