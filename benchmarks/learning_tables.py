@@ -11,6 +11,7 @@ from pathlib import Path
 
 from dynabarn.bench import DIFFICULTIES
 from dynabarn.bench.summary import FLOOR
+from dynabarn.learn.configs import completed_config
 
 ROOT = Path(__file__).resolve().parents[1]
 DAGGER_TRAINING = ROOT / "results" / "dagger_set_predictive_training" / "training.json"
@@ -94,17 +95,23 @@ def _final(t: dict) -> float:
     return (t.get("final") or t["iterations"][-1])["validation"]["success"]
 
 
+def _recipe(saved: dict) -> str:
+    """What a DAgger run did, from its saved configuration (fields it predates as it ran them)."""
+    cfg = completed_config(saved)
+    worlds = ", ".join(f"`{p}`" for p in cfg["profile_sets"])
+    return f"teacher `{cfg['teacher']}`, encoder `{cfg['encoder']}`, head `{cfg['head']}`, training worlds of {worlds}"
+
+
 def dagger_training() -> str:
     """The shipped student's run: time, data, worlds, its validation curve, and the first
     student's run beside it."""
     if not DAGGER_TRAINING.is_file():
         return "(no training record)"
     t = json.loads(DAGGER_TRAINING.read_text())
-    its, cfg = t["iterations"], t["config"]
+    its = t["iterations"]
     last = its[-1]
-    head = cfg.get("head", "regress")
     loss = "mean squared, normalised actions"
-    if head == "classify":
+    if completed_config(t["config"])["head"] == "classify":
         loss = "cross-entropy of the teacher's command among its 42"
     final = t.get("final")
     tail = (
@@ -113,10 +120,10 @@ def dagger_training() -> str:
         if final
         else " The shipped weights are the last iteration's (no final fit)."
     )
+    recipe = _recipe(t["config"])
     text = (
-        f"Teacher `{cfg.get('teacher', 'oracle_present')}`, encoder `{cfg.get('encoder', 'mlp')}`, head `{head}`, "
-        f"training worlds of {', '.join(f'`{p}`' for p in cfg.get('profile_sets', ['table1', 'release2022']))}. "
-        f"{len(its)} iterations in {t['seconds'] / 60:.0f} min on this machine's 2 cores; "
+        f"{recipe[0].upper()}{recipe[1:]}. {len(its)} iterations in {t['seconds'] / 60:.0f} min on this machine's "
+        f"2 cores; "
         f"{last['dataset']:,} states labelled by the teacher, from {len(set(t['fingerprints'])):,} procedural "
         f"training worlds (none of them a shipped or imported one); the teacher's share of control "
         f"{its[0]['beta']:.2f} -> {last['beta']:.4f}; imitation loss ({loss}, on the "
@@ -126,9 +133,9 @@ def dagger_training() -> str:
     if FIRST_TRAINING.is_file():
         r = json.loads(FIRST_TRAINING.read_text())
         text += (
-            f" The first student (`dagger.pt`: teacher `oracle_present`, encoder `mlp`, the paper's profiles only, "
-            f"{len(r['iterations'])} iterations; `{FIRST_TRAINING.parent.relative_to(ROOT)}`), on validation worlds "
-            f"of its own profiles: {_curve(r)}, and {_final(r):.2f} after its final fit."
+            f" The first student (`dagger.pt`: {_recipe(r['config'])}, {len(r['iterations'])} iterations; "
+            f"`{FIRST_TRAINING.parent.relative_to(ROOT)}`), on validation worlds of its own profiles: {_curve(r)}, "
+            f"and {_final(r):.2f} after its final fit."
         )
     return text
 

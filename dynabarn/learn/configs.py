@@ -7,7 +7,7 @@ from __future__ import annotations
 import contextlib
 import json
 from collections.abc import Iterator
-from dataclasses import dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -149,6 +149,24 @@ class DaggerConfig:
         return FeatureConfig(
             history=self.history, history_every=self.history_every, velocity=self.velocity, tracks=self.tracks
         )
+
+
+BEFORE_THE_FIELD = {
+    "head": "regress",
+    "teacher": "oracle_present",
+    "encoder": "mlp",
+    "profile_sets": list(DEFAULT_PROFILE_SETS),
+}
+"""What a DAgger run written before a field existed did, where that is not the field's
+default: every student before the classifier regressed; before `--teacher`, `--encoder`
+and `--profile-sets` every run was taught by `oracle_present`, flat, on the paper's and
+the release's profiles."""
+
+
+def completed_config(saved: dict) -> dict:
+    """A DAgger run's saved configuration (its `config.json`) with every field it predates
+    filled in as the run did it (`BEFORE_THE_FIELD`, else the field's default)."""
+    return {**asdict(DaggerConfig()), **BEFORE_THE_FIELD, **saved}
 
 
 def saved_config(path: Path) -> dict | None:

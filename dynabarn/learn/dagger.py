@@ -34,9 +34,9 @@ import torch
 
 from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically, write_atomically
-from dynabarn.learn.configs import DEVICES, DaggerConfig, resuming, saved_config
+from dynabarn.learn.configs import DEVICES, DaggerConfig, completed_config, resuming, saved_config
 from dynabarn.learn.dagger_rollout import EpisodeData, run_episodes
-from dynabarn.learn.split import DEFAULT_PROFILE_SETS, describe_split
+from dynabarn.learn.split import describe_split
 from dynabarn.planners.learned.models import load_tensors, save_tensors
 from dynabarn.planners.learned.spaces import HEADS, command_to_action
 from dynabarn.planners.learned.student import StudentActor, save_student, student_for
@@ -65,23 +65,10 @@ RUN_LENGTH = ("iterations", "final_updates", *HOW_IT_RUNS)
 """Settings a run may change when resumed: where it ends and how it runs, not what it did."""
 
 
-BEFORE_THE_FIELD = {
-    "head": "regress",
-    "teacher": "oracle_present",
-    "encoder": "mlp",
-    "profile_sets": list(DEFAULT_PROFILE_SETS),
-}
-"""What a run written before a field existed did, where that is not the field's default:
-every student before the classifier regressed; before `--teacher`, `--encoder` and
-`--profile-sets` every run was taught by `oracle_present`, flat, on the paper's and the
-release's profiles."""
-
-
 def _identity(cfg: dict | None) -> dict | None:
     if cfg is None:
         return None
-    full = {**asdict(DaggerConfig()), **BEFORE_THE_FIELD, **cfg}  # a field newer than the file: what it did
-    return {k: v for k, v in full.items() if k not in RUN_LENGTH}
+    return {k: v for k, v in completed_config(cfg).items() if k not in RUN_LENGTH}
 
 
 def _rates(eps: list[EpisodeData]) -> dict:
