@@ -75,7 +75,10 @@ def training_profile(name: str) -> GenerationProfile:
 
     if name in TIERS:
         return TIERS[name].profile()
-    return GenerationProfile(get_profile_set(name))
+    try:
+        return GenerationProfile(get_profile_set(name))
+    except DynabarnError as exc:  # the profile sets' own refusal names only them
+        raise DynabarnError(f"{exc}; or a tier: {', '.join(TIERS)}") from None
 
 
 def describe_split(split: str, seed: int, profile_sets: tuple[str, ...]) -> dict:
