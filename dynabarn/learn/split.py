@@ -27,12 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
-from dynabarn.errors import DynabarnError
+from dynabarn.errors import DynabarnError, unknown_choice
 from dynabarn.mjcf import write_world
 from dynabarn.worlds.fingerprint import world_fingerprint
 from dynabarn.worlds.generate import N_WORLDS, generate_world
 from dynabarn.worlds.profile_file import GenerationProfile
-from dynabarn.worlds.profiles import get_profile_set
+from dynabarn.worlds.profiles import PROFILE_SETS, get_profile_set
 
 TRAIN_SEED_BASE = 3_000_000_000
 """Training worlds' base seeds start here (the shipped worlds' is 2022)."""
@@ -75,10 +75,9 @@ def training_profile(name: str) -> GenerationProfile:
 
     if name in TIERS:
         return TIERS[name].profile()
-    try:
-        return GenerationProfile(get_profile_set(name))
-    except DynabarnError as exc:  # the profile sets' own refusal names only them
-        raise DynabarnError(f"{exc}; or a tier: {', '.join(TIERS)}") from None
+    if name not in PROFILE_SETS.names():  # the profile sets' own refusal would name only them
+        raise DynabarnError(unknown_choice("profile set or tier", name, [*PROFILE_SETS.names(), *TIERS]))
+    return GenerationProfile(get_profile_set(name))
 
 
 def describe_split(split: str, seed: int, profile_sets: tuple[str, ...]) -> dict:
