@@ -16,9 +16,13 @@ Written at the end of every sweep (a resumed one rewrites it with every row so f
 
 from __future__ import annotations
 
+import base64
+import hashlib
 import io
 import json
 import math
+import shlex
+import urllib.parse
 from collections import defaultdict
 from importlib import resources
 from pathlib import Path
@@ -58,26 +62,38 @@ def write_report(out_dir: Path) -> Path:
     html = render_report(out, rows)
     path = out / REPORT
     try:
-        write_atomically(path, html)
+        # A row's text may hold a lone surrogate (JSON allows "\ud800"): shown as U+FFFD.
+        write_atomically(path, html.encode("utf-8", "replace"))
     except OSError as exc:
         raise DynabarnError(f"cannot write {path}: {exc.strerror or exc}") from None
     return path
 
 
+def csp_hash(text: str) -> str:
+    """A Content-Security-Policy source admitting exactly the inline `text` (CSP level 2)."""
+    return "sha256-" + base64.b64encode(hashlib.sha256(text.encode("utf-8")).digest()).decode("ascii")
+
+
 def render_report(out: Path, rows: list[dict]) -> str:
-    """The page's HTML for the folder `out` and its rows."""
+    """The page's HTML for the folder `out` and its rows. Everything from the rows or the
+    folder's files is text to the page: autoescaped, every URL a quoted relative path inside
+    the folder, every command quoted for the shell; the page's own script and style run by
+    their hashes and nothing else does."""
     import jinja2
 
     worlds = _worlds(out)
     summary = summarise(rows, paper_worlds(out), certified_episodes(out))
     planners = sorted({r["planner"] for r in rows}, key=lambda p: (p != FLOOR, p))
     assets = resources.files("dynabarn.bench") / "report_assets"
+    script = (assets / "report.js").read_text(encoding="utf-8")
+    style = (assets / "report.css").read_text(encoding="utf-8")
     env = jinja2.Environment(
         loader=jinja2.FunctionLoader(lambda name: (assets / name).read_text(encoding="utf-8")),
         autoescape=True,
         undefined=jinja2.StrictUndefined,
     )
     template = env.get_template("report.html.j2")
+    recordings, stills_note = _recordings(out, rows)
     return template.render(
         title=_title(out),
         summary=summary,
@@ -87,9 +103,14 @@ def render_report(out: Path, rows: list[dict]) -> str:
         colours=OUTCOME_COLOURS,
         figure=difficulty_figure(rows, worlds),
         tracking=[s for s in summary if s.get("track_recall") is not None],
-        recordings=_recordings(out, rows),
+        recordings=recordings,
+        stills_note=stills_note,
         verification=_verification(out),
         n_rows=len(rows),
+        script=script,
+        script_hash=csp_hash(script),
+        style=style,
+        style_hash=csp_hash(style),
     )
 
 
@@ -150,10 +171,12 @@ def grid_data(rows: list[dict], worlds: dict[str, dict]) -> dict[str, dict]:
         world_rows = []
         for name, trials in cells.items():
             sample = first[name]
+            world_id = sample.get("world_id")
             world_rows.append(
                 {
                     "world": name,
-                    "id": sample.get("world_id"),
+                    # A whole number or nothing (a row of mixed text and numbers must still sort).
+                    "id": world_id if isinstance(world_id, int) and not isinstance(world_id, bool) else None,
                     "difficulty": sample.get("difficulty", ""),
                     "difficulty_rank": order.get(sample.get("difficulty"), len(order)),
                     "measured": _measured(worlds.get(name)),
@@ -168,7 +191,7 @@ def grid_data(rows: list[dict], worlds: dict[str, dict]) -> dict[str, dict]:
 
 def difficulty_figure(rows: list[dict], worlds: dict[str, dict]) -> str | None:
     """Success against measured difficulty (worlds in quantile bins of it), per planner,
-    with 95% Wilson intervals: an inline SVG (None when no world has a measured difficulty)."""
+    with 95% Wilson intervals: an SVG as a data URL (None when no world has a measured difficulty)."""
     measured = {name: _measured(w) for name, w in worlds.items()}
     values = sorted(v for v in measured.values() if v is not None)
     if len(values) < DIFFICULTY_BINS:
@@ -206,25 +229,29 @@ def difficulty_figure(rows: list[dict], worlds: dict[str, dict]) -> str | None:
     buffer = io.StringIO()
     fig.savefig(buffer, format="svg", metadata={"Date": None})
     plt.close(fig)
-    svg = buffer.getvalue()
-    return svg[svg.index("<svg") :]
+    # An image, not inline SVG: matplotlib's style attributes stay inside the picture, where
+    # the page's policy, which admits no inline style, does not reach.
+    return "data:image/svg+xml;base64," + base64.b64encode(buffer.getvalue().encode("utf-8")).decode("ascii")
 
 
-def _recordings(out: Path, rows: list[dict]) -> list[dict]:
-    """Recorded episodes: their still (drawn once, `stills.draw_still`), the file relative
-    to the report and the command that replays it."""
+def _recordings(out: Path, rows: list[dict]) -> tuple[list[dict], str]:
+    """Recorded episodes (only files inside the folder: `recording_path`): their still
+    (drawn once, `stills.draw_still`, only into a real `report_files/` folder, never through
+    a link), the file as a quoted relative URL and the command that replays it, quoted for
+    the shell; and a note when no still could be drawn there."""
     from dynabarn.bench.stills import still_for
 
+    stills = out / STILLS
+    note = ""
+    if stills.is_symlink() or (stills.exists() and not stills.is_dir()):
+        note = f"{STILLS} is not a folder of this report (a link or a file): no stills were drawn into it"
     found = []
     for r in rows:
         recording = recording_path(r, out)
         if recording is None:
             continue
-        try:
-            relative = recording.resolve().relative_to(out.resolve()).as_posix()
-        except ValueError:
-            relative = recording.resolve().as_uri()
-        still = still_for(recording, out / STILLS)
+        relative = recording.resolve().relative_to(out.resolve()).as_posix()
+        still = None if note else still_for(recording, stills)
         found.append(
             {
                 "planner": r["planner"],
@@ -232,17 +259,41 @@ def _recordings(out: Path, rows: list[dict]) -> list[dict]:
                 "seed": r["seed"],
                 "outcome": r["outcome"],
                 "reason": r.get("reason", ""),
-                "href": relative,
-                "still": (Path(STILLS) / still.name).as_posix() if still else None,
-                "command": f"dynabarn-replay --web {recording}",
+                "href": "./" + urllib.parse.quote(relative),
+                "still": "./" + urllib.parse.quote(f"{STILLS}/{still.name}") if still else None,
+                "command": shlex.join(["dynabarn-replay", "--web", str(out / relative)]),
             }
         )
-    return found
+    return found, note
+
+
+VERIFICATION_FIELDS = {"when": str, "checked": int, "identical": int, "ok": bool, "differences": list, "notes": list}
+"""What the report shows of `verification.json`, with each field's type."""
 
 
 def _verification(out: Path) -> dict | None:
-    try:
-        data = json.loads((out / VERIFICATION).read_text())
-    except (OSError, ValueError):
+    """The folder's last verdict, as plain text fields; `damaged` says why when the file is
+    there but not a verdict of `--verify` (the report shows that, never a template error)."""
+    path = out / VERIFICATION
+    if not path.is_file():
         return None
-    return data if isinstance(data, dict) else None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8", errors="replace"))
+    except (OSError, ValueError, RecursionError) as exc:
+        return {"damaged": f"not JSON: {type(exc).__name__}"}
+    if not isinstance(data, dict):
+        return {"damaged": "not a JSON object"}
+    for name, kind in VERIFICATION_FIELDS.items():
+        value = data.get(name)
+        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+            return {"damaged": f"{name} is not a {kind.__name__}"}
+    differences = [
+        {k: str(d.get(k, ""))[:500] for k in ("key", "field", "old", "new")}
+        for d in data["differences"][:1000]
+        if isinstance(d, dict)
+    ]
+    notes = [str(n)[:500] for n in data["notes"][:100]]
+    return {"damaged": "", **{k: data[k] for k in ("when", "checked", "identical", "ok")}} | {
+        "differences": differences,
+        "notes": notes,
+    }

@@ -301,13 +301,22 @@ def certified_episodes(out_dir: Path) -> dict[tuple[str, str], tuple[set[int], s
 def recording_path(row: dict, out_dir: Path) -> Path | None:
     """A row's recording on this machine, or None: its path is written relative to where the
     sweep ran (or absolute), and the folder may have moved since, so it is also looked for
-    under the folder and in the folder's RECORDINGS."""
+    under the folder and in the folder's RECORDINGS. Only a regular file inside the folder
+    is taken: a row is data, and never makes a command open a file elsewhere."""
     written = row.get("recording")
-    if not written:
+    if not isinstance(written, str) or not written or "\x00" in written or len(written) > 4096:
         return None
     out = Path(out_dir)
-    candidates = (Path(written), out / written, out / RECORDINGS / Path(written).name)
-    return next((c for c in candidates if c.is_file()), None)
+    relative = not Path(written).is_absolute() and ".." not in Path(written).parts
+    candidates = ((Path(written), out / written) if relative else ()) + (out / RECORDINGS / Path(written).name,)
+    try:
+        inside = out.resolve()
+        for c in candidates:
+            if c.is_file() and not c.is_symlink() and c.resolve().is_relative_to(inside):
+                return c
+    except (OSError, ValueError):
+        pass
+    return None
 
 
 def paper_worlds(out_dir: Path) -> set[str]:

@@ -126,7 +126,10 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="RESULTS",
         help="re-run rows of a results file or folder on this machine and compare each with its row (every field "
-        "but the machine's); exit 0 only when every sampled row reproduces",
+        "but the machine's); exit 0 only when every sampled row reproduces. The rows are data: only planners installed "
+        "here run, and a row whose planner option names a program, a file or an address (a policy, a ROS launch "
+        "line) is refused unless you give that option yourself (--policy, --ros-launch, --planner-config KEY=VALUE); "
+        "world files are taken only from the results folder, this package's world sets and --set",
     )
     checking.add_argument(
         "--sample",
@@ -144,8 +147,11 @@ def _sample(text: str) -> int | None:
 
 GOLDEN_OPTIONS = {"verify_golden", "update_golden", "reference", "jobs", "debug"}
 """The options that apply to `--verify-golden` and `--update-golden`."""
-CHECK_OPTIONS = {"report", "verify", "sample", "jobs", "debug"}
-"""The options that apply to `--report` and `--verify`."""
+CHECK_OPTIONS = {"report", "verify", "sample", "jobs", "debug", "policy", "ros_launch", "planner_config", "set"}
+"""The options that apply to `--report` and `--verify` (with `--verify`: `--policy`,
+`--ros-launch` and `--planner-config` name what a row may not, `--set` where its worlds are)."""
+VERIFY_ONLY = {"sample", "policy", "ros_launch", "planner_config", "set"}
+"""Of those, the ones that mean something only with `--verify`."""
 
 
 def _given(argv: Sequence[str] | None) -> list[str]:
@@ -171,7 +177,14 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
         ignored = ["--" + key.replace("_", "-") for key in _given(argv) if key not in CHECK_OPTIONS]
         if ignored:
             parser.error(f"{', '.join(ignored)}: not for --report or --verify, which read an existing results folder")
+        if args.verify is None:
+            unused = ["--" + key.replace("_", "-") for key in _given(argv) if key in VERIFY_ONLY]
+            if unused:
+                parser.error(f"{', '.join(unused)}: only with --verify (--report re-runs nothing)")
+        args.set_given = "set" in _given(argv)  # --set's default names no folder of the rows'
         return run_command(_check, args)
+    if "sample" in _given(argv):
+        parser.error("--sample: only with --verify")
     if args.out is None:
         parser.error("--out is required for a sweep")
     return run_command(_bench, args)
@@ -225,7 +238,9 @@ def _check(args: argparse.Namespace) -> int:
         def progress(stream, total):
             return tqdm(stream, total=total, desc="re-running rows", unit="row", disable=None)
 
-        verdict = verify_results(args.verify, sample=args.sample, jobs=args.jobs, progress=progress)
+        verdict = verify_results(
+            args.verify, sample=args.sample, jobs=args.jobs, progress=progress, **_verify_given(args)
+        )
         for row in verdict["rows"]:
             print(f"{'identical' if row['identical'] else 'DIFFERS  '}  {row['key']}  {row['problem']}".rstrip())
         for d in verdict["differences"]:
@@ -241,6 +256,21 @@ def _check(args: argparse.Namespace) -> int:
     if args.report is not None:
         print(f"wrote {write_report(args.report)}")
     return code
+
+
+def _verify_given(args: argparse.Namespace) -> dict:
+    """What the person verifying names on their own command line: the options a results
+    row may not supply (`--policy`, `--ros-launch`, `--planner-config`), and `--set`, a
+    further folder its world files may be in."""
+    from dynabarn import worldset
+
+    given = planner_config(args.planner_config)
+    if args.policy is not None:
+        given["policy"] = str(args.policy.resolve())
+    if args.ros_launch is not None:
+        given["launch"] = args.ros_launch
+    set_dir = worldset.set_folder(args.set)[0] if args.set_given else None
+    return {"given": given, "set_dir": set_dir}
 
 
 def _bench(args: argparse.Namespace) -> int:

@@ -113,6 +113,12 @@ class Planner(abc.ABC):
     name: ClassVar[str] = "planner"
     privileged: ClassVar[bool] = False
     """True if the planner needs the true obstacle states (`Observation.obstacles`)."""
+    external_options: ClassVar[dict[str, str]] = {}
+    """Configuration options whose value names something outside the results, each with
+    what it names ("a program it runs", "a file it reads"): a results file written elsewhere
+    never supplies them (`dynabarn-bench --verify` runs a row that has one only when the
+    person verifying gives it on their own command line). A factory that is not a class
+    declares them as an attribute of the same name."""
 
     def reset(self, info: EpisodeInfo) -> None:  # noqa: B027 - optional hook
         """Called once before the first `act` of an episode."""

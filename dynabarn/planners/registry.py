@@ -61,6 +61,13 @@ def planner_factory(name: str) -> Callable[..., Planner]:
     return PLANNERS.get_item(name)
 
 
+def external_options(name: str) -> dict[str, str]:
+    """The options of planner `name` whose values name something outside the results (a
+    program, a file, an address), each with what it names (`Planner.external_options`)."""
+    declared = getattr(planner_factory(name), "external_options", None)
+    return {str(k): str(v) for k, v in declared.items()} if isinstance(declared, dict) else {}
+
+
 def registered_at_run_time(name: str) -> bool:
     """`name` lives only in this process (`register_planner`): worker processes that do not
     fork must be handed its factory (pickled by reference)."""

@@ -22,6 +22,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -121,6 +122,12 @@ class RosPlanner(Planner):
     """A ROS navigation stack, reached through the bridge node, as a `Planner`."""
 
     name = "ros"
+    external_options: ClassVar[dict[str, str]] = {
+        "launch": "a program it runs (the stack)",
+        "nav_workspace": "a workspace whose setup script it runs",
+        "stack_log": "a file it writes",
+        "master": "a ROS master it connects to",
+    }
 
     def __init__(self, master: RosMaster, config: BridgeConfig | None = None) -> None:
         self.master = master
@@ -321,6 +328,9 @@ def ros_planner(*, launch: str | None = None, master: str | None = None, **confi
         _worker_master = RosMaster.start()
         atexit.register(_worker_master.close)
     return RosPlanner(_worker_master, cfg)
+
+
+ros_planner.external_options = RosPlanner.external_options  # type: ignore[attr-defined]
 
 
 def bridge_overhead(planner: RosPlanner) -> float | None:

@@ -13,6 +13,7 @@ import contextlib
 import hashlib
 from collections.abc import Iterator
 from pathlib import Path
+from typing import ClassVar
 
 from dynabarn.errors import LEARN_EXTRA, DynabarnError
 from dynabarn.interfaces import EpisodeInfo, Observation, Planner
@@ -33,6 +34,8 @@ class PolicyFilePlanner(Planner):
     """What every planner driven by a policy file shares: PyTorch, and the file's identity
     in results (the shipped policy by its place in the package, so results and recordings
     read the same wherever the package is installed; any other by its path and content)."""
+
+    external_options: ClassVar[dict[str, str]] = {"policy": "a policy file it loads"}
 
     def _torch_or_refuse(self, what: str):
         try:
