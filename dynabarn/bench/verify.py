@@ -351,8 +351,8 @@ def verify_results(
     unused = sorted(set(given) - named)
     if unused:
         raise DynabarnError(
-            f"{', '.join(give(o).split()[0] for o in unused)} ({', '.join(unused)}): no row of {file} has such an option "
-            "naming a program, a file or an address; "
+            f"{', '.join(give(o).split()[0] for o in unused)} ({', '.join(unused)}): no row of {file} has such an "
+            "option naming a program, a file or an address; "
             "with --verify, give only those the rows need"
         )
     by_key = {r["key"]: p for r, p in zip(rows, inputs, strict=True)}
