@@ -312,3 +312,73 @@ class SyncAhead:
         self._wanted.set()
         if self._thread is not None:
             self._thread.join()
+
+
+_held: dict[tuple[Path, str], tuple[int, int]] = {}
+"""Folder locks this process holds: (folder, lock name) -> (file descriptor, depth)."""
+
+
+@contextlib.contextmanager
+def folder_lock(folder: Path | str, name: str, *, busy: str) -> Iterator[None]:
+    """Hold `folder/name` (flock) while this process writes in `folder`: one writer at a time
+    (a sweep's results, a world set's index.json). A second writer, in another process, is
+    refused at once with `busy` (`{folder}` and `{pid}`, the holder's, filled in) as a
+    `DynabarnError`. Re-entrant in a process; the lock file is never opened through a link
+    and is removed when the last holder is done."""
+    import fcntl
+
+    from dynabarn.errors import DynabarnError
+
+    folder = Path(folder).resolve()
+    key = (folder, name)
+    # A read-only folder, a missing parent: one line, as any write there would give.
+    if key in _held:
+        fd, depth = _held[key]
+        _held[key] = (fd, depth + 1)
+        try:
+            yield
+        finally:
+            fd, depth = _held[key]
+            _held[key] = (fd, depth - 1)
+        return
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DynabarnError(f"cannot write in {folder}: {exc.strerror or exc}") from None
+    path = folder / name
+    while True:
+        try:  # never through a link planted at the name, never a device or FIFO there
+            fd = open_plain(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            if exc.errno == errno.EPERM:
+                why = f"{path}: {exc.strerror}; the lock is a plain file (remove what is there)"
+                raise DynabarnError(why) from None
+            raise DynabarnError(f"cannot write in {folder}: {exc.strerror or exc}") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+            os.close(fd)
+            raise DynabarnError(busy.format(folder=folder, pid=holder)) from None
+        # The holder before us removes the file when it is done: a lock on a file that is no
+        # longer at the path guards nothing, so take the one that is there now.
+        try:
+            if os.stat(path).st_ino == os.fstat(fd).st_ino:
+                break
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+    try:
+        # Who holds it, for the message a second writer gets; a courtesy that a full disk
+        # (a new file has no block to write into) must not turn into a lock never released.
+        with contextlib.suppress(OSError):
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        _held[key] = (fd, 1)
+        yield
+    finally:
+        _held.pop(key, None)
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()  # still holding it: nothing stays behind in the folder
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)

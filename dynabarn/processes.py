@@ -49,6 +49,23 @@ def safe_path_for_children() -> None:
     os.environ.update(SAFE_PATH)
 
 
+def leave_the_current_folder_off_the_path() -> None:
+    """`python -m dynabarn` as `python -P -m dynabarn`: Python puts the folder it was
+    started in first on `sys.path` for `-m`, where a planted module or a `*.dist-info` with
+    an entry point (a planner, a command) would be found before anything installed. Drop
+    that entry (the package itself is already imported: a `dynabarn/` there is the one thing
+    only `-P` on the command line can keep out) and start every child in safe-path mode."""
+    if not sys.flags.safe_path and sys.path:
+        first = sys.path[0]
+        try:
+            here = os.path.realpath(first or os.curdir) == os.path.realpath(os.getcwd())
+        except OSError:
+            here = True
+        if here:
+            del sys.path[0]
+    safe_path_for_children()
+
+
 @contextlib.contextmanager
 def in_empty_folder() -> Iterator[str]:
     """Run the block from a new empty folder, then come back: for libraries that put the

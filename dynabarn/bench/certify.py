@@ -30,7 +30,7 @@ from dynabarn.protocol import EvalProtocol
 from dynabarn.sim.certificate import CertificateConfig, certify
 from dynabarn.sim_config import trial_clock_offset
 from dynabarn.worlds.spec import Layout, WorldSpec
-from dynabarn.worldset import INDEX_NAME, entry_path, own_certificates, read_index
+from dynabarn.worldset import INDEX_NAME, entry_path, index_locked, own_certificates, read_index
 
 ORACLE = "oracle"
 """The planner whose successful episode certifies a trial the search could not: the exact
@@ -131,7 +131,13 @@ def certify_set(
 ) -> dict:
     """Certify the worlds `ids` (default: all) of the set in `index_dir`; returns the
     updated index (also written to its index.json). `budget`: the search's, per trial
-    (`sim.certificate.certify`), recorded in the index for `verify_set`."""
+    (`sim.certificate.certify`), recorded in the index for `verify_set`. The set's index lock
+    is held throughout (`worldset.index_locked`): a second writer at once is refused."""
+    with index_locked(index_dir):
+        return _certify_set(index_dir, protocol, trials, ids, jobs, budget, progress)
+
+
+def _certify_set(index_dir, protocol, trials, ids, jobs, budget, progress) -> dict:
     index = read_index(index_dir)
     config = CertificateConfig()
     resolution = config.to_dict()

@@ -4,7 +4,6 @@ full metrics, versions, world hash) and `metadata.json` (what the sweep was)."""
 from __future__ import annotations
 
 import contextlib
-import errno
 import hashlib
 import json
 import os
@@ -15,7 +14,7 @@ from pathlib import Path
 
 from dynabarn.bench.jobs import Job
 from dynabarn.errors import DynabarnError
-from dynabarn.files import open_plain, write_atomically
+from dynabarn.files import folder_lock, write_atomically
 from dynabarn.metrics import OUTCOMES, numbers_ok
 
 RESULTS = "results.jsonl"
@@ -103,67 +102,13 @@ def prepare_resume(path: Path) -> list[dict]:
     return list(keep.values())
 
 
-_held: dict[Path, tuple[int, int]] = {}
-"""Results folders this process holds the lock of: folder -> (file descriptor, depth)."""
-
-
 @contextlib.contextmanager
 def locked(out_dir: Path):
     """Hold `out_dir/.lock` (flock) while writing there, so a second sweep into the same
     folder stops with one line instead of writing every row twice. Re-entrant in a process."""
-    out_dir = Path(out_dir).resolve()
-    if out_dir in _held:
-        fd, depth = _held[out_dir]
-        _held[out_dir] = (fd, depth + 1)
-        try:
-            yield
-        finally:
-            fd, depth = _held[out_dir]
-            _held[out_dir] = (fd, depth - 1)
-        return
-    import fcntl
-
-    out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / LOCK
-    while True:
-        try:  # never through a link planted at the name, never a device or FIFO there
-            fd = open_plain(path, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as exc:
-            if exc.errno == errno.EPERM:
-                raise DynabarnError(
-                    f"{path}: {exc.strerror}; the lock is a plain file (remove what is there)"
-                ) from None
-            raise
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
-            os.close(fd)
-            raise DynabarnError(
-                f"{out_dir} is being written by another dynabarn-bench (pid {holder}); wait for it or use another --out"
-            ) from None
-        # The holder before us removes the file when it is done: a lock on a file that is no
-        # longer at the path guards nothing, so take the one that is there now.
-        try:
-            if os.stat(path).st_ino == os.fstat(fd).st_ino:
-                break
-        except FileNotFoundError:
-            pass
-        os.close(fd)
-    try:
-        # Who holds it, for the message a second writer gets; a courtesy that a full disk
-        # (a new file has no block to write into) must not turn into a lock never released.
-        with contextlib.suppress(OSError):
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-        _held[out_dir] = (fd, 1)
+    busy = "{folder} is being written by another dynabarn-bench (pid {pid}); wait for it or use another --out"
+    with folder_lock(out_dir, LOCK, busy=busy):
         yield
-    finally:
-        _held.pop(out_dir, None)
-        with contextlib.suppress(FileNotFoundError):
-            path.unlink()  # still holding it: nothing stays behind in the results folder
-        fcntl.flock(fd, fcntl.LOCK_UN)
-        os.close(fd)
 
 
 def metadata(args_dict: dict, jobs: list[Job]) -> dict:

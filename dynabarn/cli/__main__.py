@@ -2,7 +2,11 @@
 
 import sys
 
-from dynabarn.cli.dispatch import main
+from dynabarn.processes import leave_the_current_folder_off_the_path
+
+leave_the_current_folder_off_the_path()  # before anything else is imported
+
+from dynabarn.cli.dispatch import main  # noqa: E402
 
 if __name__ == "__main__":
     sys.exit(main(prog="python -m dynabarn.cli"))

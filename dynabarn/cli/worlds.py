@@ -50,6 +50,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     im.add_argument("--out", type=Path, default=Path("imported_worlds"), help="output directory")
     im.add_argument(
+        "--force",
+        action="store_true",
+        help="replace files in --out that its index.json does not list (by default they are never replaced)",
+    )
+    im.add_argument(
         "--name",
         default=None,
         help="the set's name (a letter, then letters, digits, _ or -), the start of every world's name (<name>_<id>), "
@@ -123,7 +128,9 @@ def _worlds_import(args: argparse.Namespace) -> int:
     if paper:
         sets[PAPER_SET] = paper
     meta = {"generator": "dynabarn import", "source_format": args.format, "source_file": args.file.name}
-    index = write_worlds(worlds, args.out, meta=meta, sets=sets, progress=progress_bar("importing", len(worlds)))
+    index = write_worlds(
+        worlds, args.out, meta=meta, sets=sets, progress=progress_bar("importing", len(worlds)), force=args.force
+    )
     print(f"imported {len(worlds)} worlds into {args.out} (index {index})")
     for line in count_notes(worlds):
         print(f"note: {line}")

@@ -28,6 +28,11 @@ def add_generate_arguments(g: argparse.ArgumentParser) -> None:
         "repository the folder carries the robot the worlds name, in DIR/assets/jackal/",
     )
     g.add_argument(
+        "--force",
+        action="store_true",
+        help="replace files in --out that its index.json does not list (by default they are never replaced)",
+    )
+    g.add_argument(
         "--seed",
         type=ranged(int, 0, MAX_SEED),
         default=DEFAULT_BASE_SEED,
@@ -210,6 +215,7 @@ def worlds_generate(args: argparse.Namespace) -> int:
         end_behavior=args.end,
         profile_source=profile.source if custom else None,
         progress=progress_bar("generating", N_WORLDS),
+        force=args.force,
     )
     print(f"wrote {N_WORLDS} worlds and {index} in {time.perf_counter() - t0:.1f} s")
     if Path(out).resolve() != worlds_dir().resolve():

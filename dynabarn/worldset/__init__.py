@@ -8,13 +8,14 @@ reproduces the committed files byte for byte.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 
 from dynabarn.errors import WorldError
-from dynabarn.files import write_atomically
+from dynabarn.files import folder_lock, write_atomically
 from dynabarn.mjcf import write_world
 from dynabarn.provenance import WORLDS_ENV, worlds_dir
 from dynabarn.worlds.difficulty import difficulty_scores
@@ -25,6 +26,42 @@ from dynabarn.worlds.spec import SCRIPTED, EndBehavior, Interpolation, WorldSpec
 from dynabarn.worlds.tiers import TIERS
 
 INDEX_NAME = "index.json"
+INDEX_LOCK = ".index.lock"
+"""Held (flock) by whatever writes a set's index.json: generate, import, certify."""
+
+
+@contextlib.contextmanager
+def index_locked(folder: Path | str) -> Iterator[None]:
+    """One writer per set: hold the set's index lock while reading, changing and writing its
+    index.json (and world files), so two runs at once never lose one's work: the second is
+    refused with one line. Re-entrant in a process."""
+    busy = (
+        "{folder}: another dynabarn-worlds (pid {pid}) is writing this set's index.json now; "
+        "wait for it to finish (two writers at once would lose one's work)"
+    )
+    with folder_lock(folder, INDEX_LOCK, busy=busy):
+        yield
+
+
+def check_not_foreign(out_dir: Path, files: Iterable[str]) -> None:
+    """Refuse to replace what this package did not write: a file among `files` that is in
+    `out_dir` but not listed by the folder's own index.json (or any such file when the
+    folder's index.json is not ours). One `WorldError` line naming it (`--force` writes
+    anyway)."""
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        return
+    try:
+        listed = {e["file"] for e in read_index(out_dir)["worlds"]} | {INDEX_NAME}
+    except WorldError:
+        listed = set()  # no index of ours: nothing there was written by us
+    clash = [f for f in (*files, INDEX_NAME) if f not in listed and (out_dir / f).exists()]
+    if clash:
+        more = f" and {len(clash) - 1} more" if len(clash) > 1 else ""
+        raise WorldError(
+            f"{out_dir / clash[0]}{more}: not written by dynabarn (the folder's index.json does not list it) and would "
+            "be replaced; choose another --out, or give --force to replace it"
+        )
 
 
 def _entry(world: WorldSpec, file: str, sha256: str) -> dict:
@@ -103,17 +140,24 @@ def write_worlds(
     sets: dict[str, list[int]],
     asset_root: Path | None = None,
     progress: Callable[[Iterable], Iterable] = lambda it: it,
+    force: bool = False,
 ) -> Path:
     """Write each world as `<name>.xml` in `out_dir` and the index; returns the index path.
-    `asset_root`: where the robot the worlds name is (default: `mjcf.asset_root_for`)."""
+    `asset_root`: where the robot the worlds name is (default: `mjcf.asset_root_for`).
+    A file there that the folder's index does not list is never replaced unless `force`
+    (`check_not_foreign`); the set's index lock is held throughout (`index_locked`)."""
     out_dir = Path(out_dir)
+    worlds = list(worlds)
+    if not force:
+        check_not_foreign(out_dir, [f"{world.name}.xml" for world in worlds])
     out_dir.mkdir(parents=True, exist_ok=True)
-    entries = []
-    for world in progress(worlds):
-        file = f"{world.name}.xml"
-        sha = write_world(world, out_dir / file, asset_root=asset_root)
-        entries.append(_entry(world, file, sha))
-    return write_index(out_dir, entries, meta=meta, sets=sets)
+    with index_locked(out_dir):
+        entries = []
+        for world in progress(worlds):
+            file = f"{world.name}.xml"
+            sha = write_world(world, out_dir / file, asset_root=asset_root)
+            entries.append(_entry(world, file, sha))
+        return write_index(out_dir, entries, meta=meta, sets=sets)
 
 
 def generate_worlds(
@@ -132,6 +176,7 @@ def generate_worlds(
     draws: Mapping[int, int] | None = None,
     asset_root: Path | None = None,
     progress: Callable[[Iterable], Iterable] = lambda it: it,
+    force: bool = False,
 ) -> Path:
     """Generate and write the benchmark's worlds; returns the index path.
 
@@ -177,7 +222,7 @@ def generate_worlds(
         meta["behavior"] = behavior
     if draws:
         meta["draws"] = {str(i): k for i, k in sorted(draws.items())}
-    return write_worlds(worlds, out_dir, meta=meta, sets=sets, asset_root=asset_root, progress=progress)
+    return write_worlds(worlds, out_dir, meta=meta, sets=sets, asset_root=asset_root, progress=progress, force=force)
 
 
 def generate_profile_worlds(

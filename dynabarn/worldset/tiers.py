@@ -16,7 +16,7 @@ from dynabarn.errors import WorldError
 from dynabarn.files import write_atomically
 from dynabarn.provenance import work_root
 from dynabarn.worlds.tiers import get_tier
-from dynabarn.worldset import INDEX_NAME, generate_profile_worlds, read_index
+from dynabarn.worldset import INDEX_NAME, generate_profile_worlds, index_locked, read_index
 
 TIERS_FOLDER = "generated_tiers"
 """Where the tiers' worlds are generated, under the work root (the checkout, or the cache)."""
@@ -42,24 +42,30 @@ def generate_tier(
     # the committed certificates' digests hold in both.
     home = tier_dir(name).parent
     inside = out.resolve().parent == home.resolve()
-    index = generate_profile_worlds(
-        profile,
-        out,
-        base_seed=tier.base_seed,
-        world_ids=tier.ids,
-        profile_source=tier_source(name),
-        draws=tier.draws() if draws is None else draws,
-        asset_root=home.parent if inside else None,
-        progress=progress,
-    )
-    if record and draws is None:
-        attach_certificates(out, record)
+    with index_locked(out):  # the worlds and their certificates as one write
+        index = generate_profile_worlds(
+            profile,
+            out,
+            base_seed=tier.base_seed,
+            world_ids=tier.ids,
+            profile_source=tier_source(name),
+            draws=tier.draws() if draws is None else draws,
+            asset_root=home.parent if inside else None,
+            progress=progress,
+        )
+        if record and draws is None:
+            attach_certificates(out, record)
     return index
 
 
 def attach_certificates(index_dir: Path, record: dict) -> None:
     """Put a tier's committed certificates (`worlds.tiers.Tier.certified`) into its index,
     each on the world whose file has the bytes it was computed for."""
+    with index_locked(index_dir):
+        _attach_certificates(index_dir, record)
+
+
+def _attach_certificates(index_dir: Path, record: dict) -> None:
     index = read_index(index_dir)
     by_id = record.get("certificates", {})
     for entry in index["worlds"]:
