@@ -63,6 +63,12 @@ sizes made MuJoCo's bounding volumes and the recording's scene meaningless)."""
 OPTION_RANGES = {"timestep": (1e-5, 0.1), "iterations": (1, 1000), "ls_iterations": (1, 1000)}
 """`<option>` values with their own physical range (a negative time step, 1e9 iterations)."""
 MAX_TEXTURE_PIXELS = 4096 * 4096
+MAX_TEXTURE_PIXELS_TOTAL = 2 * MAX_TEXTURE_PIXELS
+"""All of a world's textures together (each is allocated at 3-4 bytes a pixel, and more in
+the renderer): 60 textures of the largest size each would take gigabytes."""
+MAX_NUMERIC_TOTAL = 8_000_000
+"""Numbers in all of a world's `<numeric>` elements together (8 bytes each in MuJoCo; what
+a 64 MiB file can hold, where a declared `size` would otherwise allocate without bound)."""
 MAX_NUMERIC_SIZE = 300_000  # 100,000 keyframes of [t, x, y]
 
 
@@ -98,6 +104,7 @@ def check_self_contained(path: Path, root: ET.Element) -> None:
     _check_depth(path, root)
     robots = 0
     counts: dict[str, int] = {}
+    totals = {"texture": 0.0, "numeric": 0.0}
     for total, element in enumerate(root.iter(), start=1):
         if total > MAX_ELEMENTS:
             raise WorldError(f"{path}: more than {MAX_ELEMENTS:,} elements; a world holds fewer")
@@ -120,7 +127,7 @@ def check_self_contained(path: Path, root: ET.Element) -> None:
         if counts[tag] > limit:
             raise WorldError(f"{path}: more than {limit:,} <{tag}> elements; a world holds fewer")
         _check_numbers(path, tag, element)
-        _check_sizes(path, tag, element)
+        _check_sizes(path, tag, element, totals)
     if robots > 1:
         raise WorldError(f"{path}: more than one <model name='jackal'>")
 
@@ -163,9 +170,10 @@ def _check_numbers(path: Path, tag: str, element: ET.Element) -> None:
                     raise WorldError(f"{path}: <option {attribute}={value!r}> is not in [{low:g}, {high:g}]")
 
 
-def _check_sizes(path: Path, tag: str, element: ET.Element) -> None:
+def _check_sizes(path: Path, tag: str, element: ET.Element, totals: dict[str, float]) -> None:
     """Sizes MuJoCo would allocate before it could say no: a texture's pixels, a numeric's
-    declared size, the offscreen buffer."""
+    declared size, the offscreen buffer; and the textures' and numerics' sums (`totals`,
+    added to here)."""
 
     def number(name: str) -> float:
         try:
@@ -173,9 +181,21 @@ def _check_sizes(path: Path, tag: str, element: ET.Element) -> None:
         except ValueError:
             raise WorldError(f"{path}: <{tag} {name}={element.get(name)!r}> is not a number") from None
 
-    if tag == "texture" and number("width") * number("height") > MAX_TEXTURE_PIXELS:
-        raise WorldError(f"{path}: <texture> of {number('width'):g} x {number('height'):g} pixels is too large")
-    if tag == "numeric" and number("size") > MAX_NUMERIC_SIZE:
-        raise WorldError(f"{path}: <numeric size={element.get('size')}> is larger than {MAX_NUMERIC_SIZE:,}")
+    if tag == "texture":
+        pixels = number("width") * number("height")
+        if pixels > MAX_TEXTURE_PIXELS:
+            raise WorldError(f"{path}: <texture> of {number('width'):g} x {number('height'):g} pixels is too large")
+        totals["texture"] += max(pixels, 0.0)
+        if totals["texture"] > MAX_TEXTURE_PIXELS_TOTAL:
+            raise WorldError(
+                f"{path}: textures of more than {MAX_TEXTURE_PIXELS_TOTAL:,} pixels in all; a world needs far fewer"
+            )
+    if tag == "numeric":
+        size = max(number("size"), float(len(element.get("data", "").split())))
+        if size > MAX_NUMERIC_SIZE:
+            raise WorldError(f"{path}: <numeric size={element.get('size')}> is larger than {MAX_NUMERIC_SIZE:,}")
+        totals["numeric"] += size
+        if totals["numeric"] > MAX_NUMERIC_TOTAL:
+            raise WorldError(f"{path}: <numeric> data of more than {MAX_NUMERIC_TOTAL:,} numbers in all")
     if tag == "global" and max(number("offwidth"), number("offheight")) > 8192:
         raise WorldError(f"{path}: an offscreen buffer over 8192 pixels wide or high")

@@ -126,6 +126,8 @@ def load_profile_data(path: Path | str) -> tuple[object, dict]:
         raise ProfileError(f"{path}: not valid TOML ({exc})") from None
     except (json.JSONDecodeError, RecursionError) as exc:
         raise ProfileError(f"{path}: not valid JSON ({exc})") from None
+    except ValueError as exc:  # an integer of thousands of digits (Python's conversion limit)
+        raise ProfileError(f"{path}: a number too long to read ({str(exc)[:80]})") from None
     if not isinstance(parsed, dict):
         raise ProfileError(f"{path}: the profile must be a table (an object), not {type(parsed).__name__}")
     return parsed, {"file": path.name, "sha256": hashlib.sha256(data).hexdigest()}
@@ -173,8 +175,10 @@ def _text(value: object, what: str, *, empty: bool = False) -> str:
 
 
 def _number(value: object, what: str, *, whole: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ProfileError(f"{what} must be a number, not {json.dumps(value)[:40]}")
+    if isinstance(value, bool) or not isinstance(value, int | float):  # a TOML date, a table, a string
+        raise ProfileError(f"{what} must be a number, not {type(value).__name__} {str(value)[:40]!r}")
+    if isinstance(value, int) and abs(value) > 10**6:  # before float(): 5,000 digits overflow it
+        raise ProfileError(f"{what} must be finite and at most 1e6 in size, got {str(value)[:20]}...")
     if not math.isfinite(value) or abs(value) > 1e6:
         raise ProfileError(f"{what} must be finite and at most 1e6 in size, got {value}")
     if whole and value != int(value):
@@ -189,8 +193,8 @@ def _pair(value: object, what: str, *, whole: bool = False) -> tuple:
 
 
 def _choice(value: object, what: str, choices: list[str]) -> str:
-    if value not in choices:
-        raise ProfileError(f"{what} must be one of {', '.join(choices)}, got {json.dumps(value)[:40]}")
+    if not isinstance(value, str) or value not in choices:
+        raise ProfileError(f"{what} must be one of {', '.join(choices)}, got {str(value)[:40]!r}")
     return str(value)
 
 

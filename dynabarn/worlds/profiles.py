@@ -33,6 +33,19 @@ from dynabarn.worlds.classes import (  # noqa: F401 (Fig. 2's classes, named her
 )
 
 ARENA_HALF_SIZE = 10.0
+MAX_OBSTACLE_COUNT = 200
+"""Obstacles a count range may ask for (the paper's worlds have up to 19, the densest tier
+24): a generator given a million would run for hours."""
+MAX_OBSTACLE_SPEED = 20.0
+"""[m/s] ten times the Jackal's top speed; a faster obstacle crosses the arena in a step."""
+MAX_SPEED_STD = 10.0
+MIN_SPEED_STEP = 0.001
+"""[m/s] the finest speed grid (a step of 1e-300 would make a grid of 1e300 speeds)."""
+MAX_SHAPE_SIZE = 5.0
+"""[m] an obstacle's half size or radius (the arena is 20 m across)."""
+MIN_FIELD_CELL = 0.05
+"""[m] a static field's finest grid: 400 x 400 cells over the whole arena."""
+MAX_SMOOTH_ITERATIONS = 100
 """Half the side of the square arena [m]: obstacles live in [-10, 10]^2."""
 
 
@@ -91,9 +104,16 @@ class MotionProfile:
         _check_range(n, "speed", self.speed[0], self.speed[1], minimum=0.0)
         if self.speed[0] <= 0:
             raise ProfileError(f"profile {n!r}: speed minimum must be positive, got {self.speed[0]}")
+        if self.speed[1] > MAX_OBSTACLE_SPEED:
+            raise ProfileError(f"profile {n!r}: speed maximum {self.speed[1]} is above {MAX_OBSTACLE_SPEED:g} m/s")
         _check_range(n, "std", self.std[0], self.std[1], minimum=0.0)
-        if self.speed_step < 0:
-            raise ProfileError(f"profile {n!r}: speed_step must be >= 0, got {self.speed_step}")
+        if self.std[1] > MAX_SPEED_STD:
+            raise ProfileError(f"profile {n!r}: std maximum {self.std[1]} is above {MAX_SPEED_STD:g} m/s")
+        if not (self.speed_step == 0 or MIN_SPEED_STEP <= self.speed_step <= MAX_OBSTACLE_SPEED):
+            raise ProfileError(
+                f"profile {n!r}: speed_step must be 0 (continuous speeds) or in [{MIN_SPEED_STEP:g}, "
+                f"{MAX_OBSTACLE_SPEED:g}] m/s, got {self.speed_step}"
+            )
         if self.speed_step > 0 and self.quantised_speeds().size == 0:
             raise ProfileError(f"profile {n!r}: no multiple of speed_step {self.speed_step} lies in {self.speed}")
 
@@ -161,6 +181,10 @@ class ProfileSet:
                 raise ProfileError(f"profile set {self.name!r}: {what} minimum must be >= 1, got {lo}")
             if lo > hi:
                 raise ProfileError(f"profile set {self.name!r}: {what} [{lo}, {hi}] has min > max")
+            if hi > MAX_OBSTACLE_COUNT:
+                raise ProfileError(
+                    f"profile set {self.name!r}: {what} maximum {hi} is above {MAX_OBSTACLE_COUNT} obstacles a world"
+                )
         try:
             WaypointScheme(self.waypoints)
         except ValueError:
@@ -240,6 +264,9 @@ class ShapeMix:
         _check_range(self.name, "box_half_size", *self.box_half_size, minimum=0.05)
         _check_range(self.name, "capsule_radius", *self.capsule_radius, minimum=0.16)
         _check_range(self.name, "capsule_half_length", *self.capsule_half_length, minimum=0.05)
+        for what in ("box_half_size", "capsule_radius", "capsule_half_length"):
+            if getattr(self, what)[1] > MAX_SHAPE_SIZE:
+                raise ProfileError(f"shape mix {self.name!r}: {what} maximum is above {MAX_SHAPE_SIZE:g} m")
 
     @property
     def cylinders_only(self) -> bool:
@@ -304,13 +331,16 @@ class StaticField:
         _check_range(self.name, "y_range", *self.y_range, minimum=-ARENA_HALF_SIZE)
         if max(self.x_range[1], self.y_range[1]) > ARENA_HALF_SIZE:
             raise ProfileError(f"static field {self.name!r}: must lie inside the arena [-10, 10]^2")
+        if not MIN_FIELD_CELL <= self.cell <= ARENA_HALF_SIZE:
+            why = f"cell must be in [{MIN_FIELD_CELL:g}, {ARENA_HALF_SIZE:g}] m"
+            raise ProfileError(f"static field {self.name!r}: {why}")
         if not 0 < 2 * self.radius <= self.cell:
             raise ProfileError(f"static field {self.name!r}: need 0 < 2 radius <= cell")
         _check_range(self.name, "fill", *self.fill, minimum=0.0)
         if self.fill[1] >= 1:
             raise ProfileError(f"static field {self.name!r}: fill must be below 1")
-        if self.smooth_iterations < 0:
-            raise ProfileError(f"static field {self.name!r}: smooth_iterations must be >= 0")
+        if not 0 <= self.smooth_iterations <= MAX_SMOOTH_ITERATIONS:
+            raise ProfileError(f"static field {self.name!r}: smooth_iterations must be in [0, {MAX_SMOOTH_ITERATIONS}]")
 
     def to_dict(self) -> dict:
         return {
