@@ -23,6 +23,8 @@ from typing import Generic, TypeVar
 from dynabarn.errors import DynabarnError, unknown_choice
 
 T = TypeVar("T")
+_WARNED: set[tuple[str, str]] = set()
+"""Installed items already named in a warning in this process: (kind, name)."""
 
 
 def instances_of(cls: type) -> Callable[[object], None]:
@@ -89,8 +91,8 @@ class Registry(dict[str, T], Generic[T]):
         if self.check is not None:
             try:
                 self.check(item)
-            except (TypeError, ValueError) as exc:
-                raise self.error(f"{self.kind} {name!r}: {exc}") from None
+            except Exception as exc:  # TypeError or ValueError by contract; anything else is a broken item too
+                raise self.error(f"{self.kind} {name!r}: {str(exc)[:200]}") from None
         return item
 
     def installed(self) -> dict[str, EntryPoint]:
@@ -115,6 +117,28 @@ class Registry(dict[str, T], Generic[T]):
             raise self.error(unknown_choice(self.kind, name, self.names()))
         try:
             item = ep.load()
-        except Exception as exc:  # a broken third-party package: say which one
-            raise self.error(f"{self.kind} {name!r} failed to load from {ep.value}: {exc}") from None
+        except (Exception, SystemExit) as exc:  # a broken third-party package (one that exits on import too)
+            why = f"it exited on import (SystemExit {exc.code!r})" if isinstance(exc, SystemExit) else str(exc)[:200]
+            raise self.error(f"{self.kind} {name!r} failed to load from {ep.value}: {why}") from None
         return self._checked(name, item)
+
+    def loaded(self) -> dict[str, T]:
+        """Every item that can be used: built in, registered, and each installed one that
+        loads and keeps the contract. One that does not is named in one warning on stderr
+        (once per process) and left out, so that a broken package breaks only what asks for
+        it by name (`get_item`: one line)."""
+        items = dict(self)
+        for name in sorted(set(self.installed()) - set(items)):
+            try:
+                items[name] = self.get_item(name)
+            except self.error as exc:
+                self.warn(name, exc)
+        return items
+
+    def warn(self, name: str, problem: Exception) -> None:
+        """Say once per process that the installed item `name` is left out, and why."""
+        import sys
+
+        if (self.kind, name) not in _WARNED:
+            _WARNED.add((self.kind, name))
+            print(f"warning: {problem}; left out", file=sys.stderr)

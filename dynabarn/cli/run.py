@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
+    EXIT_EPISODE_ERROR,
     add_protocol,
     add_recording,
     add_sim_settings,
@@ -124,4 +125,9 @@ def _run_episode(args: argparse.Namespace) -> int:
 
     if result.reason in (CLOSED, ESCAPED):  # the person watching ended it: not a failure
         return 0
+    from dynabarn.recording.topics import TOPIC_RAISED
+
+    stopped = recorders[0].stopped if recorders else None
+    if stopped and stopped.startswith(TOPIC_RAISED):  # what was asked to be recorded is not (run_spec said why)
+        return EXIT_EPISODE_ERROR
     return exit_status(result, as_json=args.json)

@@ -40,13 +40,13 @@ def build_parser() -> argparse.ArgumentParser:
     im = sub.add_parser(
         "import", help="import worlds from another format", formatter_class=argparse.ArgumentDefaultsHelpFormatter
     )
+    importers = IMPORTERS.loaded()  # a broken installed format is named once and left out
     im.add_argument("file", type=Path, help="file to import (e.g. ../shared/reference/dynabarn60.json)")
     im.add_argument(
         "--format",
-        choices=IMPORTERS.names(),
+        choices=sorted(importers),
         default="dynabarn-release",
-        help="input format: "
-        + "; ".join(f"{name}, {IMPORTERS.get_item(name).description}" for name in IMPORTERS.names()),
+        help="input format: " + "; ".join(f"{name}, {i.description}" for name, i in sorted(importers.items())),
     )
     im.add_argument("--out", type=Path, default=Path("imported_worlds"), help="output directory")
     im.add_argument(

@@ -14,7 +14,7 @@ from dynabarn.files import file_name_part
 # Over 80 lines on purpose: every option of `generate` with its help, in the order --help shows.
 def add_generate_arguments(g: argparse.ArgumentParser) -> None:
     """`generate`'s options, in the order `--help` shows them."""
-    from dynabarn.sim.behaviors import available_behaviors, get_behavior
+    from dynabarn.sim.behaviors import BEHAVIORS
     from dynabarn.worlds.generate import DEFAULT_BASE_SEED
     from dynabarn.worlds.profiles import PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS
     from dynabarn.worlds.tiers import TIERS
@@ -40,7 +40,7 @@ def add_generate_arguments(g: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--profiles",
-        choices=PROFILE_SETS.names(),
+        choices=sorted(PROFILE_SETS.loaded()),
         default="table1",
         help="motion profile set: table1 = the paper's Table I; release2022 = measured from the 2022 release "
         "(the base the options below change; not used with --profile-file)",
@@ -94,25 +94,26 @@ def add_generate_arguments(g: argparse.ArgumentParser) -> None:
     g.add_argument("--end", choices=["loop", "hold"], default="loop", help="after the last waypoint")
     g.add_argument(
         "--shapes",
-        choices=SHAPE_MIXES.names(),
+        choices=sorted(SHAPE_MIXES.loaded()),
         default=None,
         help="obstacle shapes (beyond the paper): cylinder = the paper's; mixed = cylinders, boxes and "
         "capsules in equal shares, sizes drawn per obstacle (default: the profile file's, else cylinder)",
     )
     g.add_argument(
         "--static",
-        choices=["none", *STATIC_FIELDS.names()],
+        choices=["none", *sorted(STATIC_FIELDS.loaded())],
         default=None,
         help="static obstacles beside the moving ones (beyond the paper): barn-grid = a BARN-style "
         "cellular-automaton field of r 0.075 m cylinders across the arena's middle, always crossable "
         "(default: the profile file's, else none)",
     )
+    behaviors = BEHAVIORS.loaded()  # a broken installed one is named once and left out
     g.add_argument(
         "--behavior",
-        choices=available_behaviors(),
+        choices=sorted(behaviors),
         default=None,
         help="every obstacle's behaviour (beyond the paper; default: the profile file's, else scripted): "
-        + "; ".join(f"{name} = {get_behavior(name).summary()}" for name in available_behaviors()),
+        + "; ".join(f"{name} = {kind.summary()}" for name, kind in sorted(behaviors.items())),
     )
 
 

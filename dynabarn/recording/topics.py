@@ -295,6 +295,10 @@ FRAMES = ("world", "odom", "base_link", "laser")
 """The frame tree on `/tf`, root first: each frame is the child of the one before."""
 
 
+TOPIC_RAISED = "recording topic"
+"""How a recording stopped by a topic that raised begins its reason (`McapRecorder.stopped`):
+`dynabarn-run` then exits non-zero, since what was asked to be recorded is not."""
+
 TOPICS_GROUP = "dynabarn.topics"
 """Entry-point group under which other packages add JSON per-tick topics (name = "module:TOPIC")."""
 
@@ -325,8 +329,8 @@ checked (`_check_topic`) when loaded."""
 
 def recorded_topics() -> tuple[Topic, ...]:
     """The table, then the topics installed by other packages (by name): what the recorder
-    writes and the replay plots. An installed topic that is not a JSON topic made each
-    tick, or that reuses a name, is one clear error."""
+    writes and the replay plots. An installed topic that cannot load, is not a JSON topic
+    made each tick, or reuses a name is named in one warning and left out."""
     import sys
 
     return (*TOPICS, *_installed(tuple(sys.path)))
@@ -339,10 +343,13 @@ def _installed(path: tuple[str, ...]) -> tuple[Topic, ...]:
     from dynabarn.errors import DynabarnError
 
     extra: list[Topic] = []
-    for name in sorted(TOPIC_REGISTRY.installed()):
-        topic = TOPIC_REGISTRY.get_item(name)
+    # One that cannot load or breaks the contract is named in one warning and left out: the
+    # table's topics are recorded whatever another package installs.
+    for name, topic in sorted(TOPIC_REGISTRY.loaded().items()):
         if topic.name in {t.name for t in extra}:
-            raise DynabarnError(f"recording topic {name!r}: topic {topic.name} is already recorded")
+            twice = DynabarnError(f"recording topic {name!r}: topic {topic.name} is already recorded")
+            TOPIC_REGISTRY.warn(name, twice)
+            continue
         extra.append(topic)
     return tuple(extra)
 

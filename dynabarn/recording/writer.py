@@ -39,6 +39,7 @@ from dynabarn.recording.topics import (
     SCAN,
     STATIC,
     TF,
+    TOPIC_RAISED,
     TOPICS,
     TRACK_SCENE,
     TRACKS,
@@ -263,7 +264,13 @@ class McapRecorder(EpisodeObserver):
         entity = wire.scene_entity(ns, scene.WORLD_FRAME, "obstacles", primitives=block)
         self._obstacles.log(wire.scene_update([entity]), log_time=ns)
         for topic in self._per_tick:
-            message = topic.per_tick(tick)
+            try:
+                message = topic.per_tick(tick)
+            except Exception as exc:  # an installed topic's bug: the recording ends whole, and says why
+                why = f"{type(exc).__name__}: {str(exc)[:200]}"
+                self.stopped = f"{TOPIC_RAISED} {topic.name} raised {why}; the recording ends at {t:.1f} s"
+                self.close()
+                return
             if message is not None:
                 self.log_json(topic.name, t, message)
                 if topic.name == DEBUG.name:

@@ -198,7 +198,8 @@ def register_behavior(behavior: type[ObstacleBehavior]) -> type[ObstacleBehavior
 
 
 def available_behaviors() -> list[str]:
-    return BEHAVIORS.names()
+    """Every behaviour that loads (a broken installed one is named in a warning, left out)."""
+    return sorted(BEHAVIORS.loaded())
 
 
 def get_behavior(name: str) -> type[ObstacleBehavior]:
