@@ -292,9 +292,12 @@ def _bench(args: argparse.Namespace) -> int:
         config["launch"] = args.ros_launch
     if args.ros_stack is not None:
         config["stack"] = args.ros_stack
-    specs = [planner_spec(p) for p in dict.fromkeys(p.strip() for p in args.planner.split(",") if p.strip())]
-    if not specs:
+    names = [p.strip() for p in args.planner.split(",")]
+    if not any(names):
         raise DynabarnError(f"--planner {args.planner!r}: name at least one planner, e.g. dwa or dwa,teb")
+    if not all(names):  # `straight,,stop`: a name left out by mistake, not an empty planner
+        raise DynabarnError(f"--planner {args.planner!r}: an empty name between commas; name planners as dwa,teb")
+    specs = [planner_spec(p) for p in dict.fromkeys(names)]
     planners = [(name, preset | config, label) for name, preset, label in specs]
     for name, cfg, _ in planners:
         get_planner(name, **cfg)  # fail fast on an unknown planner or bad configuration

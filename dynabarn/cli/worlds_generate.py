@@ -41,9 +41,9 @@ def add_generate_arguments(g: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--profiles",
         choices=sorted(PROFILE_SETS.loaded()),
-        default="table1",
-        help="motion profile set: table1 = the paper's Table I; release2022 = measured from the 2022 release "
-        "(the base the options below change; not used with --profile-file)",
+        default=None,
+        help="motion profile set (default table1): table1 = the paper's Table I; release2022 = measured from the "
+        "2022 release (the base the options below change; not with --profile-file, which holds its own)",
     )
     g.add_argument(
         "--tier",
@@ -117,6 +117,9 @@ def add_generate_arguments(g: argparse.ArgumentParser) -> None:
     )
 
 
+DEFAULT_PROFILES = "table1"
+"""The profile set `generate` draws from without --profiles or --profile-file (the paper's Table I)."""
+
 PROFILE_OPTIONS = (
     "easy_order",
     "easy_speed",
@@ -140,6 +143,9 @@ def generation_profile(args: argparse.Namespace):
     from dynabarn.worlds.profile_file import load_profile_data, profile_from_dict
     from dynabarn.worlds.profiles import get_profile_set
 
+    if args.profile_file is not None and args.profiles is not None:
+        raise ProfileError("--profiles and --profile-file both name the motion profiles: give one")
+    args.profiles = args.profiles or DEFAULT_PROFILES
     if args.profile_file is not None:
         data, source = load_profile_data(args.profile_file)
         where = f"{args.profile_file}: "
@@ -228,7 +234,7 @@ def _generate_tiers(args: argparse.Namespace) -> int:
     from dynabarn.worlds.tiers import TIERS, get_tier
     from dynabarn.worldset.tiers import generate_tier
 
-    variants = ("profile_file", "shapes", "static", "behavior")
+    variants = ("profiles", "profile_file", "shapes", "static", "behavior")
     others = [name for name in (*PROFILE_OPTIONS, *variants) if getattr(args, name)]
     if others:
         raise DynabarnError(f"--tier takes its profile from its own file: drop --{others[0].replace('_', '-')}")
