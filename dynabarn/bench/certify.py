@@ -30,7 +30,14 @@ from dynabarn.protocol import EvalProtocol
 from dynabarn.sim.certificate import CertificateConfig, certify
 from dynabarn.sim_config import trial_clock_offset
 from dynabarn.worlds.spec import Layout, WorldSpec
-from dynabarn.worldset import INDEX_NAME, entry_path, index_locked, own_certificates, read_index
+from dynabarn.worldset import (
+    INDEX_NAME,
+    certificate_problem,
+    entry_path,
+    index_locked,
+    own_certificates,
+    read_index,
+)
 
 ORACLE = "oracle"
 """The planner whose successful episode certifies a trial the search could not: the exact
@@ -182,15 +189,27 @@ def verify_set(
     wanted = set(ids) if ids is not None else None
     stored: dict[str, dict] = {}
     todo = []
+    differences = []
     for entry in index["worlds"]:
+        if wanted is not None and entry["id"] not in wanted:
+            continue
+        raw = (
+            (entry.get("certificates") or {}).get(protocol.name)
+            if isinstance(entry.get("certificates"), dict)
+            else None
+        )
+        problem = certificate_problem(raw) if raw is not None else None
+        if problem is not None:  # a record that contradicts itself is a difference, not a pass
+            differences.append(f"{entry.get('file')}: its {protocol.name} certificate: {problem}")
+            continue
         record = own_certificates(entry).get(protocol.name)
-        if (wanted is not None and entry["id"] not in wanted) or record is None:
+        if record is None:
             continue
         path = entry_path(Path(index_dir), entry)
         stored[path.name] = record
         seeds = tuple(t["seed"] for t in record["trials"])
         todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget))
-    differences, checked = [], 0
+    checked = 0
     for path, rows in progress(map_in_workers(certify_world, todo, jobs)):
         for old, new in zip(stored[Path(path).name]["trials"], rows, strict=True):
             checked += 1

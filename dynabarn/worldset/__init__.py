@@ -92,15 +92,40 @@ def _entry(world: WorldSpec, file: str, sha256: str) -> dict:
 
 def own_certificates(entry: dict) -> dict[str, dict]:
     """An index entry's certificates by protocol, those computed for the bytes its file has
-    (a record names the sha256 it was computed for; any other is ignored)."""
+    (a record names the sha256 it was computed for; any other is ignored) and that agree with
+    their own trials (`certificate_problem`; `certify --verify` names the others)."""
     records = entry.get("certificates")
     if not isinstance(records, dict):
         return {}
     return {
         protocol: record
         for protocol, record in records.items()
-        if isinstance(record, dict) and record.get("sha256") == entry.get("sha256")
+        if isinstance(record, dict)
+        and record.get("sha256") == entry.get("sha256")
+        and certificate_problem(record) is None
     }
+
+
+def certificate_problem(record: object) -> str | None:
+    """Why a world's certificate record is not one `certify` writes, or None: its trials a
+    list of {seed: whole number, certified: true or false}, its world-level `certified` and
+    `certified_trials` what those trials say (an index is someone else's file too)."""
+    if not isinstance(record, dict):
+        return "not an object"
+    trials = record.get("trials")
+    if not isinstance(trials, list) or not trials:
+        return "no trials"
+    for t in trials:
+        if not isinstance(t, dict) or not isinstance(t.get("certified"), bool):
+            return "a trial without a certified flag"
+        if not isinstance(t.get("seed"), int) or isinstance(t.get("seed"), bool):
+            return "a trial without a whole-number seed"
+    if record.get("certified") is not all(t["certified"] for t in trials):
+        return f"certified {record.get('certified')!r} contradicts its trials"
+    count = record.get("certified_trials")
+    if isinstance(count, bool) or count != sum(t["certified"] for t in trials):
+        return f"certified_trials {count!r} contradicts its trials"
+    return None
 
 
 def write_index(out_dir: Path, entries: list[dict], *, meta: dict, sets: dict[str, list[int]]) -> Path:
@@ -403,4 +428,31 @@ def world_set(name: str, ids: list[int] | None = None) -> list[tuple[int, str, s
         chosen = [i for i in chosen if i in set(ids)] if name == "paper60" else ids
         if not chosen:
             raise WorldError(f"none of the world ids {ids[:5]} is in set {name!r} (dynabarn300 has all 300)")
-    return [(i, str(entry_path(index_dir, entries[i])), entries[i]["difficulty"]) for i in chosen]
+    found = [(i, entry_path(index_dir, entries[i]), entries[i]) for i in chosen]
+    for _, path, entry in found:
+        check_listed_bytes(path, entry)
+    return [(i, str(path), entry["difficulty"]) for i, path, entry in found]
+
+
+def check_listed_bytes(path: Path, entry: dict) -> None:
+    """A world file holds the bytes its index entry lists (`sha256`): a file swapped for
+    another's, or edited since, is one `WorldError` line, never a sweep of other worlds
+    under this set's name."""
+    import hashlib
+
+    from dynabarn.world_file import MAX_WORLD_BYTES
+
+    digest = hashlib.sha256()
+    try:
+        with open(path, "rb") as f:
+            while piece := f.read(1 << 20):
+                digest.update(piece)
+                if f.tell() > MAX_WORLD_BYTES:
+                    raise WorldError(f"{path}: larger than {MAX_WORLD_BYTES >> 20} MiB; not a world file")
+    except OSError as exc:
+        raise WorldError(f"{path}: cannot read the world file ({exc.strerror or exc})") from None
+    if digest.hexdigest() != entry.get("sha256"):
+        raise WorldError(
+            f"{path}: not the bytes its index.json lists (sha256 differs): the file was replaced or edited since the "
+            "set was written; generate or import the set again (a tier's folder: remove it, it is made anew)"
+        )
