@@ -79,7 +79,7 @@ def _rates(eps: list[EpisodeData]) -> dict:
     return out
 
 
-def _resume(out: Path, actor: StudentActor, opt, data: Dataset) -> tuple[int, DaggerReport]:
+def _resume(out: Path, actor: StudentActor, opt, data: Dataset, width: int) -> tuple[int, DaggerReport]:
     """Weights, optimiser, report and data of the finished iterations, from the checkpoint
     (tensors and plain data only: `weights_only`, no pickled code); one line if it is damaged."""
     with resuming(out):
@@ -87,7 +87,7 @@ def _resume(out: Path, actor: StudentActor, opt, data: Dataset) -> tuple[int, Da
         actor.load_state_dict(state["actor"])
         opt.load_state_dict(state["optimizer"])
         report = DaggerReport(**state["report"])
-        data.load(len(report.iterations))
+        data.load(len(report.iterations), width)
     return len(report.iterations), report
 
 
@@ -139,14 +139,16 @@ class Dataset:
         self.y.append(y)
         return len(x)
 
-    def load(self, iterations: int) -> None:
-        """The first `iterations` files, each checked: rows of one width, a label per row,
-        finite numbers (ValueError otherwise: a resumed run never trains on NaN features)."""
+    def load(self, iterations: int, width: int | None = None) -> None:
+        """The first `iterations` files, each checked: rows of the features' `width` (of one
+        width where None), one (v, w) label per row, finite numbers (ValueError otherwise: a
+        resumed run never trains on NaN features or on rows another student was fed)."""
         for i in range(iterations):
             path = self.folder / f"iteration_{i:03d}.npz"
             with np.load(path, allow_pickle=False) as z:
                 x, y = z["x"], z["y"]
-            if x.ndim != 2 or len(y) != len(x) or (self.x and x.shape[1] != self.x[0].shape[1]):
+            width = width if width is not None else (self.x[0].shape[1] if self.x else None)
+            if x.ndim != 2 or y.shape != (len(x), 2) or (width is not None and x.shape[1] != width):
                 raise ValueError(f"{path.name}: arrays of shapes {x.shape} and {y.shape} do not fit the run's")
             if not (np.isfinite(x).all() and np.isfinite(y).all()):
                 raise ValueError(f"{path.name}: holds NaN or infinite values")
@@ -217,6 +219,10 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
     done = 0
     if (out / STATE).is_file():
         old, new = _identity(saved_config(config_path)), _identity(json.loads(json.dumps(asdict(cfg))))
+        if old is None:  # a checkpoint of no known run: resuming it would guess what it was
+            raise DynabarnError(
+                f"{out} holds a checkpoint ({STATE}) but no config.json that says what run it is; choose another --out"
+            )
         if old != new:
             differ = ", ".join(
                 f"{k} {old.get(k)!r} (asked: {new.get(k)!r})"
@@ -226,7 +232,7 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
             raise DynabarnError(
                 f"{out} holds a run with another configuration ({differ}): give its options, or choose another --out"
             )
-        done, report = _resume(out, actor, opt, data)
+        done, report = _resume(out, actor, opt, data, features.size())
     write_atomically(config_path, json.dumps(asdict(cfg), indent=1))
     bar = progress(total=cfg.iterations, initial=done) if progress else None
     ctx = get_context("spawn")  # workers import torch afresh: no fork of a threaded parent
