@@ -186,15 +186,19 @@ def _ros_episode(args: argparse.Namespace) -> int:
     from dynabarn.mjcf import read_world
     from dynabarn.protocol import get_protocol
     from dynabarn.recording import default_run_path
-    from dynabarn.ros.bridge import bridge_overhead, ros_python
+    from dynabarn.ros.bridge import bridge_overhead, remap_problem, ros_python
     from dynabarn.ros.stacks import stack_command
     from dynabarn.runner import EpisodeSpec, run_spec
     from dynabarn.worldset import resolve_world
 
     for remap in args.remap:
-        source, sep, target = remap.partition(":=")
-        if not sep or not source.startswith("/") or not target.startswith("/"):
-            raise DynabarnError(f"--remap {remap!r}: use /from:=/to, e.g. /front/scan:=/scan")
+        problem = remap_problem(remap)
+        if problem:
+            raise DynabarnError(f"--remap {remap!r}: {problem}")
+    if args.launch is not None and not args.launch.strip():
+        raise DynabarnError("--launch '': an empty command; leave --launch out to start the stack yourself")
+    if args.stack_log is not None and args.stack_log.is_dir():
+        raise DynabarnError(f"--stack-log {args.stack_log}: a folder; name a file for the stack's output")
     world_path = resolve_world(args.world)
     world_name = read_world(world_path).name  # parsed and checked; compiled by run_spec
     protocol = get_protocol(args.protocol)

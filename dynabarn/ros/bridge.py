@@ -61,6 +61,35 @@ def _checked_ros_python(exe: str) -> str:
     return exe
 
 
+BRIDGE_TOPICS = (
+    "/clock",
+    "/front/scan",
+    "/odometry/filtered",
+    "/tf",
+    "/tf_static",
+    "/move_base_simple/goal",
+    "/collision",
+    "/dynabarn/ground_truth",
+    "/jackal_velocity_controller/odom",
+    "/cmd_vel",
+    "/jackal_velocity_controller/cmd_vel",
+)
+"""The topics the bridge node (`node.py`, which imports nothing of this package) publishes
+and subscribes to: what `--remap` may rename (a test holds this list to the node's)."""
+
+
+def remap_problem(remap: object) -> str | None:
+    """Why `remap` is not a `/from:=/to` renaming of one of the bridge's topics, or None."""
+    if not isinstance(remap, str):
+        return "not a string"
+    source, sep, target = remap.partition(":=")
+    if not sep or not source.startswith("/") or not target.startswith("/") or any(c.isspace() for c in remap):
+        return "use /from:=/to, e.g. /front/scan:=/scan"
+    if source not in BRIDGE_TOPICS:
+        return f"the bridge has no topic {source}; it has {', '.join(BRIDGE_TOPICS)}"
+    return None
+
+
 @dataclass
 class BridgeConfig:
     """How the bridge meets the stack."""
@@ -104,14 +133,30 @@ class BridgeConfig:
 
     def check(self, what: str) -> None:
         """Across fields (`interfaces.planner.check_relations`): one way to start the stack,
-        a launch line that splits into words, a stack of ours that is built."""
+        a launch line that splits into words, a stack of ours that is built, remappings of
+        the bridge's own topics."""
+        for remap in self.remaps:
+            problem = remap_problem(remap)
+            if problem:
+                raise TypeError(f"{what} remap {remap!r}: {problem}")
+        if self.launch is not None and not (shlex.split(self.launch) if isinstance(self.launch, str) else self.launch):
+            raise TypeError(
+                f"{what} launch {self.launch!r}: an empty command (leave it out to start the stack yourself)"
+            )
         if self.launch and self.stack:
             raise TypeError(f"{what}: give a launch command or a stack of ours, not both (--ros-launch, --ros-stack)")
+        words = self.launch
         if isinstance(self.launch, str):
             try:
-                shlex.split(self.launch)
+                words = shlex.split(self.launch)
             except ValueError as exc:  # an unbalanced quote
                 raise TypeError(f"{what} launch {self.launch!r}: {exc}") from None
+        if self.launch is not None and not (isinstance(words, list) and all(isinstance(w, str) for w in words)):
+            raise TypeError(f"{what} launch {self.launch!r}: a command line, or a list of its words")
+        if self.launch is not None and not words:
+            raise TypeError(
+                f"{what} launch {self.launch!r}: an empty command; leave it out to start the stack yourself"
+            )
         if self.stack:
             from dynabarn.ros.stacks import stack_command
 
