@@ -591,7 +591,7 @@ def test_a_second_writer_is_refused_while_the_first_holds_the_folder(tmp_path):
             timeout=120,
         )
     assert proc.returncode == 2
-    assert f"is being written by another dynabarn-bench (pid {os.getpid()})" in proc.stderr
+    assert f"is being written by another dynabarn-bench or -demos (pid {os.getpid()})" in proc.stderr
     assert not (out / "results.jsonl").exists()
     # Released, the lock leaves nothing behind, and the folder can be written again.
     assert not (out / ".lock").exists()

@@ -106,7 +106,7 @@ def prepare_resume(path: Path) -> list[dict]:
 def locked(out_dir: Path):
     """Hold `out_dir/.lock` (flock) while writing there, so a second sweep into the same
     folder stops with one line instead of writing every row twice. Re-entrant in a process."""
-    busy = "{folder} is being written by another dynabarn-bench (pid {pid}); wait for it or use another --out"
+    busy = "{folder} is being written by another dynabarn-bench or -demos (pid {pid}); wait for it or use another --out"
     with folder_lock(out_dir, LOCK, busy=busy):
         yield
 

@@ -82,16 +82,26 @@ def _demos_export(args: argparse.Namespace) -> int:
 
 
 def _demos_collect(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
 
     from dynabarn import bench, worldset
-    from dynabarn.demos.teleop import MANIFEST, append_manifest, listed_files
     from dynabarn.planners import get_planner
     from dynabarn.protocol import get_protocol
 
     get_planner(args.planner)
     protocol = get_protocol(args.protocol)
     worlds = worldset.world_set(args.set, worldset.parse_ids(args.worlds))
+    # One writer per folder: a sweep (or another collection) into the same folder at once is
+    # refused by the lock a sweep takes.
+    with bench.locked(args.out):
+        return _collect_into(args, worlds, protocol)
+
+
+def _collect_into(args: argparse.Namespace, worlds, protocol) -> int:
+    from tqdm import tqdm
+
+    from dynabarn import bench
+    from dynabarn.demos.teleop import MANIFEST, append_manifest, listed_files
+
     listed = listed_files(args.out)  # a damaged manifest is one line before anything runs
     jobs = bench.make_jobs([(args.planner, {})], worlds, protocol, args.trials, record="all", recordings_dir=args.out)
     report = bench.run_sweep(
