@@ -92,6 +92,9 @@ def _ray_backend(jobs: list[Job], n_workers: int, address: str | None) -> Iterat
     except ImportError:
         raise DynabarnError("the ray backend needs Ray: pip install 'dynabarn[ray]'") from None
     started_here = not ray.is_initialized()
+    # Ray's own convention: RAY_ADDRESS names the cluster when --address does not (ray.init
+    # reads it too; checked here, so an address nothing answers at is one line within seconds).
+    address = address or os.environ.get("RAY_ADDRESS", "").strip() or None
     if started_here and address:
         _check_ray_address(address)
     local = started_here and not address

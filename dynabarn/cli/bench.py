@@ -83,7 +83,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_sim_settings(parser)
     add_jobs(parser)
     parser.add_argument("--backend", choices=["local", "ray"], default="local", help="where episodes run")
-    parser.add_argument("--address", default=None, help="Ray cluster address (ray backend); default: a local Ray")
+    parser.add_argument(
+        "--address",
+        default=None,
+        help="Ray cluster address (ray backend); default: $RAY_ADDRESS, else a local Ray on 127.0.0.1",
+    )
     parser.add_argument(
         "--record", choices=["none", "failures", "all"], default="none", help="which episodes to keep as MCAP"
     )
