@@ -193,9 +193,9 @@ def world_roots(folder: Path, set_dir: Path | None = None) -> list[Path]:
     sets (the data root and the work root, where `make worlds`, the tiers and imports
     write), and the set the person verifying names (`--set`). Nothing a row says adds a
     place."""
-    from dynabarn.provenance import DATA_ROOT, work_root
+    from dynabarn.provenance import DATA_ROOT, SHIPPED_WORLDS, work_root, worlds_dir
 
-    roots = [folder, work_root(), DATA_ROOT] + ([set_dir] if set_dir is not None else [])
+    roots = [folder, work_root(), DATA_ROOT, SHIPPED_WORLDS, worlds_dir()] + ([set_dir] if set_dir is not None else [])
     return list(dict.fromkeys(roots))
 
 
