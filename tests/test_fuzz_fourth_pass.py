@@ -627,3 +627,47 @@ def test_profiles_are_taken_or_are_one_profile_error(edits):
     except ProfileError:
         return
     assert max(profile.profile_set.high_count) <= MAX_OBSTACLE_COUNT
+
+
+# -- the vector environment's workers -----------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_a_killed_vector_environment_takes_its_workers_with_it_quietly(tmp_path):
+    """SIGKILL to a process stepping `DynaBARNVectorEnv`: its workers end with it (a
+    parent-death signal), and none prints a traceback on the pipe that broke."""
+    require("gymnasium", "learn")
+    import time
+
+    from tests.conftest import cmdline, processes_carrying, tagged_environment
+    from tests.test_fuzz import _wait_for
+
+    script = tmp_path / "vec.py"
+    script.write_text(
+        textwrap.dedent(
+            """
+            import numpy as np
+            from dynabarn.learn.vector_env import DynaBARNVectorEnv
+
+            if __name__ == "__main__":
+                env = DynaBARNVectorEnv(4, workers=2)
+                env.reset(seed=0)
+                print("stepping", flush=True)
+                while True:
+                    env.step(np.zeros((4, 2), np.float32))
+            """
+        )
+    )
+    token, env = tagged_environment()
+    env["PYTHONPATH"] = str(REPO)
+    log = tmp_path / "stderr.txt"
+    with open(log, "wb") as err:
+        proc = subprocess.Popen([sys.executable, str(script)], env=env, stdout=subprocess.PIPE, stderr=err)
+        try:
+            assert proc.stdout.readline().strip() == b"stepping"
+            time.sleep(1.0)
+        finally:
+            proc.kill()
+            proc.wait()
+        assert _wait_for(lambda: not processes_carrying(token), 30), [cmdline(p) for p in processes_carrying(token)]
+    assert "Traceback" not in log.read_text(errors="replace"), log.read_text(errors="replace")

@@ -369,13 +369,17 @@ def _report_so_far(out: Path) -> None:
 def _report_errors(rows: list[dict], out: Path) -> int:
     """Episodes that ended in `error` did not measure the planner: say so loudly (stderr) and
     exit 1, so a script or CI cannot take the table for a result."""
+    from dynabarn.recording.topics import TOPIC_RAISED
+
     cut = [r for r in rows if r.get("recording_error")]
     if cut:
-        print(
-            f"WARNING: {len(cut)} recordings were cut short ({cut[0]['recording_error']}); their results stand; "
-            "free space and run the same command again to record them whole",
-            file=sys.stderr,
+        why = str(cut[0]["recording_error"])
+        advice = (
+            "fix or uninstall the package of that recording topic, then run again"
+            if why.startswith(TOPIC_RAISED)
+            else "free space and run the same command again to record them whole"
         )
+        print(f"WARNING: {len(cut)} recordings were cut short ({why}); their results stand; {advice}", file=sys.stderr)
     errors = [r for r in rows if r.get("outcome") == "error"]
     if not errors:
         return 1 if cut else 0

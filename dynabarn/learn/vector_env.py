@@ -39,7 +39,7 @@ from dynabarn.learn.env import DynaBARNEnv
 from dynabarn.learn.shared_worlds import SHARED_WORLDS, shared_world
 from dynabarn.planners.learned.spaces import action_to_command, checked_actions
 from dynabarn.planners.local_goal_batch import LocalGoalBatch
-from dynabarn.processes import safe_path_for_children, usable_cores
+from dynabarn.processes import safe_path_for_children, usable_cores, worker_start
 from dynabarn.sim.ray_batch import BatchCaster, supports
 from dynabarn.worlds.schedule_batch import ScheduleBatch, batchable
 
@@ -188,7 +188,11 @@ def _ended(k: int) -> RuntimeError:
     )
 
 
-def _worker(conn, n: int, env_kwargs: dict, shared, rows: tuple[int, int], obs_dim: int) -> None:
+def _worker(
+    conn, n: int, env_kwargs: dict, shared, rows: tuple[int, int], obs_dim: int, parent: int | None = None
+) -> None:
+    if parent is not None:
+        worker_start(parent)  # ends with its parent, even one killed with SIGKILL
     obs = np.frombuffer(shared, dtype=np.float32).reshape(-1, obs_dim)[rows[0] : rows[1]]
     batch = WorldBatch(n, env_kwargs, obs)
     try:
@@ -196,15 +200,19 @@ def _worker(conn, n: int, env_kwargs: dict, shared, rows: tuple[int, int], obs_d
             try:
                 _spin(conn)
                 cmd, payload = conn.recv()
-            except EOFError:  # the parent is gone
+            except (EOFError, OSError):  # the parent is gone
                 return
             # The observations are in the shared buffer: only the small values go by pipe.
+            reply = None
             if cmd == "step":
-                conn.send(batch.step(payload)[1:])
+                reply = batch.step(payload)[1:]
             elif cmd == "reset":
-                conn.send(batch.reset(*payload)[1:])
-            elif cmd == "close":
-                conn.send(None)
+                reply = batch.reset(*payload)[1:]
+            try:
+                conn.send(reply)
+            except OSError:  # the parent died while this step ran (a broken pipe): nobody to answer
+                return
+            if cmd == "close":
                 return
     finally:
         batch.close()
@@ -259,7 +267,8 @@ class DynaBARNVectorEnv(VectorEnv):
         for k, n in enumerate(sizes[1:], start=1):
             parent, child = ctx.Pipe()
             rows = (int(self._slices[k]), int(self._slices[k + 1]))
-            p = ctx.Process(target=_worker, args=(child, n, env_kwargs, self._shared, rows, obs_dim), daemon=True)
+            args = (child, n, env_kwargs, self._shared, rows, obs_dim, os.getpid())
+            p = ctx.Process(target=_worker, args=args, daemon=True)
             p.start()
             child.close()
             self._conns.append(parent)
