@@ -8,6 +8,7 @@ a running `rerun`, `rerun --serve-web`, or `rerun --save FILE.rrd` with no windo
 
 from __future__ import annotations
 
+import contextlib
 import math
 import subprocess
 
@@ -30,6 +31,8 @@ from dynabarn.rerun_scene import (
 from dynabarn.robot import JACKAL
 
 RUN = "runs/live"
+STREAM_CLOSED = (RuntimeError, ConnectionError, OSError)
+"""What rerun-sdk raises when the viewer at the other end of the stream has gone."""
 
 
 class RerunLive(EpisodeObserver):
@@ -71,6 +74,12 @@ class RerunLive(EpisodeObserver):
     def on_tick(self, tick) -> None:
         if self.viewer is not None and self.viewer.poll() is not None:
             raise EndEpisode("the rerun viewer was closed")
+        try:
+            self._log_tick(tick)
+        except STREAM_CLOSED as exc:  # the viewer's end of the stream went away between two checks
+            raise EndEpisode(f"the rerun viewer was closed ({type(exc).__name__})") from None
+
+    def _log_tick(self, tick) -> None:
         s = self.stream
         s.set_time(TIMELINE, duration=tick.time)
         x, y, _ = tick.pose.tolist()
@@ -101,13 +110,17 @@ class RerunLive(EpisodeObserver):
         log_robot_poses(self.stream, RUN, times, poses[:, :2], poses[:, 2])
 
     def on_end(self, result) -> None:
-        self.stream.log(
-            "description",
-            rr.TextDocument(f"# DynaBARN live\n\n{result.summary()}", media_type="text/markdown"),
-            static=True,
-        )
-        self.stream.flush()
+        if self.viewer is not None and self.viewer.poll() is not None:
+            return  # nobody to tell: the window was closed
+        with contextlib.suppress(*STREAM_CLOSED):
+            self.stream.log(
+                "description",
+                rr.TextDocument(f"# DynaBARN live\n\n{result.summary()}", media_type="text/markdown"),
+                static=True,
+            )
+            self.stream.flush()
 
     def close(self) -> None:
-        self.stream.flush()
-        self.stream.disconnect()
+        with contextlib.suppress(*STREAM_CLOSED):  # a viewer closed under us: nothing left to flush to
+            self.stream.flush()
+            self.stream.disconnect()
