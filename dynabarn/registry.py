@@ -92,7 +92,7 @@ class Registry(dict[str, T], Generic[T]):
             try:
                 self.check(item)
             except Exception as exc:  # TypeError or ValueError by contract; anything else is a broken item too
-                raise self.error(f"{self.kind} {name!r}: {str(exc)[:200]}") from None
+                raise self.error(f"{self.kind} {name!r}: {exc}") from None
         return item
 
     def installed(self) -> dict[str, EntryPoint]:

@@ -418,7 +418,7 @@ def test_a_second_writer_of_a_set_is_refused_while_the_first_writes(tmp_path):
 
 def test_generate_replaces_only_what_it_wrote_unless_forced(tmp_path):
     from dynabarn.worlds.profiles import get_profile_set
-    from dynabarn.worldset import check_not_foreign, generate_worlds
+    from dynabarn.worldset import check_not_foreign, generate_worlds, read_index
 
     out = tmp_path / "set"
     generate_worlds(get_profile_set("table1"), out, world_ids=[0, 1])
@@ -431,7 +431,7 @@ def test_generate_replaces_only_what_it_wrote_unless_forced(tmp_path):
     assert (out / "world_002.xml").read_text() != "mine"
     (out / "index.json").write_text("not an index")
     with pytest.raises(DynabarnError, match="not written by dynabarn"):
-        check_not_foreign(out, ["world_000.xml"])
+        check_not_foreign(out, ["world_000.xml"], read_index)
 
 
 def test_a_world_swapped_in_a_set_is_refused_before_a_sweep(tmp_path, monkeypatch):
@@ -619,7 +619,8 @@ def test_report_fields_never_break_the_page(field, value, report_rows, sweep, tm
 def test_profiles_are_taken_or_are_one_profile_error(edits):
     from dynabarn.errors import ProfileError
     from dynabarn.worlds.profile_file import profile_from_dict
-    from dynabarn.worlds.profiles import MAX_OBSTACLE_COUNT, get_profile_set
+    from dynabarn.worlds.profile_limits import MAX_OBSTACLE_COUNT
+    from dynabarn.worlds.profiles import get_profile_set
 
     data = {**get_profile_set("table1").to_dict(), **edits}
     try:

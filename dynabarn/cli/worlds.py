@@ -20,6 +20,7 @@ from dynabarn.errors import DynabarnError
 from dynabarn.files import file_name_part
 
 
+# Over 80 lines on purpose: one parser, every subcommand's options with their help, in the order --help shows.
 def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-worlds`'s parser (its `--help`, and the documentation's page of the command)."""
     parser = make_parser("dynabarn-worlds", "Generate, import and inspect DynaBARN worlds.")

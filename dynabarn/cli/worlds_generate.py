@@ -10,6 +10,18 @@ from dynabarn.cli.common import MAX_SEED, progress_bar, ranged
 from dynabarn.errors import DynabarnError
 from dynabarn.files import file_name_part
 
+DEFAULT_PROFILES = "table1"
+"""The profile set `generate` draws from without --profiles or --profile-file (the paper's Table I)."""
+
+
+class _Chosen(argparse.Action):
+    """Stores the value and notes that it was given (`NAME_chosen`): a default is not a choice
+    (`--profiles` beside `--profile-file` or `--tier` is refused; its default is not)."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        setattr(namespace, self.dest, values)
+        setattr(namespace, f"{self.dest}_chosen", True)
+
 
 # Over 80 lines on purpose: every option of `generate` with its help, in the order --help shows.
 def add_generate_arguments(g: argparse.ArgumentParser) -> None:
@@ -41,9 +53,10 @@ def add_generate_arguments(g: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--profiles",
         choices=sorted(PROFILE_SETS.loaded()),
-        default=None,
-        help="motion profile set (default table1): table1 = the paper's Table I; release2022 = measured from the "
-        "2022 release (the base the options below change; not with --profile-file, which holds its own)",
+        default=DEFAULT_PROFILES,
+        action=_Chosen,
+        help="motion profile set: table1 = the paper's Table I; release2022 = measured from the 2022 release "
+        "(the base the options below change; not with --profile-file, which holds its own)",
     )
     g.add_argument(
         "--tier",
@@ -117,9 +130,6 @@ def add_generate_arguments(g: argparse.ArgumentParser) -> None:
     )
 
 
-DEFAULT_PROFILES = "table1"
-"""The profile set `generate` draws from without --profiles or --profile-file (the paper's Table I)."""
-
 PROFILE_OPTIONS = (
     "easy_order",
     "easy_speed",
@@ -143,9 +153,8 @@ def generation_profile(args: argparse.Namespace):
     from dynabarn.worlds.profile_file import load_profile_data, profile_from_dict
     from dynabarn.worlds.profiles import get_profile_set
 
-    if args.profile_file is not None and args.profiles is not None:
+    if args.profile_file is not None and getattr(args, "profiles_chosen", False):
         raise ProfileError("--profiles and --profile-file both name the motion profiles: give one")
-    args.profiles = args.profiles or DEFAULT_PROFILES
     if args.profile_file is not None:
         data, source = load_profile_data(args.profile_file)
         where = f"{args.profile_file}: "
@@ -234,8 +243,9 @@ def _generate_tiers(args: argparse.Namespace) -> int:
     from dynabarn.worlds.tiers import TIERS, get_tier
     from dynabarn.worldset.tiers import generate_tier
 
-    variants = ("profiles", "profile_file", "shapes", "static", "behavior")
+    variants = ("profile_file", "shapes", "static", "behavior")
     others = [name for name in (*PROFILE_OPTIONS, *variants) if getattr(args, name)]
+    others += ["profiles"] if getattr(args, "profiles_chosen", False) else []
     if others:
         raise DynabarnError(f"--tier takes its profile from its own file: drop --{others[0].replace('_', '-')}")
     names = list(TIERS) if args.tier == "all" else [args.tier]

@@ -11,7 +11,7 @@ function (return None to skip a tick); docs/architecture.md, "Extending", walks 
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -298,6 +298,22 @@ FRAMES = ("world", "odom", "base_link", "laser")
 TOPIC_RAISED = "recording topic"
 """How a recording stopped by a topic that raised begins its reason (`McapRecorder.stopped`):
 `dynabarn-run` then exits non-zero, since what was asked to be recorded is not."""
+
+
+def tick_messages(topics: Sequence[Topic], tick: Tick) -> tuple[list[tuple[Topic, dict]], str | None]:
+    """Each per-tick topic's message of `tick` (those that have one), up to a topic that
+    raises: then also why the recording stops there (`TOPIC_RAISED` ...), else None."""
+    messages = []
+    for topic in topics:
+        try:
+            message = topic.per_tick(tick)
+        except Exception as exc:  # an installed topic's bug, never the episode's end
+            why = f"{type(exc).__name__}: {str(exc)[:200]}"
+            return messages, f"{TOPIC_RAISED} {topic.name} raised {why}; the recording ends at {tick.time:.1f} s"
+        if message is not None:
+            messages.append((topic, message))
+    return messages, None
+
 
 TOPICS_GROUP = "dynabarn.topics"
 """Entry-point group under which other packages add JSON per-tick topics (name = "module:TOPIC")."""

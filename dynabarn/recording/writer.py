@@ -39,12 +39,12 @@ from dynabarn.recording.topics import (
     SCAN,
     STATIC,
     TF,
-    TOPIC_RAISED,
     TOPICS,
     TRACK_SCENE,
     TRACKS,
     Topic,
     recorded_topics,
+    tick_messages,
 )
 from dynabarn.robot import JACKAL
 
@@ -55,8 +55,7 @@ failed write: it would print one error per message and abort on close)."""
 MACHINE_METADATA = "dynabarn.machine"
 EPISODE_METADATA = "dynabarn.episode"
 RESULT_METADATA = "dynabarn.result"
-"""MCAP metadata records: what `mcap info` and Foxglove's metadata view show of an episode
-without reading its messages (every value a string, as MCAP requires)."""
+"""MCAP metadata records: what `mcap info` and Foxglove show without reading the messages."""
 PROFILE = "dynabarn"
 LATCHED = tuple(t.name for t in TOPICS if t.latched)
 """Topics written once at the start: a live viewer that subscribes late is sent them again."""
@@ -148,7 +147,7 @@ class McapRecorder(EpisodeObserver):
         self.latched: dict[str, list[tuple[bytes, int]]] = {}
         """What was written on the LATCHED topics: (message, log time [ns])."""
         self.stopped: str | None = None
-        """Why the recording ended before the episode (a nearly full disk), or None."""
+        """Why the recording ended before the episode (a nearly full disk, a topic that raised), or None."""
         self.claim = claim
         self._claim: int | None = None
         self.kept: Path | None = None
@@ -263,20 +262,15 @@ class McapRecorder(EpisodeObserver):
         block = self._obstacle_block.encode(tick.obstacles[self._obstacle_order])
         entity = wire.scene_entity(ns, scene.WORLD_FRAME, "obstacles", primitives=block)
         self._obstacles.log(wire.scene_update([entity]), log_time=ns)
-        for topic in self._per_tick:
-            try:
-                message = topic.per_tick(tick)
-            except Exception as exc:  # an installed topic's bug: the recording ends whole, and says why
-                why = f"{type(exc).__name__}: {str(exc)[:200]}"
-                self.stopped = f"{TOPIC_RAISED} {topic.name} raised {why}; the recording ends at {t:.1f} s"
-                self.close()
-                return
-            if message is not None:
-                self.log_json(topic.name, t, message)
-                if topic.name == DEBUG.name:
-                    self._plans.log(scene.plans_update(ns, message), log_time=ns)
-                elif topic.name == TRACKS.name:
-                    self._track_scene.log(scene.tracks_update(ns, message), log_time=ns)
+        messages, self.stopped = tick_messages(self._per_tick, tick)
+        for topic, message in messages:
+            self.log_json(topic.name, t, message)
+            if topic.name == DEBUG.name:
+                self._plans.log(scene.plans_update(ns, message), log_time=ns)
+            elif topic.name == TRACKS.name:
+                self._track_scene.log(scene.tracks_update(ns, message), log_time=ns)
+        if self.stopped:  # an installed topic's bug: the recording ends whole, and says why
+            self.close()
 
     def on_poses(self, times: np.ndarray, poses: np.ndarray) -> None:
         if not self._open:

@@ -139,10 +139,6 @@ class BridgeConfig:
             problem = remap_problem(remap)
             if problem:
                 raise TypeError(f"{what} remap {remap!r}: {problem}")
-        if self.launch is not None and not (shlex.split(self.launch) if isinstance(self.launch, str) else self.launch):
-            raise TypeError(
-                f"{what} launch {self.launch!r}: an empty command (leave it out to start the stack yourself)"
-            )
         if self.launch and self.stack:
             raise TypeError(f"{what}: give a launch command or a stack of ours, not both (--ros-launch, --ros-stack)")
         words = self.launch

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 from dynabarn.errors import ProfileError, unknown_choice
 from dynabarn.registry import Registry, instances_of
+from dynabarn.worlds import profile_limits as limits
 from dynabarn.worlds.classes import (  # noqa: F401 (Fig. 2's classes, named here too)
     HIGH_COUNT,
     LOW_COUNT,
@@ -31,21 +32,9 @@ from dynabarn.worlds.classes import (  # noqa: F401 (Fig. 2's classes, named her
     count_class_of,
     difficulty_of,
 )
+from dynabarn.worlds.profile_limits import check_range as _check_range
 
 ARENA_HALF_SIZE = 10.0
-MAX_OBSTACLE_COUNT = 200
-"""Obstacles a count range may ask for (the paper's worlds have up to 19, the densest tier
-24): a generator given a million would run for hours."""
-MAX_OBSTACLE_SPEED = 20.0
-"""[m/s] ten times the Jackal's top speed; a faster obstacle crosses the arena in a step."""
-MAX_SPEED_STD = 10.0
-MIN_SPEED_STEP = 0.001
-"""[m/s] the finest speed grid (a step of 1e-300 would make a grid of 1e300 speeds)."""
-MAX_SHAPE_SIZE = 5.0
-"""[m] an obstacle's half size or radius (the arena is 20 m across)."""
-MIN_FIELD_CELL = 0.05
-"""[m] a static field's finest grid: 400 x 400 cells over the whole arena."""
-MAX_SMOOTH_ITERATIONS = 100
 """Half the side of the square arena [m]: obstacles live in [-10, 10]^2."""
 
 
@@ -56,15 +45,6 @@ class WaypointScheme(enum.StrEnum):
     """Every integer x in [-10, 10] plus the edge crossings (paper Sec. III-A)."""
     RELEASE = "release"
     """x = linspace(-10, 10, 10), the sample points and the edge crossings (the release)."""
-
-
-def _check_range(name: str, what: str, lo: float, hi: float, *, minimum: float) -> None:
-    if not (lo == lo and hi == hi):  # NaN check without importing math
-        raise ProfileError(f"profile {name!r}: {what} range contains NaN")
-    if lo < minimum:
-        raise ProfileError(f"profile {name!r}: {what} minimum {lo} is below {minimum}")
-    if lo > hi:
-        raise ProfileError(f"profile {name!r}: {what} range [{lo}, {hi}] has min > max")
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,15 +84,15 @@ class MotionProfile:
         _check_range(n, "speed", self.speed[0], self.speed[1], minimum=0.0)
         if self.speed[0] <= 0:
             raise ProfileError(f"profile {n!r}: speed minimum must be positive, got {self.speed[0]}")
-        if self.speed[1] > MAX_OBSTACLE_SPEED:
-            raise ProfileError(f"profile {n!r}: speed maximum {self.speed[1]} is above {MAX_OBSTACLE_SPEED:g} m/s")
+        if self.speed[1] > limits.MAX_OBSTACLE_SPEED:
+            raise ProfileError(f"profile {n!r}: speed {self.speed[1]} is above {limits.MAX_OBSTACLE_SPEED:g} m/s")
         _check_range(n, "std", self.std[0], self.std[1], minimum=0.0)
-        if self.std[1] > MAX_SPEED_STD:
-            raise ProfileError(f"profile {n!r}: std maximum {self.std[1]} is above {MAX_SPEED_STD:g} m/s")
-        if not (self.speed_step == 0 or MIN_SPEED_STEP <= self.speed_step <= MAX_OBSTACLE_SPEED):
+        if self.std[1] > limits.MAX_SPEED_STD:
+            raise ProfileError(f"profile {n!r}: std maximum {self.std[1]} is above {limits.MAX_SPEED_STD:g} m/s")
+        if not (self.speed_step == 0 or limits.MIN_SPEED_STEP <= self.speed_step <= limits.MAX_OBSTACLE_SPEED):
             raise ProfileError(
-                f"profile {n!r}: speed_step must be 0 (continuous speeds) or in [{MIN_SPEED_STEP:g}, "
-                f"{MAX_OBSTACLE_SPEED:g}] m/s, got {self.speed_step}"
+                f"profile {n!r}: speed_step must be 0 (continuous speeds) or in [{limits.MIN_SPEED_STEP:g}, "
+                f"{limits.MAX_OBSTACLE_SPEED:g}] m/s, got {self.speed_step}"
             )
         if self.speed_step > 0 and self.quantised_speeds().size == 0:
             raise ProfileError(f"profile {n!r}: no multiple of speed_step {self.speed_step} lies in {self.speed}")
@@ -181,9 +161,9 @@ class ProfileSet:
                 raise ProfileError(f"profile set {self.name!r}: {what} minimum must be >= 1, got {lo}")
             if lo > hi:
                 raise ProfileError(f"profile set {self.name!r}: {what} [{lo}, {hi}] has min > max")
-            if hi > MAX_OBSTACLE_COUNT:
+            if hi > limits.MAX_OBSTACLE_COUNT:
                 raise ProfileError(
-                    f"profile set {self.name!r}: {what} maximum {hi} is above {MAX_OBSTACLE_COUNT} obstacles a world"
+                    f"profile set {self.name!r}: {what} {hi} is above {limits.MAX_OBSTACLE_COUNT} obstacles a world"
                 )
         try:
             WaypointScheme(self.waypoints)
@@ -265,8 +245,8 @@ class ShapeMix:
         _check_range(self.name, "capsule_radius", *self.capsule_radius, minimum=0.16)
         _check_range(self.name, "capsule_half_length", *self.capsule_half_length, minimum=0.05)
         for what in ("box_half_size", "capsule_radius", "capsule_half_length"):
-            if getattr(self, what)[1] > MAX_SHAPE_SIZE:
-                raise ProfileError(f"shape mix {self.name!r}: {what} maximum is above {MAX_SHAPE_SIZE:g} m")
+            if getattr(self, what)[1] > limits.MAX_SHAPE_SIZE:
+                raise ProfileError(f"shape mix {self.name!r}: {what} maximum is above {limits.MAX_SHAPE_SIZE:g} m")
 
     @property
     def cylinders_only(self) -> bool:
@@ -331,16 +311,18 @@ class StaticField:
         _check_range(self.name, "y_range", *self.y_range, minimum=-ARENA_HALF_SIZE)
         if max(self.x_range[1], self.y_range[1]) > ARENA_HALF_SIZE:
             raise ProfileError(f"static field {self.name!r}: must lie inside the arena [-10, 10]^2")
-        if not MIN_FIELD_CELL <= self.cell <= ARENA_HALF_SIZE:
-            why = f"cell must be in [{MIN_FIELD_CELL:g}, {ARENA_HALF_SIZE:g}] m"
+        if not limits.MIN_FIELD_CELL <= self.cell <= ARENA_HALF_SIZE:
+            why = f"cell must be in [{limits.MIN_FIELD_CELL:g}, {ARENA_HALF_SIZE:g}] m"
             raise ProfileError(f"static field {self.name!r}: {why}")
         if not 0 < 2 * self.radius <= self.cell:
             raise ProfileError(f"static field {self.name!r}: need 0 < 2 radius <= cell")
         _check_range(self.name, "fill", *self.fill, minimum=0.0)
         if self.fill[1] >= 1:
             raise ProfileError(f"static field {self.name!r}: fill must be below 1")
-        if not 0 <= self.smooth_iterations <= MAX_SMOOTH_ITERATIONS:
-            raise ProfileError(f"static field {self.name!r}: smooth_iterations must be in [0, {MAX_SMOOTH_ITERATIONS}]")
+        if not 0 <= self.smooth_iterations <= limits.MAX_SMOOTH_ITERATIONS:
+            raise ProfileError(
+                f"static field {self.name!r}: smooth_iterations must be in [0, {limits.MAX_SMOOTH_ITERATIONS}]"
+            )
 
     def to_dict(self) -> dict:
         return {

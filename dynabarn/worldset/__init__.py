@@ -8,14 +8,13 @@ reproduces the committed files byte for byte.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import re
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 from dynabarn.errors import WorldError
-from dynabarn.files import folder_lock, write_atomically
+from dynabarn.files import write_atomically
 from dynabarn.mjcf import write_world
 from dynabarn.provenance import WORLDS_ENV, worlds_dir
 from dynabarn.worlds.difficulty import difficulty_scores
@@ -24,44 +23,13 @@ from dynabarn.worlds.profile_file import GenerationProfile
 from dynabarn.worlds.profiles import Difficulty, ProfileSet, ShapeMix, StaticField, difficulty_of, get_profile_set
 from dynabarn.worlds.spec import SCRIPTED, EndBehavior, Interpolation, WorldSpec
 from dynabarn.worlds.tiers import TIERS
-
-INDEX_NAME = "index.json"
-INDEX_LOCK = ".index.lock"
-"""Held (flock) by whatever writes a set's index.json: generate, import, certify."""
-
-
-@contextlib.contextmanager
-def index_locked(folder: Path | str) -> Iterator[None]:
-    """One writer per set: hold the set's index lock while reading, changing and writing its
-    index.json (and world files), so two runs at once never lose one's work: the second is
-    refused with one line. Re-entrant in a process."""
-    busy = (
-        "{folder}: another dynabarn-worlds (pid {pid}) is writing this set's index.json now; "
-        "wait for it to finish (two writers at once would lose one's work)"
-    )
-    with folder_lock(folder, INDEX_LOCK, busy=busy):
-        yield
-
-
-def check_not_foreign(out_dir: Path, files: Iterable[str]) -> None:
-    """Refuse to replace what this package did not write: a file among `files` that is in
-    `out_dir` but not listed by the folder's own index.json (or any such file when the
-    folder's index.json is not ours). One `WorldError` line naming it (`--force` writes
-    anyway)."""
-    out_dir = Path(out_dir)
-    if not out_dir.is_dir():
-        return
-    try:
-        listed = {e["file"] for e in read_index(out_dir)["worlds"]} | {INDEX_NAME}
-    except WorldError:
-        listed = set()  # no index of ours: nothing there was written by us
-    clash = [f for f in (*files, INDEX_NAME) if f not in listed and (out_dir / f).exists()]
-    if clash:
-        more = f" and {len(clash) - 1} more" if len(clash) > 1 else ""
-        raise WorldError(
-            f"{out_dir / clash[0]}{more}: not written by dynabarn (the folder's index.json does not list it) and would "
-            "be replaced; choose another --out, or give --force to replace it"
-        )
+from dynabarn.worldset.integrity import (
+    INDEX_NAME,
+    certificate_problem,
+    check_listed_bytes,
+    check_not_foreign,
+    index_locked,
+)
 
 
 def _entry(world: WorldSpec, file: str, sha256: str) -> dict:
@@ -104,28 +72,6 @@ def own_certificates(entry: dict) -> dict[str, dict]:
         and record.get("sha256") == entry.get("sha256")
         and certificate_problem(record) is None
     }
-
-
-def certificate_problem(record: object) -> str | None:
-    """Why a world's certificate record is not one `certify` writes, or None: its trials a
-    list of {seed: whole number, certified: true or false}, its world-level `certified` and
-    `certified_trials` what those trials say (an index is someone else's file too)."""
-    if not isinstance(record, dict):
-        return "not an object"
-    trials = record.get("trials")
-    if not isinstance(trials, list) or not trials:
-        return "no trials"
-    for t in trials:
-        if not isinstance(t, dict) or not isinstance(t.get("certified"), bool):
-            return "a trial without a certified flag"
-        if not isinstance(t.get("seed"), int) or isinstance(t.get("seed"), bool):
-            return "a trial without a whole-number seed"
-    if record.get("certified") is not all(t["certified"] for t in trials):
-        return f"certified {record.get('certified')!r} contradicts its trials"
-    count = record.get("certified_trials")
-    if isinstance(count, bool) or count != sum(t["certified"] for t in trials):
-        return f"certified_trials {count!r} contradicts its trials"
-    return None
 
 
 def write_index(out_dir: Path, entries: list[dict], *, meta: dict, sets: dict[str, list[int]]) -> Path:
@@ -174,7 +120,7 @@ def write_worlds(
     out_dir = Path(out_dir)
     worlds = list(worlds)
     if not force:
-        check_not_foreign(out_dir, [f"{world.name}.xml" for world in worlds])
+        check_not_foreign(out_dir, [f"{world.name}.xml" for world in worlds], read_index)
     out_dir.mkdir(parents=True, exist_ok=True)
     with index_locked(out_dir):
         entries = []
@@ -432,27 +378,3 @@ def world_set(name: str, ids: list[int] | None = None) -> list[tuple[int, str, s
     for _, path, entry in found:
         check_listed_bytes(path, entry)
     return [(i, str(path), entry["difficulty"]) for i, path, entry in found]
-
-
-def check_listed_bytes(path: Path, entry: dict) -> None:
-    """A world file holds the bytes its index entry lists (`sha256`): a file swapped for
-    another's, or edited since, is one `WorldError` line, never a sweep of other worlds
-    under this set's name."""
-    import hashlib
-
-    from dynabarn.world_file import MAX_WORLD_BYTES
-
-    digest = hashlib.sha256()
-    try:
-        with open(path, "rb") as f:
-            while piece := f.read(1 << 20):
-                digest.update(piece)
-                if f.tell() > MAX_WORLD_BYTES:
-                    raise WorldError(f"{path}: larger than {MAX_WORLD_BYTES >> 20} MiB; not a world file")
-    except OSError as exc:
-        raise WorldError(f"{path}: cannot read the world file ({exc.strerror or exc})") from None
-    if digest.hexdigest() != entry.get("sha256"):
-        raise WorldError(
-            f"{path}: not the bytes its index.json lists (sha256 differs): the file was replaced or edited since the "
-            "set was written; generate or import the set again (a tier's folder: remove it, it is made anew)"
-        )
