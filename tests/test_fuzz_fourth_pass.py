@@ -572,6 +572,7 @@ JSON = st.recursive(
 )
 
 
+@pytest.mark.slow
 @FUZZ
 @given(
     planner=st.text(max_size=20),
@@ -595,6 +596,7 @@ def report_rows(sweep) -> list[dict]:
     return _rows(sweep)
 
 
+@pytest.mark.slow
 @FUZZ
 @given(
     field=st.sampled_from(["reason", "world", "world_id", "recording", "difficulty", "planner", "time", "seed"]),
@@ -614,6 +616,7 @@ def test_report_fields_never_break_the_page(field, value, report_rows, sweep, tm
         assert url.startswith(("#", "./", "data:image/svg+xml;base64,")), url
 
 
+@pytest.mark.slow
 @FUZZ
 @given(edits=st.dictionaries(st.sampled_from(["low_count", "high_count", "waypoints", "name", "description"]), JSON))
 def test_profiles_are_taken_or_are_one_profile_error(edits):
