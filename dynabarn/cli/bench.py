@@ -54,20 +54,22 @@ def build_parser() -> argparse.ArgumentParser:
         "--planner-config",
         default=None,
         help="parameters for every planner: key=value[,...], a .json file, or a shipped preset "
-        + f"({', '.join(planner_presets())}; each file in dynabarn/planners/presets/ says its source)",
+        + f"({', '.join(planner_presets())}; each file in dynabarn/planners/presets/ says its source); with "
+        "--verify, KEY=VALUE for the other options a row may not supply (e.g. nav_workspace, stack_log, master)",
     )
     parser.add_argument(
         "--policy",
         type=Path,
         default=None,
-        help="weights for bc, td3 or dagger (default: the policy shipped in the package)",
+        help="weights for bc, td3 or dagger (default: the policy shipped in the package); with --verify, the "
+        "policy file to use for rows that name one (a row never supplies it)",
     )
     parser.add_argument(
         "--ros-launch",
         default=None,
         metavar="COMMAND",
         help="with --planner ros: the command that starts the ROS stack for each episode (each worker runs "
-        "its own roscore)",
+        "its own roscore); with --verify, the command for rows of a ROS stack (a row never supplies it)",
     )
     parser.add_argument(
         "--ros-stack",
@@ -76,7 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --planner ros: a stack of ours instead of --ros-launch (move_base from `make ros-nav`; "
         "move_base_teb also needs `make ros-teb`)",
     )
-    parser.add_argument("--set", default="paper60", help=SET_HELP)
+    parser.add_argument(
+        "--set", default="paper60", help=SET_HELP + "; with --verify, a further folder the rows' world files may be in"
+    )
     parser.add_argument("--worlds", default=None, help="only these world ids, e.g. 0,5,100-119")
     parser.add_argument("--trials", type=ranged(int, 1, 10_000), default=10, help="trials (seeds 0..N-1) per world")
     add_protocol(parser)
