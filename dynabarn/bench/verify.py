@@ -127,26 +127,50 @@ def sim_settings(sim: dict) -> dict:
     return sim
 
 
-def row_inputs(file: Path, number: int, row: dict, protocol: dict | None, given: dict) -> dict:
+@dataclass
+class RowRules:
+    """What this install lets a row name, looked up once per file (a registry scans the
+    installed packages on each call: 7,320 rows took two minutes): its planners and
+    protocols, each planner's external options, the folder's own protocol and what the
+    person verifying gave."""
+
+    planners: set[str]
+    protocols: list[str]
+    protocol: dict | None
+    given: dict
+    external: dict[str, dict[str, str]] = field(default_factory=dict)
+
+    @classmethod
+    def here(cls, protocol: dict | None, given: dict) -> RowRules:
+        from dynabarn.planners import available_planners
+        from dynabarn.protocol import PROTOCOLS
+
+        return cls(set(available_planners()), PROTOCOLS.names(), protocol, dict(given))
+
+    def external_options(self, planner: str) -> dict[str, str]:
+        from dynabarn.planners.registry import external_options
+
+        if planner not in self.external:
+            self.external[planner] = external_options(planner)
+        return self.external[planner]
+
+
+def row_inputs(file: Path, number: int, row: dict, rules: RowRules) -> dict:
     """What re-running a row takes from it, checked as data before anything runs: its key's
     parts (`parse_key`), a planner installed here, a protocol by name (never a file), and no
-    option that names a program, a file or an address unless `given` (the person verifying
-    named it on their own command line), whose value then replaces the row's. One
+    option that names a program, a file or an address unless the person verifying named it
+    on their own command line (`rules.given`), whose value then replaces the row's. One
     `DynabarnError` line naming the row otherwise."""
-    from dynabarn.planners import available_planners
-    from dynabarn.planners.registry import external_options
-    from dynabarn.protocol import PROTOCOLS
-
     where = f"{file}: row {number}"
     parts = parse_key(row["key"])
-    if parts["planner"] not in available_planners():
+    if parts["planner"] not in rules.planners:
         raise DynabarnError(f"{where}: planner {parts['planner']!r} is not installed here; --verify runs only those")
-    if parts["protocol"] not in PROTOCOLS.names() and (protocol or {}).get("name") != parts["protocol"]:
+    if parts["protocol"] not in rules.protocols and (rules.protocol or {}).get("name") != parts["protocol"]:
         raise DynabarnError(
-            f"{where}: protocol {parts['protocol']!r} is neither one of this package's ({', '.join(PROTOCOLS.names())})"
+            f"{where}: protocol {parts['protocol']!r} is neither one of this package's ({', '.join(rules.protocols)})"
             " nor the folder's own (metadata.json)"
         )
-    external = external_options(parts["planner"])
+    external, given = rules.external_options(parts["planner"]), rules.given
     for option, value in parts["config"].items():
         if option in external and option not in given:
             raise DynabarnError(
@@ -335,7 +359,6 @@ def verify_results(
     `given` holds the options the person verifying names on their own command line (a
     policy file, a launch command), the only source of options that name a program, a file
     or an address; `set_dir` a further folder the world files may be in (`world_roots`)."""
-    from dynabarn.planners.registry import external_options
     from dynabarn.provenance import machine, versions
 
     given = dict(given or {})
@@ -346,8 +369,9 @@ def verify_results(
     folder = file.parent
     protocol = _folder_protocol(folder)
     # Every row checked before anything runs: one clear line for a bad or forged file.
-    inputs = [row_inputs(file, i + 1, r, protocol, given) for i, r in enumerate(rows)]
-    named = {o for p in inputs for o in p["config"] if o in external_options(p["planner"])}
+    rules = RowRules.here(protocol, given)
+    inputs = [row_inputs(file, i + 1, r, rules) for i, r in enumerate(rows)]
+    named = {o for p in inputs for o in p["config"] if o in rules.external_options(p["planner"])}
     unused = sorted(set(given) - named)
     if unused:
         raise DynabarnError(
