@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 from dynabarn.bench.report import REPORT, STILLS, write_report
-from dynabarn.bench.verify import parse_key
+from dynabarn.bench.row_rules import parse_key
 from dynabarn.cli.bench import bench_main
 from dynabarn.errors import DynabarnError
 from dynabarn.provenance import SHIPPED_WORLDS

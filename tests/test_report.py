@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from dynabarn.bench.report import OUTCOME_COLOURS, REPORT, STILLS, write_report
-from dynabarn.bench.verify import parse_key, sample_rows
+from dynabarn.bench.row_rules import parse_key
+from dynabarn.bench.verify import sample_rows
 from dynabarn.cli.bench import bench_main
 from dynabarn.errors import DynabarnError
 from tests.browser import Browser, chromium

@@ -36,8 +36,9 @@ from dynabarn.bench.results import (
     read_results,
     recording_path,
 )
+from dynabarn.bench.row_rules import parse_key
 from dynabarn.bench.summary import DIFFICULTIES, FLOOR, summarise, wilson_interval
-from dynabarn.bench.verify import VERIFICATION, parse_key
+from dynabarn.bench.verify import VERIFICATION
 from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
 
