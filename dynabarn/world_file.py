@@ -72,6 +72,35 @@ a 64 MiB file can hold, where a declared `size` would otherwise allocate without
 MAX_NUMERIC_SIZE = 300_000  # 100,000 keyframes of [t, x, y]
 
 
+def world_sha256(path: Path | str) -> str | None:
+    """sha256 of a world file as it is on disk, read in 1 MiB pieces and never through a link
+    at `path` (`files.open_plain`): a sparse 40 GB file is refused by its size, never read
+    whole. None when it is over `MAX_WORLD_BYTES` or not a regular file; OSError when it
+    cannot be opened."""
+    import errno
+    import hashlib
+    import os
+
+    from dynabarn.files import open_plain
+
+    try:
+        fd = open_plain(path, os.O_RDONLY)
+    except OSError as exc:
+        if exc.errno == errno.EPERM:  # a link, a device, a FIFO
+            return None
+        raise
+    with os.fdopen(fd, "rb") as f:
+        if os.fstat(fd).st_size > MAX_WORLD_BYTES:
+            return None
+        digest, read = hashlib.sha256(), 0
+        while piece := f.read(1 << 20):
+            read += len(piece)
+            if read > MAX_WORLD_BYTES:
+                return None
+            digest.update(piece)
+    return digest.hexdigest()
+
+
 def world_bytes(path: Path | str) -> bytes:
     """A world file's bytes, read once (what is hashed is what is parsed and compiled)."""
     path = Path(path)

@@ -193,11 +193,8 @@ def verify_set(
     for entry in index["worlds"]:
         if wanted is not None and entry["id"] not in wanted:
             continue
-        raw = (
-            (entry.get("certificates") or {}).get(protocol.name)
-            if isinstance(entry.get("certificates"), dict)
-            else None
-        )
+        records = entry.get("certificates")
+        raw = records.get(protocol.name) if isinstance(records, dict) else None
         problem = certificate_problem(raw) if raw is not None else None
         if problem is not None:  # a record that contradicts itself is a difference, not a pass
             differences.append(f"{entry.get('file')}: its {protocol.name} certificate: {problem}")

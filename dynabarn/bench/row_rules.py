@@ -142,27 +142,6 @@ def give(option: str) -> str:
     return GIVE.get(option, f"--planner-config {option}=VALUE")
 
 
-def _file_sha256(path: Path, limit: int) -> str | None:
-    """sha256 of a regular file of at most `limit` bytes, read in pieces (a 40 GB sparse file
-    is refused by its size, never read whole); None when it is larger or not a regular file."""
-    import hashlib
-    import os
-    import stat
-
-    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0))
-    with os.fdopen(fd, "rb") as f:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode) or info.st_size > limit:
-            return None
-        digest, read = hashlib.sha256(), 0
-        while piece := f.read(1 << 20):
-            read += len(piece)
-            if read > limit:
-                return None
-            digest.update(piece)
-    return digest.hexdigest()
-
-
 def world_roots(folder: Path, set_dir: Path | None = None) -> list[Path]:
     """Where a row's world file may be: inside the results folder, this package's world
     sets (the data root and the work root, where `make worlds`, the tiers and imports
@@ -180,7 +159,7 @@ def row_world_file(row: dict, roots: list[Path], name: str) -> tuple[Path | None
     each root, and the key's file name directly in each."""
     from pathlib import PurePosixPath
 
-    from dynabarn.world_file import MAX_WORLD_BYTES
+    from dynabarn.world_file import MAX_WORLD_BYTES, world_sha256
 
     written = row.get("world_file")
     hints = []
@@ -197,7 +176,7 @@ def row_world_file(row: dict, roots: list[Path], name: str) -> tuple[Path | None
             try:
                 if not path.is_file() or not path.resolve().is_relative_to(inside):
                     continue
-                digest = _file_sha256(path, MAX_WORLD_BYTES)
+                digest = world_sha256(path)
             except OSError:
                 continue
             if digest is None:

@@ -237,6 +237,7 @@ def _golden(args: argparse.Namespace) -> int:
 def _check(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    from dynabarn import worldset
     from dynabarn.bench.report import write_report
     from dynabarn.bench.verify import verify_results
 
@@ -246,8 +247,10 @@ def _check(args: argparse.Namespace) -> int:
         def progress(stream, total):
             return tqdm(stream, total=total, desc="re-running rows", unit="row", disable=None)
 
+        # What the person verifying names: the options a row may not supply, and where worlds may be.
+        given, set_dir = _command_line_config(args), worldset.set_folder(args.set)[0] if args.set_given else None
         verdict = verify_results(
-            args.verify, sample=args.sample, jobs=args.jobs, progress=progress, **_verify_given(args)
+            args.verify, sample=args.sample, jobs=args.jobs, progress=progress, given=given, set_dir=set_dir
         )
         for row in verdict["rows"]:
             print(f"{'identical' if row['identical'] else 'DIFFERS  '}  {row['key']}  {row['problem']}".rstrip())
@@ -266,19 +269,17 @@ def _check(args: argparse.Namespace) -> int:
     return code
 
 
-def _verify_given(args: argparse.Namespace) -> dict:
-    """What the person verifying names on their own command line: the options a results
-    row may not supply (`--policy`, `--ros-launch`, `--planner-config`), and `--set`, a
-    further folder its world files may be in."""
-    from dynabarn import worldset
-
-    given = planner_config(args.planner_config)
+def _command_line_config(args: argparse.Namespace) -> dict:
+    """The planner options this command line gives: every planner's in a sweep; with
+    `--verify` (no `--ros-stack` there), what a row may not supply."""
+    config = planner_config(args.planner_config)
     if args.policy is not None:
-        given["policy"] = str(args.policy.resolve())
+        config["policy"] = str(args.policy.resolve())
     if args.ros_launch is not None:
-        given["launch"] = args.ros_launch
-    set_dir = worldset.set_folder(args.set)[0] if args.set_given else None
-    return {"given": given, "set_dir": set_dir}
+        config["launch"] = args.ros_launch
+    if args.ros_stack is not None:
+        config["stack"] = args.ros_stack
+    return config
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -293,13 +294,7 @@ def _bench(args: argparse.Namespace) -> int:
 
     if args.trials < 1 or args.jobs < 1:
         raise DynabarnError("--trials and --jobs must be at least 1")
-    config = planner_config(args.planner_config)
-    if args.policy is not None:
-        config["policy"] = str(args.policy.resolve())
-    if args.ros_launch is not None:
-        config["launch"] = args.ros_launch
-    if args.ros_stack is not None:
-        config["stack"] = args.ros_stack
+    config = _command_line_config(args)
     names = [p.strip() for p in args.planner.split(",")]
     if not any(names):
         raise DynabarnError(f"--planner {args.planner!r}: name at least one planner, e.g. dwa or dwa,teb")
@@ -373,14 +368,14 @@ def _report_so_far(out: Path) -> None:
 def _report_errors(rows: list[dict], out: Path) -> int:
     """Episodes that ended in `error` did not measure the planner: say so loudly (stderr) and
     exit 1, so a script or CI cannot take the table for a result."""
-    from dynabarn.recording.topics import TOPIC_RAISED
+    from dynabarn.recording.topics import stopped_by_a_topic
 
     cut = [r for r in rows if r.get("recording_error")]
     if cut:
         why = str(cut[0]["recording_error"])
         advice = (
             "fix or uninstall the package of that recording topic, then run again"
-            if why.startswith(TOPIC_RAISED)
+            if stopped_by_a_topic(why)
             else "free space and run the same command again to record them whole"
         )
         print(f"WARNING: {len(cut)} recordings were cut short ({why}); their results stand; {advice}", file=sys.stderr)

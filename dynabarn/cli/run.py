@@ -125,9 +125,10 @@ def _run_episode(args: argparse.Namespace) -> int:
 
     if result.reason in (CLOSED, ESCAPED):  # the person watching ended it: not a failure
         return 0
-    from dynabarn.recording.topics import TOPIC_RAISED
+    from dynabarn.recording.topics import stopped_by_a_topic
 
-    stopped = recorders[0].stopped if recorders else None
-    if stopped and stopped.startswith(TOPIC_RAISED):  # what was asked to be recorded is not (run_spec said why)
+    if recorders and stopped_by_a_topic(
+        recorders[0].stopped
+    ):  # what was asked to be recorded is not (run_spec said why)
         return EXIT_EPISODE_ERROR
     return exit_status(result, as_json=args.json)

@@ -300,6 +300,11 @@ TOPIC_RAISED = "recording topic"
 `dynabarn-run` then exits non-zero, since what was asked to be recorded is not."""
 
 
+def stopped_by_a_topic(reason: object) -> bool:
+    """Whether a recording's `stopped` reason is a topic that raised (not a full disk)."""
+    return isinstance(reason, str) and reason.startswith(TOPIC_RAISED)
+
+
 def tick_messages(topics: Sequence[Topic], tick: Tick) -> tuple[list[tuple[Topic, dict]], str | None]:
     """Each per-tick topic's message of `tick` (those that have one), up to a topic that
     raises: then also why the recording stops there (`TOPIC_RAISED` ...), else None."""

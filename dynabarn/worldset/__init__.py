@@ -118,13 +118,13 @@ def write_worlds(
     A file there that the folder's index does not list is never replaced unless `force`
     (`check_not_foreign`); the set's index lock is held throughout (`index_locked`)."""
     out_dir = Path(out_dir)
-    worlds = list(worlds)
+    worlds = list(progress(worlds))  # drawn first (the time goes here): their names are checked before any write
     if not force:
         check_not_foreign(out_dir, [f"{world.name}.xml" for world in worlds], read_index)
     out_dir.mkdir(parents=True, exist_ok=True)
     with index_locked(out_dir):
         entries = []
-        for world in progress(worlds):
+        for world in worlds:
             file = f"{world.name}.xml"
             sha = write_world(world, out_dir / file, asset_root=asset_root)
             entries.append(_entry(world, file, sha))

@@ -78,20 +78,15 @@ def check_listed_bytes(path: Path, entry: dict) -> None:
     """A world file holds the bytes its index entry lists (`sha256`): a file swapped for
     another's, or edited since, is one `WorldError` line, never a sweep of other worlds
     under this set's name."""
-    import hashlib
+    from dynabarn.world_file import MAX_WORLD_BYTES, world_sha256
 
-    from dynabarn.world_file import MAX_WORLD_BYTES
-
-    digest = hashlib.sha256()
     try:
-        with open(path, "rb") as f:
-            while piece := f.read(1 << 20):
-                digest.update(piece)
-                if f.tell() > MAX_WORLD_BYTES:
-                    raise WorldError(f"{path}: larger than {MAX_WORLD_BYTES >> 20} MiB; not a world file")
+        digest = world_sha256(path)
     except OSError as exc:
         raise WorldError(f"{path}: cannot read the world file ({exc.strerror or exc})") from None
-    if digest.hexdigest() != entry.get("sha256"):
+    if digest is None:
+        raise WorldError(f"{path}: larger than {MAX_WORLD_BYTES >> 20} MiB or not a regular file; not a world file")
+    if digest != entry.get("sha256"):
         raise WorldError(
             f"{path}: not the bytes its index.json lists (sha256 differs): the file was replaced or edited since the "
             "set was written; generate or import the set again (a tier's folder: remove it, it is made anew)"
