@@ -7,6 +7,7 @@ Used by `benchmarks/readme_results.py` (block `leaderboard`); nothing here runs 
 
 from __future__ import annotations
 
+from dynabarn.bench.stats import skill_text
 from dynabarn.bench.summary import DIFFICULTIES, FLOOR
 
 REPORTS = "reports"
@@ -47,9 +48,7 @@ def _cell(s: dict | None) -> str:
 def _skill(s: dict | None) -> str:
     if s is None or s.get("skill") is None:
         return "-"
-    if s["skill_lo"] != s["skill_lo"]:  # one world: no interval
-        return f"{s['skill']:+.2f}"
-    return f"{s['skill']:+.2f} [{s['skill_lo']:+.2f}, {s['skill_hi']:+.2f}]"
+    return skill_text(s)
 
 
 def leaderboard_table(folders: dict[str, tuple[list[dict], list[dict]]], names: dict[str, str]) -> str:

@@ -10,6 +10,7 @@ import json
 from pathlib import Path
 
 from dynabarn.bench import DIFFICULTIES
+from dynabarn.bench.stats import skill_text
 from dynabarn.bench.summary import FLOOR
 from dynabarn.learn.configs import completed_config
 
@@ -50,7 +51,7 @@ def _cell(by: dict, planner: str, d: str, *, skill: bool) -> str:
         return f"{s['success']:.2f} [{s['success_lo']:.2f}, {s['success_hi']:.2f}]"
     if s.get("skill") is None:
         return "-"
-    return f"{s['skill']:+.2f} [{s['skill_lo']:+.2f}, {s['skill_hi']:+.2f}]"
+    return skill_text(s)
 
 
 def generalisation_table(summaries: dict[str, list[dict]]) -> str:

@@ -28,6 +28,7 @@ from pathlib import Path
 
 from dynabarn.bench import DIFFICULTIES, PAPER_FIG5, paper_worlds, read_results, summarise
 from dynabarn.bench.results import RESULTS, WORLDS
+from dynabarn.bench.stats import skill_text
 from dynabarn.bench.summary import FLOOR, plot_fig5
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -101,7 +102,7 @@ def _ci(s: dict) -> str:
 def _skill(s: dict) -> str:
     if s.get("skill") is None:
         return "-"
-    return f"{s['skill']:+.2f} [{s['skill_lo']:+.2f}, {s['skill_hi']:+.2f}]"
+    return skill_text(s)
 
 
 def load(folder: str) -> tuple[list[dict], list[dict]]:

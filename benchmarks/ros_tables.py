@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from dwa_ablation import VARIANTS, read_outcomes
 
 from dynabarn.bench import DIFFICULTIES
+from dynabarn.bench.stats import skill_text
 from dynabarn.bench.summary import FLOOR, wilson_interval
 
 
@@ -98,7 +99,7 @@ def move_base_table(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
             trials = len({r["seed"] for r in rows if r["planner"] == planner})
             cells = " | ".join(_cell(by.get((planner, d))) for d in (*DIFFICULTIES, "all"))
             s = by[(planner, "all")]
-            skill = "-" if s.get("skill") is None else f"{s['skill']:+.2f} [{s['skill_lo']:+.2f}, {s['skill_hi']:+.2f}]"
+            skill = skill_text(s)
             lines.append(f"| {c.title} | {name} | {trials} | {cells} | {skill} |")
         for ours, _ in c.ours if rows else ():
             if any(r["planner"] == ours for r in rows):

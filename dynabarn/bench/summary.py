@@ -6,9 +6,9 @@ floor beside ours.
 
 The floor is `straight` (drive at the goal at 2 m/s, avoid nothing) on the same worlds
 and seeds: how much of a difficulty blind speed alone solves. A planner's skill is its
-success minus the floor's on the same (world, seed) pairs; its 95% interval treats the
-worlds as clusters (trials of one world are not independent), with Student's t on the
-number of worlds less one."""
+success minus the floor's on the same (world, seed) pairs; its 95% interval is a score
+interval for paired proportions on the worlds' effective sample size (`stats`,
+docs/concepts/statistics.md), marked where it rests on fewer than `stats.MIN_WORLDS` worlds."""
 
 from __future__ import annotations
 
@@ -18,7 +18,15 @@ import math
 from collections import defaultdict
 from pathlib import Path
 
-from dynabarn.bench.stats import mean_finite, median_finite, skill_over_floor, wilson_interval
+from dynabarn.bench.stats import (
+    FEW_WORLDS_NOTE,
+    MIN_WORLDS,
+    mean_finite,
+    median_finite,
+    skill_over_floor,
+    skill_text,
+    wilson_interval,
+)
 from dynabarn.files import save_atomically, write_atomically
 from dynabarn.metrics import METRICS
 from dynabarn.worlds.profiles import Difficulty
@@ -134,7 +142,7 @@ def summarise(rows: list[dict], paper_worlds: set[str] = frozenset(), certified:
         groups[(r["planner"], "all")].append(r)
     out = []
     order = {d: i for i, d in enumerate((*DIFFICULTIES, "all"))}
-    none = {"floor": None, "skill": None, "skill_lo": None, "skill_hi": None}
+    none = {"floor": None, "skill": None, "skill_lo": None, "skill_hi": None, "skill_worlds": None}
     for (planner, difficulty), rs in sorted(groups.items(), key=lambda kv: (kv[0][0], order.get(kv[0][1], 9))):
         n = len(rs)
         k = sum(r["outcome"] == "success" for r in rs)
@@ -169,12 +177,14 @@ def summarise(rows: list[dict], paper_worlds: set[str] = frozenset(), certified:
     return out
 
 
-def _skill_text(s: dict) -> str:
-    if s.get("skill") is None:
-        return "-"
-    if not math.isfinite(s["skill_lo"]):
-        return f"{s['skill']:+.2f}"
-    return f"{s['skill']:+.2f} [{s['skill_lo']:+.2f}, {s['skill_hi']:+.2f}]"
+def few_worlds(summary: list[dict]) -> bool:
+    """Whether any skill in the table rests on fewer than `MIN_WORLDS` worlds (its footnote)."""
+    return any(s.get("skill") is not None and (s.get("skill_worlds") or 0) < MIN_WORLDS for s in summary)
+
+
+def _finite(value: float | None, fmt: str) -> str:
+    """A mean as the tables print it: `-` where there is nothing to average (never `nan`)."""
+    return "-" if value is None or not math.isfinite(value) else format(value, fmt)
 
 
 def format_table(summary: list[dict]) -> str:
@@ -189,9 +199,11 @@ def format_table(summary: list[dict]) -> str:
         paper = f"{s['paper']:.2f}" if s["paper"] is not None else "-"
         lines.append(
             f"{_label(s):<{wp}}{s['difficulty']:<11}{s['episodes']:>5}{ci:>22}{s['collision']:>7.2f}"
-            f"{s['timeout']:>8.2f}{s['time_success']:>8.1f}{s['score']:>7.3f}{s['spl']:>6.2f}"
-            f"{s['min_clearance']:>7.2f}{paper:>7}  {_skill_text(s)}"
+            f"{s['timeout']:>8.2f}{_finite(s['time_success'], '.1f'):>8}{s['score']:>7.3f}{s['spl']:>6.2f}"
+            f"{_finite(s['min_clearance'], '.2f'):>7}{paper:>7}  {skill_text(s)}"
         )
+    if few_worlds(summary):
+        lines.append(FEW_WORLDS_NOTE)
     tracked = [s for s in summary if s.get("track_recall") is not None]
     if tracked:
         lines += ["", tracking_table(tracked, markdown=False)]
@@ -279,9 +291,12 @@ def write_summary(summary: list[dict], out_dir: Path, *, title: str = "") -> dic
         md.append(
             f"| {_label(s)} | {s['difficulty']} | {s['episodes']} | {s['success']:.2f} "
             f"[{s['success_lo']:.2f}, {s['success_hi']:.2f}] | {s['collision']:.2f} | {s['timeout']:.2f} | "
-            f"{s['time_success']:.1f} | {s['score']:.3f} | {s['spl']:.2f} | {s['min_clearance']:.2f} | {paper} | "
-            f"{'-' if s.get('floor') is None else format(s['floor'], '.2f')} | {_skill_text(s)} |"
+            f"{_finite(s['time_success'], '.1f')} | {s['score']:.3f} | {s['spl']:.2f} | "
+            f"{_finite(s['min_clearance'], '.2f')} | {paper} | "
+            f"{'-' if s.get('floor') is None else format(s['floor'], '.2f')} | {skill_text(s)} |"
         )
+    if few_worlds(summary):
+        md += ["", FEW_WORLDS_NOTE]
     if any(s.get("track_recall") is not None for s in summary):
         md += [
             "",
