@@ -37,5 +37,16 @@ def unknown_choice(kind: str, name: str, available: list[str] | tuple[str, ...])
     return f"unknown {kind} {name!r}; available: {', '.join(sorted(available))}"
 
 
+LEARN_INSTALL = "pip install 'dynabarn[learn]'"
 LEARN_EXTRA = "the learn extra: pip install 'dynabarn[learn]' (in a checkout: pip install -e '.[learn]')"
 """What to install for PyTorch and Gymnasium, said the same way everywhere."""
+
+
+class NotInstalledHere(DynabarnError):
+    """Something this install lacks to run what was asked (an extra, a ROS stack, a built
+    workspace): `--verify` reports such a row as not checked, with `install`, the command
+    that adds it, never as a difference."""
+
+    def __init__(self, message: str, install: str = "") -> None:
+        super().__init__(message)
+        self.install = install

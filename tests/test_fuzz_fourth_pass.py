@@ -164,24 +164,31 @@ def test_every_option_that_names_a_program_a_file_or_an_address_is_declared():
 
 
 @pytest.mark.parametrize("planner, option", _external_options(), ids=lambda x: str(x))
-def test_verify_never_takes_a_program_a_file_or_an_address_from_a_row(planner, option, sweep, tmp_path, monkeypatch):
-    """Per option: the row's value is a shell command writing a marker; --verify refuses the
-    file in one line, naming the option and how to give it, and runs nothing."""
+def test_verify_never_takes_a_program_a_file_or_an_address_from_a_row(
+    planner, option, sweep, tmp_path, monkeypatch, capsys
+):
+    """Per option: the row's value is a shell command writing a marker; --verify runs
+    nothing of it: the row is 'not checked', naming the option and how to give it, and the
+    exit status (3) says rows went unchecked, not that they differ."""
     monkeypatch.chdir(tmp_path)
     marker = tmp_path / "MARKER"
     value = ["sh", "-c", f"id > {marker}"] if option == "launch" else f"$(touch {marker})"
     copy = _forged(sweep, tmp_path, lambda r: r.update(key=_key(planner, {option: value})))
-    line = one_clear_line("bench", ["--verify", str(copy), "--sample", "all"])
+    assert bench_main(["--verify", str(copy), "--sample", "all"]) == 3
+    out = capsys.readouterr().out
+    line = next(line for line in out.splitlines() if line.startswith("not checked"))
     assert f"{option}=" in line and "name it yourself" in line, line
     assert not marker.exists()
-    assert not (copy / "verification.json").exists()
+    verdict = json.loads((copy / "verification.json").read_text())
+    assert verdict["ok"] and verdict["not_checked"] == 1 and not verdict["complete"]
 
 
-def test_verify_runs_a_launch_line_as_a_string_only_when_given(sweep, tmp_path, monkeypatch):
+def test_verify_runs_a_launch_line_as_a_string_only_when_given(sweep, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     marker = tmp_path / "MARKER"
     copy = _forged(sweep, tmp_path, lambda r: r.update(key=_key("ros", {"launch": f"sh -c 'id > {marker}'"})))
-    assert "--ros-launch COMMAND" in one_clear_line("bench", ["--verify", str(copy)])
+    assert bench_main(["--verify", str(copy), "--sample", "all"]) == 3
+    assert "(--ros-launch COMMAND)" in capsys.readouterr().out
     assert not marker.exists()
     # Given for rows that name none: refused too, never silently unused.
     assert "no row of" in one_clear_line("bench", ["--verify", str(sweep), "--ros-launch", "true"])
@@ -196,7 +203,6 @@ FORGED_KEYS = [
     ("protocol path", _key("stop", {}, protocol="../../p.json"), "protocol '../../p.json'"),
     ("protocol unknown", _key("stop", {}, protocol="mine"), "neither one of this package's"),
     ("world path", _key("stop", {}, world="../world_200.xml"), "world file '../world_200.xml'"),
-    ("planner", _key("nothing_here", {}), "not installed here"),
     ("seed", _key("stop", {}, rest="-1"), "seed '-1'"),
     ("long", "stop|{" + '"a": 1,' * 20_000 + '"b": 2}|world_200.xml|barn|0', "at most 65,536 characters"),
 ]
@@ -207,6 +213,14 @@ def test_verify_refuses_a_forged_key_in_one_line(what, key, message, sweep, tmp_
     copy = _forged(sweep, tmp_path, lambda r: r.update(key=key))
     line = one_clear_line("bench", ["--verify", str(copy)])
     assert message in line, line
+
+
+def test_a_planner_not_installed_here_is_not_checked(sweep, tmp_path, capsys):
+    copy = _forged(sweep, tmp_path, lambda r: r.update(key=_key("nothing_here", {})))
+    assert bench_main(["--verify", str(copy), "--sample", "all"]) == 3
+    out = capsys.readouterr().out
+    assert "not checked" in out and "'nothing_here' is not installed here" in out
+    assert "1 not checked here" in out
 
 
 def test_verify_reads_world_files_only_where_worlds_are(sweep, tmp_path, capsys):

@@ -182,14 +182,16 @@ def verify_set(
     progress: Callable = lambda it: it,
 ) -> tuple[list[str], int]:
     """Compute the certificates of the worlds `ids` (default: all) that the index holds
-    again, for the trials it holds, and compare: (one line per difference, trials checked).
-    Writes nothing."""
+    again, for the trials it holds, and compare: (one line per difference, trials checked,
+    worlds left out because they have no certificate). Refuses (one line) when none of the
+    worlds has one: a pass on nothing is not a pass. Writes nothing."""
     index = read_index(index_dir)
     budget = index.get("certification", {}).get(protocol.name, {}).get("search_budget")
     wanted = set(ids) if ids is not None else None
     stored: dict[str, dict] = {}
     todo = []
     differences = []
+    uncertified = 0
     for entry in index["worlds"]:
         if wanted is not None and entry["id"] not in wanted:
             continue
@@ -201,11 +203,17 @@ def verify_set(
             continue
         record = own_certificates(entry).get(protocol.name)
         if record is None:
+            uncertified += 1
             continue
         path = entry_path(Path(index_dir), entry)
         stored[path.name] = record
         seeds = tuple(t["seed"] for t in record["trials"])
         todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget))
+    if not todo and not differences:
+        raise DynabarnError(
+            f"{index_dir}: none of the {uncertified} world(s) asked for has a {protocol.name} certificate to verify; "
+            "certify them first (dynabarn-worlds certify without --verify)"
+        )
     checked = 0
     for path, rows in progress(map_in_workers(certify_world, todo, jobs)):
         for old, new in zip(stored[Path(path).name]["trials"], rows, strict=True):
@@ -215,7 +223,7 @@ def verify_set(
                     differences.append(
                         f"{Path(path).name} seed {old['seed']}: {key} {old.get(key)!r} -> {new.get(key)!r}"
                     )
-    return differences, checked
+    return differences, checked, uncertified
 
 
 def _current(entry: dict, protocol: str, resolution: dict, seeds: tuple[int, ...]) -> bool:

@@ -272,12 +272,21 @@ VERIFICATION_FIELDS = {"when": str, "checked": int, "identical": int, "ok": bool
 """What the report shows of `verification.json`, with each field's type."""
 
 
-def _verification(out: Path) -> dict | None:
+def _verification(out: Path, *, site: bool = False) -> dict | None:
     """The folder's last verdict, as plain text fields; `damaged` says why when the file is
-    there but not a verdict of `--verify` (the report shows that, never a template error)."""
+    there but not a verdict of `--verify` (the report shows that, never a template error).
+    For the documentation site (`site`), only a complete verdict: every sampled row checked
+    by an install with every extra (a local one that skipped rows says nothing of them)."""
     path = out / VERIFICATION
     if not path.is_file():
         return None
+    if site:
+        try:
+            complete = json.loads(path.read_text(encoding="utf-8", errors="replace")).get("complete") is True
+        except (OSError, ValueError, RecursionError, AttributeError):
+            complete = False
+        if not complete:
+            return None
     try:
         data = json.loads(path.read_text(encoding="utf-8", errors="replace"))
     except (OSError, ValueError, RecursionError) as exc:

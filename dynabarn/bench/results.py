@@ -7,6 +7,7 @@ import contextlib
 import hashlib
 import json
 import os
+import platform
 import shutil
 import sys
 from collections.abc import Iterator
@@ -111,30 +112,74 @@ def locked(out_dir: Path):
         yield
 
 
-def metadata(args_dict: dict, jobs: list[Job]) -> dict:
-    from dynabarn.provenance import versions
+def metadata(args_dict: dict, jobs: list[Job], argv: list[str] | None = None) -> dict:
+    """What this sweep is (protocol, worlds, simulation settings: the folder's identity) and
+    this invocation of it (`invocation`: the command line, versions, machine, time, its
+    planners and episodes); `check_or_write_metadata` keeps every invocation's."""
+    from datetime import UTC, datetime
+
+    from dynabarn.provenance import machine, versions
 
     world_hashes = sorted({hashlib.sha256(Path(j.spec.world).read_bytes()).hexdigest()[:16] for j in jobs})
     settings = dict(jobs[0].spec.sim) if jobs else {}
+    planners = sorted({j.shown for j in jobs})
     return {
         "format": "dynabarn-bench",
         "versions": versions(),
         "python": sys.version.split()[0],
         "arguments": args_dict,
         "protocol": jobs[0].spec.protocol if jobs else None,
-        "planners": sorted({j.shown for j in jobs}),
+        "planners": planners,
         "episodes": len(jobs),
         "worlds_digest": hashlib.sha256("".join(world_hashes).encode()).hexdigest()[:16],
         **({"sim": settings} if settings else {}),  # the simulation's settings, when not the defaults
+        "invocation": {
+            "when": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "command": ["dynabarn-bench", *(sys.argv[1:] if argv is None else argv)],
+            "arguments": args_dict,
+            "versions": versions(),
+            "python": sys.version.split()[0],
+            "machine": {
+                **{k: v for k, v in machine().items() if k in ("cpu", "arch")},
+                "cores": os.cpu_count(),
+                "system": platform.platform(),
+            },
+            "planners": planners,
+            "episodes": len(jobs),
+        },
     }
+
+
+def invocations_of(meta: dict) -> list[dict]:
+    """Every invocation a folder's metadata records; a metadata.json from before they were
+    kept counts as one invocation, marked as recovered from it."""
+    kept = meta.get("invocations")
+    if isinstance(kept, list):
+        return [i for i in kept if isinstance(i, dict)]
+    if not isinstance(meta.get("arguments"), dict):
+        return []
+    return [
+        {
+            "when": None,
+            "arguments": meta.get("arguments"),
+            "versions": meta.get("versions"),
+            "python": meta.get("python"),
+            "planners": meta.get("planners"),
+            "episodes": meta.get("episodes"),
+            "recovered": "from a metadata.json that kept only its last invocation",
+        }
+    ]
 
 
 def check_or_write_metadata(out_dir: Path, meta: dict, *, force: bool) -> None:
     """Refuse to mix sweeps in one folder: same protocol, worlds and simulation settings,
-    or --force."""
+    or --force. The folder's metadata keeps every invocation that wrote into it
+    (`invocations`), and `planners` names every planner any of them ran."""
     path = out_dir / METADATA
     out_dir.mkdir(parents=True, exist_ok=True)
     meta = json.loads(json.dumps(meta))  # compare as stored (tuples become lists)
+    invocation = meta.pop("invocation", None)
+    earlier: list[dict] = []
     if path.is_file() and not force:
         try:
             old = json.loads(path.read_text())
@@ -145,15 +190,21 @@ def check_or_write_metadata(out_dir: Path, meta: dict, *, force: bool) -> None:
         for key in ("protocol", "worlds_digest", "sim"):
             if old.get(key) != meta.get(key):
                 raise DynabarnError(f"{out_dir} holds a different sweep ({key} differs); use another --out or --force")
+        earlier = invocations_of(old)
     elif path.is_file() and force:
         for name in (RESULTS, WORLDS, "summary.csv", "summary.md", "fig5.png"):
             (out_dir / name).unlink(missing_ok=True)
         shutil.rmtree(out_dir / RECORDINGS, ignore_errors=True)
+    invocations = earlier + ([invocation] if invocation else [])
+    meta["invocations"] = invocations
+    meta["planners"] = sorted(
+        {p for i in invocations for p in (i.get("planners") or []) if isinstance(p, str)} | set(meta["planners"])
+    )
     write_atomically(path, json.dumps(meta, indent=1, sort_keys=True) + "\n")
 
 
 def jsonable_args(args) -> dict:
-    d = dict(vars(args))
+    d = {k: v for k, v in vars(args).items() if k != "argv"}  # the command line is the invocation's
     return {k: (str(v) if isinstance(v, Path) else v) for k, v in d.items()}
 
 

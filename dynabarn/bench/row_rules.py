@@ -110,25 +110,36 @@ def row_inputs(file: Path, number: int, row: dict, rules: RowRules) -> dict:
     """What re-running a row takes from it, checked as data before anything runs: its key's
     parts (`parse_key`), a planner installed here, a protocol by name (never a file), and no
     option that names a program, a file or an address unless the person verifying named it
-    on their own command line (`rules.given`), whose value then replaces the row's. One
-    `DynabarnError` line naming the row otherwise."""
+    on their own command line (`rules.given`), whose value then replaces the row's. A row
+    that is malformed or forged is one `DynabarnError` line naming the row; a row this
+    install cannot run (a planner not installed here, an option only the person verifying may
+    name) comes back with `not_checked` (why) and `install` (what would let it run)."""
     where = f"{file}: row {number}"
     parts = parse_key(row["key"])
-    if parts["planner"] not in rules.planners:
-        raise DynabarnError(f"{where}: planner {parts['planner']!r} is not installed here; --verify runs only those")
+    parts["not_checked"], parts["install"] = "", ""
     if parts["protocol"] not in rules.protocols and (rules.protocol or {}).get("name") != parts["protocol"]:
         raise DynabarnError(
             f"{where}: protocol {parts['protocol']!r} is neither one of this package's ({', '.join(rules.protocols)})"
             " nor the folder's own (metadata.json)"
         )
+    if parts["planner"] not in rules.planners:
+        # Someone else's planner: nothing to run here, which is not a difference.
+        parts["not_checked"] = f"planner {parts['planner']!r} is not installed here"
+        parts["install"] = "install the package that provides it, or name its file: --planner FILE.py:CLASS"
+        parts["given"] = []
+        return parts
     external, given = rules.external_options(parts["planner"]), rules.given
     for option, value in parts["config"].items():
         if option in external and option not in given:
-            raise DynabarnError(
-                f"{where}: planner {parts['planner']} names {external[option]} ({option}={value!r:.60}); --verify never"
-                f" takes that from a results file: to re-run it, name it yourself ({give(option)})"
+            parts["not_checked"] = (
+                f"planner {parts['planner']} names {external[option]} ({option}={value!r:.60}); --verify never"
+                f" takes that from a results file: to re-run it, name it yourself"
             )
-    parts["config"] = {k: given.get(k, v) if k in external else v for k, v in parts["config"].items()}
+            parts["install"] = give(option)
+    # A row's own value for such an option is never kept, whether or not the row is run.
+    parts["config"] = {
+        k: given[k] if k in external else v for k, v in parts["config"].items() if k not in external or k in given
+    }
     parts["given"] = sorted(k for k in parts["config"] if k in external)
     return parts
 

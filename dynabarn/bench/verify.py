@@ -22,7 +22,7 @@ from pathlib import Path
 from dynabarn.bench.golden import compare
 from dynabarn.bench.results import METADATA, RESULTS, is_row, read_results, recording_path
 from dynabarn.bench.row_rules import RowRules, give, row_inputs, row_world_file, world_roots
-from dynabarn.errors import DynabarnError
+from dynabarn.errors import DynabarnError, NotInstalledHere
 from dynabarn.files import plain_name_problem, write_atomically
 from dynabarn.processes import map_in_workers
 
@@ -41,6 +41,11 @@ class RowCheck:
     problem: str = ""
     """Why the row could not be re-run as it was (world file missing or changed)."""
     notes: list[str] = field(default_factory=list)
+    not_checked: str = ""
+    """Why this install cannot run the row (an extra, a ROS stack, a planner or an option it
+    lacks): neither identical nor a difference."""
+    install: str = ""
+    """What would let it run here (a command, or the option to give)."""
 
 
 def results_file(path: Path) -> Path:
@@ -70,6 +75,8 @@ def check_row(row: dict, parts: dict, folder: Path, roots: list[Path], protocol_
     from dynabarn.sim_config import SimConfig
 
     key = row["key"]
+    if parts["not_checked"]:
+        return RowCheck(key, False, not_checked=parts["not_checked"], install=parts["install"])
     world, problem = row_world_file(row, roots, parts["world"])
     if world is None:
         return RowCheck(key, False, problem=problem)
@@ -90,6 +97,8 @@ def check_row(row: dict, parts: dict, folder: Path, roots: list[Path], protocol_
         recording = Path(tmp) / "episode.mcap"
         try:
             now = run_spec(spec, record_to=recording).to_dict() | {"planner": spec.shown}
+        except NotInstalledHere as exc:  # this install lacks what the row needs: not a difference
+            return RowCheck(key, False, not_checked=str(exc), install=exc.install)
         except Exception as exc:  # a planner that no longer runs: that row does not reproduce
             return RowCheck(key, False, problem=f"the episode raised {type(exc).__name__}: {exc}")
         recorded = recording_path(row, folder)
@@ -173,7 +182,7 @@ def verify_results(
     # Every row checked before anything runs: one clear line for a bad or forged file.
     rules = RowRules.here(protocol, given)
     inputs = [row_inputs(file, i + 1, r, rules) for i, r in enumerate(rows)]
-    named = {o for p in inputs for o in p["config"] if o in rules.external_options(p["planner"])}
+    named = {o for p in inputs if p["planner"] in rules.planners for o in p["given"]}
     unused = sorted(set(given) - named)
     if unused:
         raise DynabarnError(
@@ -189,14 +198,20 @@ def verify_results(
     order = {r["key"]: i for i, r in enumerate(chosen)}
     checks.sort(key=lambda c: order[c.key])
     notes = _version_notes(chosen, versions(), machine())
+    ran = [c for c in checks if not c.not_checked]
     verdict = {
         "format": "dynabarn-verification",
         "results": str(file),
         "when": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "sample": "all" if sample is None else sample,
-        "checked": len(checks),
-        "identical": sum(c.identical for c in checks),
-        "ok": all(c.identical for c in checks),
+        "checked": len(ran),
+        "identical": sum(c.identical for c in ran),
+        "not_checked": len(checks) - len(ran),
+        "ok": all(c.identical for c in ran),
+        # A verdict on everything sampled, by an install with every extra: the only kind the
+        # documentation site shows (a local one that skipped rows says nothing of them).
+        "complete": len(ran) == len(checks) and not missing_extras(),
+        "missing_extras": missing_extras(),
         "rows": [asdict(c) for c in checks],
         "differences": [d for c in checks for d in c.differences]
         + [{"key": c.key, "field": "-", "old": "", "new": c.problem} for c in checks if c.problem],
@@ -207,6 +222,28 @@ def verify_results(
     except OSError:
         verdict["notes"].append(f"{folder} is read-only: the verdict was not written there")
     return verdict
+
+
+EXTRA_MODULES = {"learn": "torch", "ros": "rosbags", "ray": "ray"}
+"""The extras whose absence leaves rows unchecked, each by a module it installs."""
+
+
+def missing_extras() -> list[str]:
+    """The extras (`EXTRA_MODULES`) this install lacks."""
+    import importlib.util
+
+    return [extra for extra, module in EXTRA_MODULES.items() if importlib.util.find_spec(module) is None]
+
+
+def exit_code(verdict: dict) -> int:
+    """0: every row re-run reproduced and none was left unchecked; 1: a row differs;
+    3: nothing differs, but some rows could not be checked here (`NOT_CHECKED_EXIT`)."""
+    if not verdict["ok"]:
+        return 1
+    return NOT_CHECKED_EXIT if verdict.get("not_checked") else 0
+
+
+NOT_CHECKED_EXIT = 3
 
 
 def _version_notes(rows: list[dict], now_versions: dict, now_machine: dict) -> list[str]:

@@ -134,9 +134,11 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="RESULTS",
         help="re-run rows of a results file or folder on this machine and compare each with its row (every field "
-        "but the machine's); exit 0 only when every sampled row reproduces. The rows are data: only planners installed "
-        "here run, and a row whose planner option names a program, a file or an address (a policy, a ROS launch "
-        "line) is refused unless you give that option yourself (--policy, --ros-launch, --planner-config KEY=VALUE); "
+        "but the machine's). Exit 0: every sampled row reproduces; 1: a row differs; 3: nothing differs, but some "
+        "rows could not be checked here (each is printed as 'not checked' with what would let it run: an extra, a "
+        "ROS stack, a planner this install lacks, or an option only you may give). The rows are data: only planners "
+        "installed here run, and a row whose planner option names a program, a file or an address (a policy, a ROS "
+        "launch line) runs only with the value you give (--policy, --ros-launch, --planner-config KEY=VALUE); "
         "world files are taken only from the results folder, this package's world sets and --set",
     )
     checking.add_argument(
@@ -195,6 +197,7 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
         parser.error("--sample: only with --verify")
     if args.out is None:
         parser.error("--out is required for a sweep")
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # metadata.json keeps every invocation's
     return run_command(_bench, args)
 
 
@@ -239,7 +242,7 @@ def _check(args: argparse.Namespace) -> int:
 
     from dynabarn import worldset
     from dynabarn.bench.report import write_report
-    from dynabarn.bench.verify import verify_results
+    from dynabarn.bench.verify import exit_code, verify_results
 
     code = 0
     if args.verify is not None:
@@ -253,14 +256,18 @@ def _check(args: argparse.Namespace) -> int:
             args.verify, sample=args.sample, jobs=args.jobs, progress=progress, given=given, set_dir=set_dir
         )
         for row in verdict["rows"]:
+            if row["not_checked"]:
+                print(f"not checked  {row['key']}  {row['not_checked']} ({row['install']})")
+                continue
             print(f"{'identical' if row['identical'] else 'DIFFERS  '}  {row['key']}  {row['problem']}".rstrip())
         for d in verdict["differences"]:
             if d["field"] != "-":
                 print(f"  {d['key']}: {d['field']}: row {d['old']!r}, now {d['new']!r}")
         for note in verdict["notes"]:
             print(note)
-        print(f"{verdict['checked']} rows re-run: {verdict['identical']} identical")
-        code = 0 if verdict["ok"] else 1
+        unchecked = f", {verdict['not_checked']} not checked here" if verdict["not_checked"] else ""
+        print(f"{verdict['checked']} rows re-run: {verdict['identical']} identical{unchecked}")
+        code = exit_code(verdict)
         folder = Path(verdict["results"]).parent
         if args.report is None and (folder / "report.html").is_file():
             _report_so_far(folder)  # the report shows the verification (a read-only folder keeps its own)
@@ -326,7 +333,9 @@ def _bench(args: argparse.Namespace) -> int:
     # One writer per folder: the lock covers the metadata check (and --force's clean-up) too.
     with bench.locked(args.out):
         try:
-            bench.check_or_write_metadata(args.out, bench.metadata(bench.jsonable_args(args), jobs), force=args.force)
+            bench.check_or_write_metadata(
+                args.out, bench.metadata(bench.jsonable_args(args), jobs, argv=args.argv), force=args.force
+            )
             bench.write_worlds(args.out, jobs)
         except OSError as exc:
             raise DynabarnError(f"cannot write to {args.out}: {exc.strerror}") from None

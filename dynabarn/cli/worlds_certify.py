@@ -90,12 +90,13 @@ def worlds_certify(args: argparse.Namespace) -> int:
     if args.verify:
         from dynabarn.bench.certify import verify_set
 
-        differences, checked = verify_set(
+        differences, checked, uncertified = verify_set(
             folder, protocol, ids=ids, jobs=args.jobs, progress=progress_bar(f"verifying {args.set}", total)
         )
         for line in differences:
             print(line)
-        print(f"{checked} trials checked against {args.set}'s index: {len(differences) or 'no'} difference(s)")
+        left = f"; {uncertified} world(s) without a certificate not checked" if uncertified else ""
+        print(f"{checked} trials checked against {args.set}'s index: {len(differences) or 'no'} difference(s){left}")
         return 1 if differences else 0
     index = certify_set(
         folder,

@@ -26,7 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.errors import DynabarnError
+from dynabarn.errors import NotInstalledHere
 from dynabarn.interfaces import EpisodeInfo, Observation, Planner
 from dynabarn.processes import die_with_parent
 from dynabarn.robot import JACKAL
@@ -54,9 +54,10 @@ def _checked_ros_python(exe: str) -> str:
     except (OSError, subprocess.TimeoutExpired):
         ok = False
     if not ok:
-        raise DynabarnError(
+        raise NotInstalledHere(
             f"{exe} cannot import rospy: install Debian's ROS 1 packages (`make ros-deps`, as root) "
-            f"or set {ROS_PYTHON_ENV} to a Python that has rospy"
+            f"or set {ROS_PYTHON_ENV} to a Python that has rospy",
+            "sudo make ros-deps",
         )
     return exe
 

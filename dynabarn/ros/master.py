@@ -13,7 +13,7 @@ import uuid
 import xmlrpc.client
 from dataclasses import dataclass
 
-from dynabarn.errors import DynabarnError
+from dynabarn.errors import DynabarnError, NotInstalledHere
 from dynabarn.processes import die_with_parent
 
 
@@ -50,7 +50,10 @@ class RosMaster:
         # loopback under ROS_HOSTNAME=127.0.0.1, and nothing of ours needs rosout.
         rosmaster = shutil.which("rosmaster")
         if rosmaster is None:
-            raise DynabarnError("rosmaster is not installed: install Debian's ROS 1 packages (`sudo make ros-deps`)")
+            raise NotInstalledHere(
+                "rosmaster is not installed: install Debian's ROS 1 packages (`sudo make ros-deps`)",
+                "sudo make ros-deps",
+            )
         port = _free_port()
         uri = f"http://127.0.0.1:{port}/"
         env = {**os.environ, "ROS_MASTER_URI": uri, "ROS_HOSTNAME": "127.0.0.1"}

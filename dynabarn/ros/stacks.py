@@ -8,7 +8,7 @@ import shlex
 from dataclasses import dataclass
 from pathlib import Path
 
-from dynabarn.errors import DynabarnError
+from dynabarn.errors import DynabarnError, NotInstalledHere
 from dynabarn.ros.nav_build import built, default_workspace
 from dynabarn.ros.teb_build import built as teb_built
 
@@ -56,11 +56,14 @@ def stack_command(name: str, workspace: Path | None = None) -> list[str]:
         raise DynabarnError(f"unknown stack {name!r}: use one of {', '.join(STACKS)}")
     workspace = (workspace or default_workspace()).expanduser()
     if built(workspace) is None:
-        raise DynabarnError(f"move_base is not built in {workspace}: run `make ros-nav` (about 6 minutes on 2 cores)")
+        raise NotInstalledHere(
+            f"move_base is not built in {workspace}: run `make ros-nav` (about 6 minutes on 2 cores)", "make ros-nav"
+        )
     stack = STACKS[name]
     if stack.teb and teb_built(workspace) is None:
-        raise DynabarnError(
-            f"teb_local_planner is not built in {workspace}: run `make ros-teb` (about 20 minutes on 2 cores)"
+        raise NotInstalledHere(
+            f"teb_local_planner is not built in {workspace}: run `make ros-teb` (about 20 minutes on 2 cores)",
+            "make ros-teb",
         )
     args = " ".join(f"{k}:={shlex.quote(v.format(launch=LAUNCH))}" for k, v in stack.args)
     # The workspace's environment (ROS_PACKAGE_PATH, libraries) for roslaunch and move_base.

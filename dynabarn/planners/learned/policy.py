@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import ClassVar
 
-from dynabarn.errors import LEARN_EXTRA, DynabarnError
+from dynabarn.errors import LEARN_EXTRA, LEARN_INSTALL, NotInstalledHere
 from dynabarn.interfaces import EpisodeInfo, Observation, Planner
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.learned.features import Features
@@ -41,7 +41,7 @@ class PolicyFilePlanner(Planner):
         try:
             import torch
         except ImportError:
-            raise DynabarnError(f"planner {what!r} needs {LEARN_EXTRA}") from None
+            raise NotInstalledHere(f"planner {what!r} needs {LEARN_EXTRA}", LEARN_INSTALL) from None
         from threadpoolctl import ThreadpoolController
 
         self._torch = torch

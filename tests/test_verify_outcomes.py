@@ -1,0 +1,106 @@
+"""Verification that tells "cannot run here" from "differs" (issue 56), a pass on nothing
+refused, and metadata.json that keeps every invocation that wrote its folder."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import pytest
+
+from dynabarn.cli.bench import bench_main
+
+ONE = ["--set", "paper60", "--worlds", "200", "--trials", "1", "--jobs", "1"]
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory) -> Path:
+    """Two invocations into one folder: `stop` (with the floor), then `dwa`."""
+    out = tmp_path_factory.mktemp("verify_outcomes") / "sweep"
+    assert bench_main(["--planner", "stop", *ONE, "--out", str(out)]) == 0
+    assert bench_main(["--planner", "dwa", "--no-floor", *ONE, "--out", str(out)]) == 0
+    return out
+
+
+def test_metadata_keeps_every_invocation(folder):
+    meta = json.loads((folder / "metadata.json").read_text())
+    assert meta["planners"] == ["dwa", "stop", "straight"]
+    first, second = meta["invocations"]
+    assert first["planners"] == ["stop", "straight"] and second["planners"] == ["dwa"]
+    assert first["command"][:3] == ["dynabarn-bench", "--planner", "stop"]
+    assert "--no-floor" in second["command"] and first["episodes"] == 2 and second["episodes"] == 1
+    for invocation in (first, second):
+        assert invocation["versions"]["mujoco"] and invocation["machine"]["cores"] >= 1
+        assert invocation["when"].endswith("Z")
+
+
+def test_metadata_from_before_invocations_counts_as_one(folder, tmp_path):
+    """A folder written before invocations were kept: its one record becomes the first."""
+    copy = tmp_path / "old"
+    shutil.copytree(folder, copy)
+    meta = json.loads((copy / "metadata.json").read_text())
+    del meta["invocations"]
+    meta["planners"] = ["dwa"]
+    (copy / "metadata.json").write_text(json.dumps(meta))
+    assert bench_main(["--planner", "stop", "--no-floor", *ONE, "--out", str(copy)]) == 0
+    meta = json.loads((copy / "metadata.json").read_text())
+    assert [i["planners"] for i in meta["invocations"]] == [["dwa"], ["stop"]]
+    assert "recovered" in meta["invocations"][0] and meta["planners"] == ["dwa", "stop"]
+
+
+def test_a_row_needing_a_missing_extra_is_not_checked(folder, tmp_path, monkeypatch, capsys):
+    """The issue's false "does not reproduce": a td3 row where PyTorch is not installed is
+    not checked, with the install command; exit 3, not 1."""
+    copy = tmp_path / "td3"
+    shutil.copytree(folder, copy)
+    rows = [json.loads(line) for line in (copy / "results.jsonl").read_text().splitlines()]
+    stop = next(r for r in rows if r["planner"] == "stop")
+    stop["key"] = stop["key"].replace("stop|", "td3|", 1)
+    stop["planner"] = "td3"
+    (copy / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    monkeypatch.setitem(sys.modules, "torch", None)  # `import torch` raises ImportError
+    code = bench_main(["--verify", str(copy), "--sample", "all", "--jobs", "1"])
+    out = capsys.readouterr().out
+    assert code == 3, out
+    assert "not checked" in out and "pip install 'dynabarn[learn]'" in out and "DIFFERS" not in out
+    verdict = json.loads((copy / "verification.json").read_text())
+    assert verdict["ok"] and verdict["not_checked"] == 1 and verdict["checked"] == 2 and not verdict["complete"]
+
+
+def test_every_row_reproducing_exits_zero_and_a_difference_one(folder, tmp_path, capsys):
+    assert bench_main(["--verify", str(folder), "--sample", "all"]) == 0
+    assert "3 rows re-run: 3 identical" in capsys.readouterr().out
+    copy = tmp_path / "differs"
+    shutil.copytree(folder, copy)
+    rows = [json.loads(line) for line in (copy / "results.jsonl").read_text().splitlines()]
+    rows[0]["time"] = rows[0]["time"] + 1.0
+    (copy / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    assert bench_main(["--verify", str(copy), "--sample", "all"]) == 1
+
+
+def test_the_site_shows_only_a_complete_verdict(folder):
+    from dynabarn.bench.report import _verification
+
+    bench_main(["--verify", str(folder), "--sample", "1"])
+    verdict = json.loads((folder / "verification.json").read_text())
+    for complete in (True, False):
+        (folder / "verification.json").write_text(json.dumps(verdict | {"complete": complete}))
+        assert (_verification(folder, site=True) is not None) is complete
+        assert _verification(folder) is not None
+    (folder / "verification.json").write_text(json.dumps(verdict))
+
+
+def test_certify_verify_on_worlds_without_certificates_refuses(tmp_path):
+    from dynabarn.provenance import SHIPPED_WORLDS
+    from tests.test_fuzz import one_clear_line
+
+    out = tmp_path / "set"
+    shutil.copytree(SHIPPED_WORLDS, out)
+    index = json.loads((out / "index.json").read_text())
+    for entry in index["worlds"]:
+        entry.pop("certificates", None)
+    (out / "index.json").write_text(json.dumps(index))
+    line = one_clear_line("worlds", ["certify", str(out), "--verify", "--worlds", "5"])
+    assert "none of the 1 world(s) asked for has a barn certificate to verify" in line
