@@ -246,7 +246,7 @@ def sweep_speedup(workers: int = 2) -> tuple[float, float]:
     for n in (1, workers):
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
-            bench.run_sweep(jobs, Path(tmp), n_workers=n)
+            bench.run_sweep(jobs, Path(tmp), n_workers=n, folder=False)
             times.append(time.perf_counter() - t0)
     return times[0], times[1]
 

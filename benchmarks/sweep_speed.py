@@ -65,7 +65,7 @@ def sweep_speed(planner: str, *, jobs: int = 2, worlds: str = "paper60", ids: li
     episodes = bench.make_jobs([(name, config, label)], world_list, get_protocol("barn"), 1)
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        bench.run_sweep(episodes, Path(tmp), n_workers=jobs)
+        bench.run_sweep(episodes, Path(tmp), n_workers=jobs, folder=False)
         wall = time.perf_counter() - t0
         rows = [json.loads(line) for line in (Path(tmp) / bench.RESULTS).read_text().splitlines()]
     sim = sum(r["sim_time"] for r in rows)

@@ -8,7 +8,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from dynabarn.errors import DynabarnError
 from dynabarn.metrics import Outcome
+from dynabarn.planners.from_code import LOADED, CodePlanner, load_code_planner
 from dynabarn.planners.registry import PLANNERS, planner_factory, register_planner, registered_at_run_time
 from dynabarn.protocol import EvalProtocol
 from dynabarn.recording.writer import staging_path
@@ -29,6 +31,9 @@ class Job:
     factory: Callable | None = None
     """The planner's factory, for a planner registered at run time (`register_planner`):
     worker processes that do not fork (spawn, Ray) know only installed planners."""
+    code: CodePlanner | None = None
+    """A planner named by its code (`--planner FILE.py:CLASS`): loaded again in the worker,
+    and its identity written into every row (`planner_code`)."""
 
     @property
     def shown(self) -> str:
@@ -57,7 +62,8 @@ def make_jobs(
             difficulty=difficulty,
             record=record,
             recordings_dir=str(recordings_dir or ""),
-            factory=planner_factory(name) if registered_at_run_time(name) else None,
+            factory=planner_factory(name) if registered_at_run_time(name) and name not in LOADED else None,
+            code=LOADED.get(name),
         )
         for name, cfg, *label in planners
         for wid, file, difficulty in worlds
@@ -87,6 +93,10 @@ def run_job(job: Job) -> dict:
         if job.factory is not None and spec.planner not in PLANNERS:
             # Registered at run time in the sweep's process: this worker learns it the same way.
             register_planner(job.factory, name=spec.planner)
+        if job.code is not None:
+            row["planner_code"] = job.code.identity()
+            if spec.planner not in PLANNERS and load_code_planner(job.code.source, job.code.search_path) != job.code:
+                raise DynabarnError(f"{job.code.source} changed during the sweep (its sha256 differs)")
         record_in = Path(job.recordings_dir) if job.record != "none" else None  # NAME.part until whole
         result = run_spec(
             spec, record_in=record_in, on_built=lambda sim, planner: built.append(sim), on_recorder=recorders.append

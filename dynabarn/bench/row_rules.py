@@ -41,7 +41,8 @@ def parse_key(key: object) -> dict:
         seed = int(parts[3]) if parts[3].isascii() and parts[3].isdigit() and len(parts[3]) <= 10 else -1
         if not 0 <= seed <= MAX_SEED:
             raise ValueError(f"seed {parts[3][:20]!r}: a whole number in [0, {MAX_SEED}]")
-        for what, name in (("planner", planner.partition("@")[0]), ("protocol", parts[2]), ("world file", parts[1])):
+        names = [("planner", n) for n in planner.partition("@")[0].split(":", 1)]  # MODULE:CLASS, FILE.py:CLASS
+        for what, name in (*names, ("protocol", parts[2]), ("world file", parts[1])):
             problem = plain_name_problem(name)
             if problem:
                 raise ValueError(f"{what} {name[:40]!r} {problem}")
@@ -92,11 +93,15 @@ class RowRules:
     external: dict[str, dict[str, str]] = field(default_factory=dict)
 
     @classmethod
-    def here(cls, protocol: dict | None, given: dict) -> RowRules:
+    def here(cls, protocol: dict | None, given: dict, code: set[str] = frozenset()) -> RowRules:
+        """The rules of this install; of the planners from code (`from_code`), only those the
+        person verifying named (`code`), whatever else this process has loaded."""
         from dynabarn.planners import available_planners
+        from dynabarn.planners.from_code import LOADED
         from dynabarn.protocol import PROTOCOLS
 
-        return cls(set(available_planners()), PROTOCOLS.names(), protocol, dict(given))
+        planners = {p for p in available_planners() if p not in LOADED or p in code}
+        return cls(planners, PROTOCOLS.names(), protocol, dict(given))
 
     def external_options(self, planner: str) -> dict[str, str]:
         from dynabarn.planners.registry import external_options
@@ -125,9 +130,16 @@ def row_inputs(file: Path, number: int, row: dict, rules: RowRules) -> dict:
     if parts["planner"] not in rules.planners:
         # Someone else's planner: nothing to run here, which is not a difference.
         parts["not_checked"] = f"planner {parts['planner']!r} is not installed here"
-        parts["install"] = "install the package that provides it, or name its file: --planner FILE.py:CLASS"
+        parts["install"] = (
+            f"name its code yourself: --planner {'PATH/' if '.py:' in parts['planner'] else ''}{parts['planner']}"
+            if ":" in parts["planner"]
+            else "install the package that provides it"
+        )
         parts["given"] = []
         return parts
+    code_problem = _code_problem(row, parts["planner"])
+    if code_problem:
+        raise DynabarnError(f"{where}: {code_problem}")
     external, given = rules.external_options(parts["planner"]), rules.given
     for option, value in parts["config"].items():
         if option in external and option not in given:
@@ -142,6 +154,24 @@ def row_inputs(file: Path, number: int, row: dict, rules: RowRules) -> dict:
     }
     parts["given"] = sorted(k for k in parts["config"] if k in external)
     return parts
+
+
+def _code_problem(row: dict, planner: str) -> str | None:
+    """Why a row of a planner named by its code (`from_code`) may not run with the one the
+    person verifying named: a file whose sha256 is not the row's."""
+    from dynabarn.planners.from_code import LOADED
+
+    code = LOADED.get(planner)
+    if code is None or not code.file:
+        return None
+    recorded = row.get("planner_code")
+    sha = recorded.get("sha256") if isinstance(recorded, dict) else None
+    if sha != code.sha256:
+        return (
+            f"planner {planner}: {code.file} is not the file the row ran (sha256 {str(sha)[:12]}..., "
+            f"here {code.sha256[:12]}...); --verify runs only the same code"
+        )
+    return None
 
 
 GIVE = {"policy": "--policy FILE", "launch": "--ros-launch COMMAND"}

@@ -25,7 +25,18 @@ from pathlib import Path
 
 from dynabarn.bench.backends import run_jobs
 from dynabarn.bench.jobs import Job
-from dynabarn.bench.results import RESULTS, append_row, locked, prepare_resume, read_results
+from dynabarn.bench.results import (
+    RESULTS,
+    append_row,
+    certified_episodes,
+    check_or_write_metadata,
+    locked,
+    metadata,
+    paper_worlds,
+    prepare_resume,
+    read_results,
+    write_worlds,
+)
 from dynabarn.errors import DynabarnError
 from dynabarn.metrics import Outcome
 
@@ -37,6 +48,10 @@ class SweepReport:
     errors: int = 0
     wall_time: float = 0.0
     rows: list[dict] = field(default_factory=list)
+    summary: list[dict] = field(default_factory=list)
+    """The folder's whole summary (every planner run into it), when the folder was written."""
+    paths: dict[str, Path] = field(default_factory=dict)
+    """What was written beside the rows: summary (csv, md, png) and report (html)."""
 
 
 def run_sweep(
@@ -47,8 +62,19 @@ def run_sweep(
     n_workers: int = 1,
     address: str | None = None,
     progress: Callable[[Iterable, int], Iterable] | None = None,
+    folder: bool = True,
+    arguments: dict | None = None,
+    argv: list[str] | None = None,
+    force: bool = False,
+    title: str = "",
 ) -> SweepReport:
     """Run the jobs not already in OUT/results.jsonl, appending each result as it arrives.
+
+    With `folder` (the default), the folder `dynabarn-bench` writes, from Python too:
+    `metadata.json` (its sweep, and this invocation: `arguments` and `argv`, by default that
+    it came from Python) and `worlds.json` before, the summary and `report.html` after
+    (`force`: start the folder over). Without it, only the rows (demonstrations, speed
+    benchmarks).
 
     Holds the folder's lock throughout; jobs are de-duplicated by key; rows of
     infrastructure failures from an earlier run are run again. A results file that cannot
@@ -57,6 +83,13 @@ def run_sweep(
     jobs = list({j.key: j for j in jobs}.values())  # the same episode once
     results_path = out_dir / RESULTS
     with locked(out_dir):
+        if folder:
+            try:
+                meta = metadata(arguments or {"from": "dynabarn.bench.run_sweep"}, jobs, argv=argv or [])
+                check_or_write_metadata(out_dir, meta, force=force)
+                write_worlds(out_dir, jobs)
+            except OSError as exc:
+                raise DynabarnError(f"cannot write to {out_dir}: {exc.strerror}") from None
         try:
             done = {r["key"] for r in prepare_resume(results_path)}
         except OSError as exc:
@@ -82,5 +115,21 @@ def run_sweep(
             ) from None
         report.wall_time = time.perf_counter() - t0
         wanted = {j.key for j in jobs}
-        report.rows = [r for r in read_results(results_path) if r["key"] in wanted]
+        every_row = read_results(results_path)
+        report.rows = [r for r in every_row if r["key"] in wanted]
+        if folder and every_row:
+            report.summary, report.paths = write_folder_summary(out_dir, every_row, title)
     return report
+
+
+def write_folder_summary(out_dir: Path, rows: list[dict], title: str = "") -> tuple[list[dict], dict[str, Path]]:
+    """The folder's whole sweep (every planner run into it, same worlds and protocol), so a
+    planner added later is summarised beside the others and the floor: `summary.csv`,
+    `summary.md`, `fig5.png` and `report.html`."""
+    from dynabarn.bench.report import write_report
+    from dynabarn.bench.summary import summarise, write_summary
+
+    summary = summarise(rows, paper_worlds(out_dir), certified_episodes(out_dir))
+    paths = write_summary(summary, out_dir, title=title)
+    paths["html"] = write_report(out_dir)
+    return summary, paths

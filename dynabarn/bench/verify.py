@@ -24,6 +24,7 @@ from dynabarn.bench.results import METADATA, RESULTS, is_row, read_results, reco
 from dynabarn.bench.row_rules import RowRules, give, row_inputs, row_world_file, world_roots
 from dynabarn.errors import DynabarnError, NotInstalledHere
 from dynabarn.files import plain_name_problem, write_atomically
+from dynabarn.planners.from_code import LOADED, CodePlanner, load_code_planner
 from dynabarn.processes import map_in_workers
 
 DEFAULT_SAMPLE = 20
@@ -137,8 +138,15 @@ def _added_parameters(old: object, new: object) -> list[str] | None:
     return sorted(set(new) - set(old))
 
 
-def _check(item: tuple[dict, dict, str, list[str], dict | None]) -> RowCheck:
-    row, parts, folder, roots, protocol = item
+def _check(item: tuple[dict, dict, str, list[str], dict | None, CodePlanner | None]) -> RowCheck:
+    row, parts, folder, roots, protocol, code = item
+    if code is not None and code.name not in LOADED:
+        # A planner from code that the person verifying named: this worker loads the same file.
+        try:
+            if load_code_planner(code.source, code.search_path) != code:
+                return RowCheck(row["key"], False, problem=f"{code.source} changed while --verify ran")
+        except DynabarnError as exc:
+            return RowCheck(row["key"], False, problem=str(exc))
     return check_row(row, parts, Path(folder), [Path(r) for r in roots], protocol)
 
 
@@ -162,6 +170,7 @@ def verify_results(
     progress=None,
     given: dict | None = None,
     set_dir: Path | None = None,
+    code: set[str] = frozenset(),
 ) -> dict:
     """Re-run a sample of the rows of the results at `path`; the verdict (also written to
     the folder's `verification.json` where it can be).
@@ -169,7 +178,8 @@ def verify_results(
     The rows are data: every row's inputs are checked before anything runs (`row_inputs`);
     `given` holds the options the person verifying names on their own command line (a
     policy file, a launch command), the only source of options that name a program, a file
-    or an address; `set_dir` a further folder the world files may be in (`world_roots`)."""
+    or an address; `set_dir` a further folder the world files may be in (`world_roots`);
+    `code` the planners from code (`from_code`) they named, the only ones that run."""
     from dynabarn.provenance import machine, versions
 
     given = dict(given or {})
@@ -180,7 +190,7 @@ def verify_results(
     folder = file.parent
     protocol = _folder_protocol(folder)
     # Every row checked before anything runs: one clear line for a bad or forged file.
-    rules = RowRules.here(protocol, given)
+    rules = RowRules.here(protocol, given, code)
     inputs = [row_inputs(file, i + 1, r, rules) for i, r in enumerate(rows)]
     named = {o for p in inputs if p["planner"] in rules.planners for o in p["given"]}
     unused = sorted(set(given) - named)
@@ -193,7 +203,9 @@ def verify_results(
     by_key = {r["key"]: p for r, p in zip(rows, inputs, strict=True)}
     chosen = sample_rows([r for r in rows if r.get("outcome") != "error"], sample)
     roots = [str(r) for r in world_roots(folder, set_dir)]
-    items = [(r, by_key[r["key"]], str(folder), roots, protocol) for r in chosen]
+    items = [
+        (r, by_key[r["key"]], str(folder), roots, protocol, LOADED.get(by_key[r["key"]]["planner"])) for r in chosen
+    ]
     checks = list((progress or (lambda it, total: it))(map_in_workers(_check, items, jobs), len(items)))
     order = {r["key"]: i for i, r in enumerate(chosen)}
     checks.sort(key=lambda c: order[c.key])

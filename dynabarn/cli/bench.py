@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
-import json
 import sys
-import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from dynabarn.cli.bench_check import check_command, command_line_config, golden_command, report_so_far
 from dynabarn.cli.common import (
     SET_HELP,
     add_jobs,
@@ -17,7 +15,6 @@ from dynabarn.cli.common import (
     add_sim_settings,
     command,
     make_parser,
-    planner_config,
     ranged,
     run_command,
 )
@@ -42,7 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--planner",
         default="dwa",
         help="planner(s), comma separated, e.g. dwa,teb; NAME@PRESET runs a shipped preset as its own row "
-        "(dwa@dwa_dynabarn_authors, teb@teb_ros_defaults)",
+        "(dwa@dwa_dynabarn_authors, teb@teb_ros_defaults); MODULE:CLASS or FILE.py:CLASS runs a planner from its "
+        "code, unpackaged (rows record the module, or the file's name and sha256); with --verify, the planners from "
+        "code that the rows name (--verify never loads code a row names)",
     )
     parser.add_argument(
         "--no-floor",
@@ -157,10 +156,21 @@ def _sample(text: str) -> int | None:
 
 GOLDEN_OPTIONS = {"verify_golden", "update_golden", "reference", "jobs", "debug"}
 """The options that apply to `--verify-golden` and `--update-golden`."""
-CHECK_OPTIONS = {"report", "verify", "sample", "jobs", "debug", "policy", "ros_launch", "planner_config", "set"}
+CHECK_OPTIONS = {
+    "report",
+    "verify",
+    "sample",
+    "jobs",
+    "debug",
+    "policy",
+    "ros_launch",
+    "planner_config",
+    "set",
+    "planner",
+}
 """The options that apply to `--report` and `--verify` (with `--verify`: `--policy`,
 `--ros-launch` and `--planner-config` name what a row may not, `--set` where its worlds are)."""
-VERIFY_ONLY = {"sample", "policy", "ros_launch", "planner_config", "set"}
+VERIFY_ONLY = {"sample", "policy", "ros_launch", "planner_config", "set", "planner"}
 """Of those, the ones that mean something only with `--verify`."""
 
 
@@ -182,7 +192,7 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
         ignored = ["--" + key.replace("_", "-") for key in _given(argv) if key not in GOLDEN_OPTIONS]
         if ignored:
             parser.error(f"{', '.join(ignored)}: not for the golden set, which runs its own committed cases")
-        return run_command(_golden, args)
+        return run_command(golden_command, args)
     if args.report is not None or args.verify is not None:
         ignored = ["--" + key.replace("_", "-") for key in _given(argv) if key not in CHECK_OPTIONS]
         if ignored:
@@ -192,101 +202,14 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
             if unused:
                 parser.error(f"{', '.join(unused)}: only with --verify (--report re-runs nothing)")
         args.set_given = "set" in _given(argv)  # --set's default names no folder of the rows'
-        return run_command(_check, args)
+        args.planner_given = "planner" in _given(argv)
+        return run_command(check_command, args)
     if "sample" in _given(argv):
         parser.error("--sample: only with --verify")
     if args.out is None:
         parser.error("--out is required for a sweep")
     args.argv = list(sys.argv[1:] if argv is None else argv)  # metadata.json keeps every invocation's
     return run_command(_bench, args)
-
-
-def _golden(args: argparse.Namespace) -> int:
-
-    from tqdm import tqdm
-
-    from dynabarn.bench import golden
-    from dynabarn.provenance import machine
-
-    if args.jobs < 1:
-        raise DynabarnError("--jobs must be at least 1")
-    reference = args.reference or golden.DEFAULT_REFERENCE
-
-    def progress(stream, total):
-        return tqdm(stream, total=total, desc="golden episodes", unit="ep", disable=None)
-
-    if args.update_golden:
-        path = golden.update(reference, jobs=args.jobs, progress=progress)
-        print(f"wrote {len(golden.CASES)} golden episodes to {path}")
-        return 0
-    t0 = time.perf_counter()
-    report = golden.verify(reference, jobs=args.jobs, progress=progress)
-    print(f"machine: {json.dumps(machine(), sort_keys=True)}")
-    for note in report.version_notes:
-        print(f"versions differ: {note}")
-    for case in report.skipped:
-        print(f"skipped (no reference data under {reference}): {case}")
-    for m in report.mismatches:
-        print(f"MISMATCH {m}")
-    cases = len({m.case for m in report.mismatches})
-    verdict = "identical" if report.ok else f"{len(report.mismatches)} fields differ in {cases} episodes"
-    print(
-        f"golden set: {report.checked} episodes checked, {len(report.skipped)} skipped, {verdict} "
-        f"({time.perf_counter() - t0:.1f} s)"
-    )
-    return 0 if report.ok else 1
-
-
-def _check(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
-    from dynabarn import worldset
-    from dynabarn.bench.report import write_report
-    from dynabarn.bench.verify import exit_code, verify_results
-
-    code = 0
-    if args.verify is not None:
-
-        def progress(stream, total):
-            return tqdm(stream, total=total, desc="re-running rows", unit="row", disable=None)
-
-        # What the person verifying names: the options a row may not supply, and where worlds may be.
-        given, set_dir = _command_line_config(args), worldset.set_folder(args.set)[0] if args.set_given else None
-        verdict = verify_results(
-            args.verify, sample=args.sample, jobs=args.jobs, progress=progress, given=given, set_dir=set_dir
-        )
-        for row in verdict["rows"]:
-            if row["not_checked"]:
-                print(f"not checked  {row['key']}  {row['not_checked']} ({row['install']})")
-                continue
-            print(f"{'identical' if row['identical'] else 'DIFFERS  '}  {row['key']}  {row['problem']}".rstrip())
-        for d in verdict["differences"]:
-            if d["field"] != "-":
-                print(f"  {d['key']}: {d['field']}: row {d['old']!r}, now {d['new']!r}")
-        for note in verdict["notes"]:
-            print(note)
-        unchecked = f", {verdict['not_checked']} not checked here" if verdict["not_checked"] else ""
-        print(f"{verdict['checked']} rows re-run: {verdict['identical']} identical{unchecked}")
-        code = exit_code(verdict)
-        folder = Path(verdict["results"]).parent
-        if args.report is None and (folder / "report.html").is_file():
-            _report_so_far(folder)  # the report shows the verification (a read-only folder keeps its own)
-    if args.report is not None:
-        print(f"wrote {write_report(args.report)}")
-    return code
-
-
-def _command_line_config(args: argparse.Namespace) -> dict:
-    """The planner options this command line gives: every planner's in a sweep; with
-    `--verify` (no `--ros-stack` there), what a row may not supply."""
-    config = planner_config(args.planner_config)
-    if args.policy is not None:
-        config["policy"] = str(args.policy.resolve())
-    if args.ros_launch is not None:
-        config["launch"] = args.ros_launch
-    if args.ros_stack is not None:
-        config["stack"] = args.ros_stack
-    return config
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -301,7 +224,7 @@ def _bench(args: argparse.Namespace) -> int:
 
     if args.trials < 1 or args.jobs < 1:
         raise DynabarnError("--trials and --jobs must be at least 1")
-    config = _command_line_config(args)
+    config = command_line_config(args)
     names = [p.strip() for p in args.planner.split(",")]
     if not any(names):
         raise DynabarnError(f"--planner {args.planner!r}: name at least one planner, e.g. dwa or dwa,teb")
@@ -330,48 +253,31 @@ def _bench(args: argparse.Namespace) -> int:
     def progress(stream, total):
         return tqdm(stream, total=total, desc="episodes", unit="ep", disable=None, smoothing=0.05)
 
-    # One writer per folder: the lock covers the metadata check (and --force's clean-up) too.
-    with bench.locked(args.out):
-        try:
-            bench.check_or_write_metadata(
-                args.out, bench.metadata(bench.jsonable_args(args), jobs, argv=args.argv), force=args.force
-            )
-            bench.write_worlds(args.out, jobs)
-        except OSError as exc:
-            raise DynabarnError(f"cannot write to {args.out}: {exc.strerror}") from None
-        try:
-            report = bench.run_sweep(
-                jobs, args.out, backend=args.backend, n_workers=args.jobs, address=args.address, progress=progress
-            )
-        except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM; the workers went with the pool
-            _report_so_far(args.out)
-            raise type(exc)(f"finished episodes are in {args.out / bench.RESULTS}; rerun to resume") from None
-    # The folder's whole sweep (every planner run into it, same worlds and protocol), so a
-    # planner added later is summarised beside the others and the floor.
-    summary = bench.summarise(
-        bench.read_results(args.out / bench.RESULTS),
-        bench.paper_worlds(args.out),
-        bench.certified_episodes(args.out),
-    )
-    title = f"{args.set}, protocol {protocol.name}, {args.trials} trials"
-    paths = bench.write_summary(summary, args.out, title=title)
-    print(bench.format_table(summary))
-    from dynabarn.bench.report import write_report
-
-    paths["html"] = write_report(args.out)
+    # One writer per folder: run_sweep holds the lock over the metadata check (and --force's
+    # clean-up), the rows, the summary and the report.
+    try:
+        report = bench.run_sweep(
+            jobs,
+            args.out,
+            backend=args.backend,
+            n_workers=args.jobs,
+            address=args.address,
+            progress=progress,
+            arguments=bench.jsonable_args(args),
+            argv=args.argv,
+            force=args.force,
+            title=f"{args.set}, protocol {protocol.name}, {args.trials} trials",
+        )
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM; the workers went with the pool
+        report_so_far(args.out)
+        raise type(exc)(f"finished episodes are in {args.out / bench.RESULTS}; rerun to resume") from None
+    print(bench.format_table(report.summary))
+    paths = report.paths
     print(
         f"{report.ran} episodes run, {report.skipped} already done, {report.errors} errors, "
         f"{report.wall_time:.1f} s; wrote {paths['csv']}, {paths['md']}, {paths['png']}, {paths['html']}"
     )
     return _report_errors(report.rows, args.out)
-
-
-def _report_so_far(out: Path) -> None:
-    """A sweep cut short: its report shows the rows so far (a resumed sweep rewrites it)."""
-    from dynabarn.bench.report import write_report
-
-    with contextlib.suppress(DynabarnError, OSError):
-        write_report(out)
 
 
 def _report_errors(rows: list[dict], out: Path) -> int:

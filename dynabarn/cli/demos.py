@@ -108,6 +108,7 @@ def _collect_into(args: argparse.Namespace, worlds, protocol) -> int:
         jobs,
         args.out / ".collect",
         n_workers=args.jobs,
+        folder=False,  # the rows only: the demonstrations' manifest is the folder's record
         progress=lambda stream, total: tqdm(stream, total=total, desc="demos", unit="ep", disable=None),
     )
     missing = 0

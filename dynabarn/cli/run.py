@@ -38,7 +38,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--planner",
         default="straight",
-        help=f"planner name, or NAME@PRESET for a shipped preset; available: {', '.join(available_planners())}",
+        help="planner name, NAME@PRESET for a shipped preset, or a planner from its code, unpackaged: MODULE:CLASS "
+        f"(the current folder is searched too) or FILE.py:CLASS; available: {', '.join(available_planners())}",
     )
     parser.add_argument(
         "--planner-config",

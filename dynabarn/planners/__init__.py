@@ -6,11 +6,11 @@ point (docs/tutorials/planner.md)."""
 
 from dynabarn.errors import EndEpisode
 from dynabarn.interfaces import EpisodeInfo, Observation, ObstacleState, Planner
+from dynabarn.planners.from_code import planner_spec
 from dynabarn.planners.registry import (
     available_planners,
     get_planner,
     planner_presets,
-    planner_spec,
     read_planner_config,
     register_planner,
 )

@@ -125,7 +125,8 @@ def read_planner_config(text: str, _seen: tuple[str, ...] = ()) -> dict:
 
 def planner_spec(spec: str) -> tuple[str, dict, str]:
     """`NAME` or `NAME@PRESET` (a shipped preset, e.g. `dwa@dwa_dynabarn_authors`) ->
-    (registry name, the preset's parameters, the label results carry)."""
+    (registry name, the preset's parameters, the label results carry). A planner named by its
+    code is loaded first: `from_code.planner_spec`, what the commands call."""
     name, sep, preset = spec.strip().partition("@")
     name = name.strip()
     if not sep:
