@@ -141,3 +141,34 @@ def install_extension(folder: Path) -> Path:
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: dynabarn-ext\nVersion: 0.1\n")
     (dist / "entry_points.txt").write_text("".join(f"[{g}]\n{lines}\n\n" for g, lines in GROUPS.items()))
     return folder
+
+
+def page_outside_scripts(page: str) -> str:
+    """A report's HTML without its script blocks (plotly.js carries URLs in its strings, and
+    the data block is checked as data: `report_data`)."""
+    import re
+
+    return re.sub(r"<script\b[^>]*>.*?</script>", "", page, flags=re.S)
+
+
+def report_data(page: str) -> dict:
+    """The JSON block a report's script reads (its episodes, recordings and charts)."""
+    import json
+    import re
+
+    match = re.search(r'<script type="application/json" id="report-data">(.*?)</script>', page, re.S)
+    assert match, "the report has no data block"
+    return json.loads(match[1])
+
+
+def assert_urls_stay_inside(page: str) -> None:
+    """Every URL of a report is an anchor, a quoted relative path inside its folder, or an
+    image inside the page; the policy admits no inline code."""
+    import re
+
+    assert "'unsafe-inline'" not in page and "'unsafe-eval'" not in page
+    for url in re.findall(r'(?:href|src)="([^"]*)"', page_outside_scripts(page)):
+        assert url.startswith(("#", "./", "data:image/")), url
+    for recording in report_data(page)["recordings"]:
+        assert recording["href"].startswith("./") and ":" not in recording["href"].split("/", 1)[0], recording
+        assert recording["still"] is None or recording["still"].startswith("data:image/png;base64,")

@@ -40,6 +40,23 @@ def _footprint(x: float, y: float, yaw: float) -> np.ndarray:
     return half @ np.array([[c, s], [-s, c]]) + (x, y)
 
 
+def outline(x: float, y: float, obstacle) -> np.ndarray:
+    """An obstacle's outline in the plane, as it is: its core rectangle (`half_length` along
+    its yaw, `half_width` across) grown by its `radius` (a cylinder a circle, a box a
+    rectangle, a capsule a stadium; `worlds.spec.Obstacle`). (N, 2) points, counter-clockwise."""
+    hl, hw, r = obstacle.half_length, obstacle.half_width, obstacle.radius
+    corners = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]])
+    arcs = np.linspace(0.0, np.pi / 2, 9)
+    points = np.concatenate(
+        [
+            c + r * np.stack([np.cos(arcs + k * np.pi / 2), np.sin(arcs + k * np.pi / 2)], axis=1)
+            for k, c in enumerate(corners)
+        ]
+    )
+    c, s = math.cos(obstacle.yaw), math.sin(obstacle.yaw)
+    return points @ np.array([[c, s], [-s, c]]) + (x, y)
+
+
 def draw_still(recording: Path, out: Path) -> Path:
     """Draw the last moment of `recording` into the PNG `out`."""
     import matplotlib
@@ -64,8 +81,7 @@ def draw_still(recording: Path, out: Path) -> Path:
     for cx, cy, r in layout.cylinders:
         ax.add_patch(Circle((cx, cy), r, color="0.5"))
     for obstacle, (ox, oy) in zip(world.obstacles, frame.obstacles[0], strict=True):
-        reach = obstacle.radius + math.hypot(obstacle.half_length, obstacle.half_width)
-        ax.add_patch(Circle((ox, oy), reach, color="#c62828", alpha=0.8))
+        ax.add_patch(Polygon(outline(ox, oy, obstacle), closed=True, color="#c62828", alpha=0.8))
     trails = frame.trails[0]  # (steps, n, 2)
     for k in range(trails.shape[1]):
         ax.plot(trails[:, k, 0], trails[:, k, 1], color="#c62828", alpha=0.3, linewidth=1)

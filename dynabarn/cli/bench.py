@@ -7,7 +7,13 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from dynabarn.cli.bench_check import check_command, command_line_config, golden_command, report_so_far
+from dynabarn.cli.bench_check import (
+    check_command,
+    command_line_config,
+    compare_command,
+    golden_command,
+    report_so_far,
+)
 from dynabarn.cli.common import (
     SET_HELP,
     add_jobs,
@@ -141,6 +147,18 @@ def build_parser() -> argparse.ArgumentParser:
         "world files are taken only from the results folder, this package's world sets and --set",
     )
     checking.add_argument(
+        "--compare",
+        nargs=2,
+        type=Path,
+        default=None,
+        metavar=("A", "B"),
+        help="two planners side by side on the episodes both ran: A and B are results folders (the same one twice "
+        "for two planners of one sweep); --planner A_PLANNER,B_PLANNER names them where a folder holds more than "
+        "one besides the floor. Prints per difficulty the paired difference of success with its 95%% interval and "
+        "the worlds where they disagree; with --out DIR, also DIR/report.html (the two side by side) and "
+        "DIR/comparison.json",
+    )
+    checking.add_argument(
         "--sample",
         type=_sample,
         default=DEFAULT_SAMPLE,
@@ -154,6 +172,8 @@ def _sample(text: str) -> int | None:
     return None if text == "all" else ranged(int, 1, 10**9)(text)
 
 
+COMPARE_OPTIONS = {"compare", "planner", "out", "debug"}
+"""The options that apply to `--compare`."""
 GOLDEN_OPTIONS = {"verify_golden", "update_golden", "reference", "jobs", "debug"}
 """The options that apply to `--verify-golden` and `--update-golden`."""
 CHECK_OPTIONS = {
@@ -193,6 +213,12 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
         if ignored:
             parser.error(f"{', '.join(ignored)}: not for the golden set, which runs its own committed cases")
         return run_command(golden_command, args)
+    if args.compare is not None:
+        ignored = ["--" + key.replace("_", "-") for key in _given(argv) if key not in COMPARE_OPTIONS]
+        if ignored:
+            parser.error(f"{', '.join(ignored)}: not for --compare, which reads two existing results folders")
+        args.planner_given = "planner" in _given(argv)
+        return run_command(compare_command, args)
     if args.report is not None or args.verify is not None:
         ignored = ["--" + key.replace("_", "-") for key in _given(argv) if key not in CHECK_OPTIONS]
         if ignored:

@@ -131,3 +131,50 @@ def report_so_far(out: Path) -> None:
 
     with contextlib.suppress(DynabarnError, OSError):
         write_report(out)
+
+
+def compare_command(args: argparse.Namespace) -> int:
+    """`--compare A B`: print the paired comparison; with `--out`, its report and JSON."""
+    import shutil
+
+    from dynabarn.bench.compare import compare, format_comparison, side
+    from dynabarn.bench.report import REPORT, render_report
+    from dynabarn.bench.results import WORLDS
+    from dynabarn.files import write_atomically
+
+    first, second = args.compare
+    names = [p.strip() for p in args.planner.split(",")] if args.planner_given else [None, None]
+    if len(names) == 1:
+        names = names * 2  # the same planner in two folders
+    if len(names) != 2 or not all(n is None or n for n in names):
+        raise DynabarnError(f"--planner {args.planner!r}: with --compare, one planner or two (A_PLANNER,B_PLANNER)")
+    if first.resolve() == second.resolve() and names[0] is None:
+        raise DynabarnError("--compare of one folder with itself: name its two planners with --planner A,B")
+    (a, a_rows), (b, b_rows) = side(first, names[0]), side(second, names[1])
+    result = compare(a_rows, b_rows)
+    if not result["shared"]:
+        raise DynabarnError(f"{first} ({a}) and {second} ({b}) share no episode (same world file, protocol and seed)")
+    labels = (f"A: {a} ({first.name})", f"B: {b} ({second.name})")
+    print(format_comparison(result, f"{a} ({first.name})", f"{b} ({second.name})"))
+    if args.out is not None:
+        out = Path(args.out)
+        if out.exists() and not out.is_dir():
+            raise DynabarnError(f"--out {out}: exists and is not a folder")
+        out.mkdir(parents=True, exist_ok=True)
+        if (first / WORLDS).is_file():
+            shutil.copyfile(first / WORLDS, out / WORLDS)  # the measured difficulty of the worlds
+        write_atomically(
+            out / "comparison.json", json.dumps({"a": labels[0], "b": labels[1]} | result, indent=1) + "\n"
+        )
+        rows = [
+            {k: v for k, v in r.items() if k != "recording"} | {"planner": label}
+            for label, rs in zip(labels, (a_rows, b_rows), strict=True)
+            for r in rs
+        ]
+        left_out = result["a_only"] + result["b_only"]
+        note = f"{left_out} episodes ran on one side only and are left out of the comparison." if left_out else ""
+        comparison = {"a": labels[0], "b": labels[1], "note": note} | result
+        html = render_report(out, rows, title=f"{labels[0]} against {labels[1]}", comparison=comparison)
+        write_atomically(out / REPORT, html.encode("utf-8", "replace"))
+        print(f"wrote {out / REPORT}, {out / 'comparison.json'}")
+    return 0
