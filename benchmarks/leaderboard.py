@@ -7,6 +7,9 @@ Used by `benchmarks/readme_results.py` (block `leaderboard`); nothing here runs 
 
 from __future__ import annotations
 
+import html
+import re
+
 from dynabarn.bench.stats import skill_text
 from dynabarn.bench.summary import DIFFICULTIES, FLOOR
 
@@ -51,32 +54,84 @@ def _skill(s: dict | None) -> str:
     return skill_text(s)
 
 
+def _html(text: str) -> str:
+    """Markdown's `code` and **bold** of the fixed texts above, as HTML (the table is HTML:
+    sortable, a sticky planner column)."""
+    text = html.escape(text, quote=False)
+    text = re.sub(r"`([^`]+)`", r"<code>\1</code>", text)
+    return re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", text)
+
+
+def _td(text: str, sort: float | str | None = None, cls: str = "") -> str:
+    """A cell; `sort` the value the page's sort reads (the text where there is none)."""
+    shown = round(sort, 4) if isinstance(sort, float) else sort
+    attributes = "" if sort is None else f' data-sort="{html.escape(str(shown))}"'
+    attributes += f' class="{cls}"' if cls else ""
+    return f"<td{attributes}>{text}</td>"
+
+
+COLUMNS = (
+    "planner",
+    "sees",
+    "trained on",
+    "episodes",
+    "success (all)",
+    "BARN score (all)",
+    *DIFFICULTIES,
+    "floor, same episodes (all)",
+    "skill over floor (all)",
+    "report",
+)
+
+
 def leaderboard_table(folders: dict[str, tuple[list[dict], list[dict]]], names: dict[str, str]) -> str:
-    """One row per (world set, planner): success per difficulty with 95% Wilson intervals, the
-    floor's and the skill over it on all difficulties (95% interval clustered by world), in
-    order of success on all difficulties within each set."""
-    head = (
-        "| world set | planner | sees | trained on | episodes | easy | medium | hard | floor, same episodes (all) "
-        "| skill over floor (all) | report |"
-    )
-    lines = [head, "|" + "---|" * (head.count("|") - 1)]
+    """A section per world set: one row per planner, success on all difficulties beside the
+    BARN score, success per difficulty with 95% Wilson intervals, the floor's success and the
+    skill over it; in order of success on all difficulties, sortable by any column (the
+    site's `leaderboard.js`), the planner column kept in view."""
+    parts = []
     for folder, label in names.items():
         _, summary = folders.get(folder, ([], []))
+        if not summary:
+            continue
         by = {(s["planner"], s["difficulty"]): s for s in summary}
         planners = sorted({p for p, _ in by}, key=lambda p: (p == FLOOR, -by[(p, "all")]["success"], p))
+        head = "".join(f"<th>{html.escape(c)}</th>" for c in COLUMNS)
+        rows = []
         for planner in planners:
             everything = by[(planner, "all")]
             floor = everything.get("floor")  # on the planner's own (world, seed) pairs
-            cells = [_cell(by.get((planner, d))) for d in DIFFICULTIES]
             base = planner.split("@")[0]
-            floor_text = f"{floor:.2f}" if floor is not None else "-"
-            lines.append(
-                f"| {label} | `{planner}` | {SEES.get(planner, SEES.get(base, '?'))} | {TRAINED_ON.get(base, '-')} "
-                f"| {everything['episodes']} | " + " | ".join(cells) + f" | {floor_text} "
-                f"| {_skill(everything) if planner != FLOOR else '-'} "
-                f'| <a href="{REPORTS}/{folder}.html">report</a> |'
-            )
-    return "\n".join(lines)
+            cells = [
+                _td(f"<code>{html.escape(planner)}</code>", planner, "planner"),
+                _td(_html(SEES.get(planner, SEES.get(base, "?")))),
+                _td(_html(TRAINED_ON.get(base, "-"))),
+                _td(str(everything["episodes"]), everything["episodes"]),
+                _td(_cell(everything), everything["success"]),
+                _td(f"{everything['score']:.3f}", everything["score"]),
+                *(
+                    _td(_cell(by.get((planner, d))), by[(planner, d)]["success"] if (planner, d) in by else -1)
+                    for d in DIFFICULTIES
+                ),
+                _td(f"{floor:.2f}" if floor is not None else "-", floor if floor is not None else -1),
+                _td(
+                    html.escape(_skill(everything)) if planner != FLOOR else "-",
+                    everything["skill"] if everything.get("skill") is not None else -9,
+                ),
+                _td(f'<a href="{REPORTS}/{folder}.html">report</a>'),
+            ]
+            rows.append("<tr>" + "".join(cells) + "</tr>")
+        parts += [
+            f"### {label}",
+            "",
+            '<div class="leaderboard-scroll"><table class="leaderboard sortable">',
+            f"<thead><tr>{head}</tr></thead>",
+            "<tbody>",
+            *rows,
+            "</tbody></table></div>",
+            "",
+        ]
+    return "\n".join(parts).rstrip()
 
 
 def tier_ladder_table(folders: dict[str, tuple[list[dict], list[dict]]], tiers: dict[str, str], ladder) -> str:

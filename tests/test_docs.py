@@ -170,3 +170,57 @@ def test_every_metric_is_defined_once_and_everything_reads_it():
     assert shown <= set(summary) and {"time_success", "score", "spl", "min_clearance"} == shown
     page = (REPO / "docs" / "concepts" / "protocols.md").read_text()
     assert metrics_table() in page, "docs/concepts/protocols.md's metric table: regenerate it from metrics_table()"
+
+
+def test_the_site_loads_nothing_from_the_network(site):
+    """Every script and stylesheet of every page is the site's own (the offline search's
+    worker shim included): it opens from disk on a machine without a network."""
+    import re
+
+    for page in site.rglob("*.html"):
+        if page.parent.name == "reports":
+            continue  # the sweep reports: checked as reports (tests/test_report.py)
+        for url in re.findall(r'<(?:script|link)\b[^>]*(?:src|href)="([^"]+)"', page.read_text()):
+            assert not url.startswith(("http:", "https:", "//")), (page.name, url)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(chromium() is None, reason="needs Debian's chromium: sudo make system-deps")
+def test_the_leaderboard_is_wide_sortable_and_search_works_from_disk(site):
+    """At 1920 px the leaderboard's tables use the width (no horizontal scroll, names whole),
+    a heading sorts its table, and the site's search answers from file://."""
+    with Browser() as browser:
+        browser.call("Emulation.setDeviceMetricsOverride", width=1920, height=1080, deviceScaleFactor=1, mobile=False)
+        browser.open((site / "leaderboard.html").resolve().as_uri())
+        deadline = time.monotonic() + 60
+        while browser.evaluate("document.readyState") != "complete" and time.monotonic() < deadline:
+            time.sleep(0.2)
+        time.sleep(1.0)
+        state = browser.evaluate(
+            "(() => { const t = document.querySelector('table.leaderboard');"
+            " const w = t.closest('.leaderboard-scroll');"
+            " return {tables: document.querySelectorAll('table.leaderboard').length, sections: "
+            "document.querySelectorAll('article h3').length, overflow: w.scrollWidth - w.clientWidth,"
+            " width: t.getBoundingClientRect().width,"
+            " broken: Array.from(t.querySelectorAll('td.planner code'))"
+            ".filter(c => c.getClientRects().length > 1).length}; })()"
+        )
+        assert state["tables"] >= 7 and state["sections"] == state["tables"], state
+        assert state["overflow"] <= 0 and state["width"] > 1200 and state["broken"] == 0, state
+        column = (
+            "Array.from(document.querySelector('table.leaderboard').tBodies[0].rows).map(r => +r.cells[8].dataset.sort)"
+        )
+        browser.evaluate("document.querySelector('table.leaderboard').querySelectorAll('th')[8].click()")
+        hard = browser.evaluate(column)
+        assert hard == sorted(hard, reverse=True)
+        browser.evaluate("document.querySelector('table.leaderboard').querySelectorAll('th')[8].click()")
+        assert browser.evaluate(column) == sorted(hard)
+        # Search, from disk.
+        browser.open((site / "index.html").resolve().as_uri())
+        time.sleep(2.0)
+        browser.evaluate("document.querySelector('input.md-search__input').focus()")
+        browser.call("Input.insertText", text="certificate")
+        deadline = time.monotonic() + 30
+        while browser.evaluate("document.querySelectorAll('.md-search-result__item').length") == 0:
+            assert time.monotonic() < deadline, "the search answered nothing from file://"
+            time.sleep(0.3)
