@@ -7,6 +7,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 TEST_STAMP := $(VENV)/.installed-test
+DOCS_STAMP := $(VENV)/.installed-docs
 LOCK := requirements.lock
 # The extras the tests exercise; the lock covers the package and all of them.
 EXTRAS := test,ray,learn,ros,docs
@@ -25,6 +26,11 @@ $(STAMP): pyproject.toml $(LOCK)
 $(TEST_STAMP): $(STAMP)
 	$(BIN)/python -m pip install --quiet -c $(LOCK) -e '.[$(EXTRAS)]'
 	touch $(TEST_STAMP)
+
+# Plus only what the documentation site needs (MkDocs, Material, mkdocstrings): no PyTorch, Ray or ROS.
+$(DOCS_STAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet -c $(LOCK) -e '.[docs]'
+	touch $(DOCS_STAMP)
 
 # Resolve pyproject's ranges anew in a scratch environment and write the lock (then commit it,
 # run `make test` and `dynabarn-bench --update-golden` if a version that decides results moved).
@@ -111,10 +117,10 @@ test-fast: $(TEST_STAMP)
 
 # The documentation site into site/ (open site/index.html); strict: a broken link, anchor
 # or API reference fails the build.
-docs: $(TEST_STAMP)
+docs: $(DOCS_STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --clean
 
-docs-serve: $(TEST_STAMP)
+docs-serve: $(DOCS_STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs serve --dev-addr 127.0.0.1:8000
 
 lint: $(TEST_STAMP)

@@ -19,10 +19,31 @@ NO_GL_PLATFORM = (
 )
 
 
+def offscreen_gl_without_a_display() -> None:
+    """Where there is no display and MUJOCO_GL is unset, MuJoCo (which reads MUJOCO_GL once,
+    when first imported) has picked GLFW, which cannot open a context: take EGL (Mesa, no GPU
+    needed) for its offscreen renderer instead, as the commands do before importing it
+    (`cli.common.prefer_offscreen_gl`). An explicit MUJOCO_GL, or a display, is left alone."""
+    import os
+
+    from dynabarn.provenance import has_display
+
+    if os.environ.get("MUJOCO_GL") or has_display():
+        return
+    try:
+        from mujoco.egl import GLContext
+        from mujoco.rendering.classic import gl_context
+    except (ImportError, RuntimeError, OSError, AttributeError):  # no EGL here: the error below says what to set
+        return
+    gl_context.GLContext = GLContext
+    os.environ["MUJOCO_GL"] = "egl"
+
+
 def offscreen_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
-    """MuJoCo's offscreen renderer, or one line saying what to set where MuJoCo has no
-    OpenGL platform (MuJoCo picks it once, when first imported: without a display and
-    without MUJOCO_GL it picks GLFW, which cannot open a context)."""
+    """MuJoCo's offscreen renderer (on EGL where there is no display and MUJOCO_GL is unset:
+    `offscreen_gl_without_a_display`), or one line saying what to set where MuJoCo has no
+    OpenGL platform."""
+    offscreen_gl_without_a_display()
     try:
         return mujoco.Renderer(model, height, width)
     except mujoco.FatalError as e:
