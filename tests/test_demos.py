@@ -46,7 +46,7 @@ def demos(tmp_path_factory):
 
 def test_export_round_trip(demos, tmp_path, capsys):
     out = tmp_path / "ds.npz"
-    assert demos_main(["export", str(demos), "--out", str(out)]) == 0
+    assert demos_main(["export", str(demos), "--dataset", str(out)]) == 0
     assert "2 episodes" in capsys.readouterr().out
     ds = load_dataset(out)
     n = len(ds["actions"])
@@ -72,13 +72,13 @@ def test_export_round_trip(demos, tmp_path, capsys):
 
 def test_export_all_keeps_failures(demos, tmp_path):
     out = tmp_path / "all.npz"
-    assert demos_main(["export", str(demos), "--out", str(out), "--all"]) == 0
+    assert demos_main(["export", str(demos), "--dataset", str(out), "--all"]) == 0
     ds = load_dataset(out)
     assert "collision" in set(ds["episode_outcome"]) and "planner" in set(ds["episode_source"])
 
 
 def test_export_errors(tmp_path, capsys):
-    assert demos_main(["export", str(tmp_path / "none"), "--out", str(tmp_path / "x.npz")]) == 2
+    assert demos_main(["export", str(tmp_path / "none"), "--dataset", str(tmp_path / "x.npz")]) == 2
     assert "no such recording" in capsys.readouterr().err
     bad = tmp_path / "bad.npz"
     np.savez(bad, a=np.zeros(3))

@@ -171,7 +171,7 @@ def test_render_and_replay_work_from_the_recording_alone(dwa_recording, tmp_path
     # The world file the episode ran in is not beside the recording; the attachment is.
     assert not (alone / world.name).exists()
     out = subprocess.run(
-        [f"{bin_dir}/dynabarn-render", "run.mcap", "--out", "run.gif", "--fps", "2", "--size", "160x120"],
+        [f"{bin_dir}/dynabarn-render", "run.mcap", "--video", "run.gif", "--fps", "2", "--size", "160x120"],
         cwd=alone, env=env_free_of_project, capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert out.returncode == 0, out.stderr

@@ -101,13 +101,13 @@ def dataset(tmp_path_factory):
             observers=[McapRecorder(d / f"{w}.mcap")],
         )
     out = d / "ds.npz"
-    assert demos_main(["export", str(d), "--out", str(out)]) == 0
+    assert demos_main(["export", str(d), "--dataset", str(out)]) == 0
     return out
 
 
 def test_bc_fits_a_small_dataset(dataset, tmp_path, capsys):
-    out = tmp_path / "bc.pt"
-    assert train_main(["bc", "--data", str(dataset), "--out", str(out), "--epochs", "60"]) == 0
+    assert train_main(["bc", "--data", str(dataset), "--out", str(tmp_path / "bc"), "--epochs", "60"]) == 0
+    out = tmp_path / "bc" / "policy.pt"
     line = capsys.readouterr().out
     first, last = (float(x) for x in line.split("loss ")[1].split(" -> "))
     assert last < 0.5 * first

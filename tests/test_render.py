@@ -30,7 +30,7 @@ def recording(tmp_path_factory):
 
 def test_mp4_frames_count_content_and_motion(recording, tmp_path, capsys):
     out = tmp_path / "v.mp4"
-    assert render_main([str(recording), "--out", str(out), "--fps", "4", "--size", "640x480"]) == 0
+    assert render_main([str(recording), "--video", str(out), "--fps", "4", "--size", "640x480"]) == 0
     line = capsys.readouterr().out
     duration = float(line.split("frames, ")[1].split(" s")[0])
     frames = iio.imread(out, index=None)
@@ -47,7 +47,7 @@ def test_mp4_frames_count_content_and_motion(recording, tmp_path, capsys):
 def test_gif_follow_camera(recording, tmp_path):
     out = tmp_path / "v.gif"
     assert (
-        render_main([str(recording), "--out", str(out), "--fps", "4", "--camera", "follow", "--size", "160x120"]) == 0
+        render_main([str(recording), "--video", str(out), "--fps", "4", "--camera", "follow", "--size", "160x120"]) == 0
     )
     frames = iio.imread(out, index=None)
     assert len(frames) > 10 and frames[0].shape[:2] == (120, 160)
@@ -137,7 +137,7 @@ def test_projection_puts_world_points_on_their_pixels(recording):
 
 def test_size_is_honoured_exactly(recording, tmp_path):
     out = tmp_path / "v.mp4"
-    assert render_main([str(recording), "--out", str(out), "--fps", "1", "--size", "642x362"]) == 0
+    assert render_main([str(recording), "--video", str(out), "--fps", "1", "--size", "642x362"]) == 0
     assert iio.imread(out, index=None).shape[1:3] == (362, 642)
 
 
@@ -165,11 +165,11 @@ def test_a_render_replaces_a_video_only_when_whole_and_refuses_a_folder(recordin
     until the new one is whole, nothing is left behind, and a folder is one line."""
     out = tmp_path / "v.gif"
     out.write_bytes(b"an earlier video")
-    assert render_main([str(recording), "--out", str(out), "--fps", "1", "--size", "64x48"]) == 0
+    assert render_main([str(recording), "--video", str(out), "--fps", "1", "--size", "64x48"]) == 0
     assert out.read_bytes()[:6] == b"GIF89a" and sorted(p.name for p in tmp_path.iterdir()) == ["v.gif"]
     folder = tmp_path / "a_folder.mp4"
     folder.mkdir()
-    assert render_main([str(recording), "--out", str(folder)]) == 2
+    assert render_main([str(recording), "--video", str(folder)]) == 2
 
 
 def test_run_with_video_on_a_headless_machine_without_mujoco_gl(tmp_path):

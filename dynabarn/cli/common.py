@@ -165,8 +165,35 @@ def subcommands(parser: argparse.ArgumentParser) -> _Subcommands:
     return _Subcommands(parser)
 
 
+SET_OF_WORLD_HELP = (
+    "the world set --world is in: paper60, dynabarn300, a tier (tier-dense, tier-fast, tier-mixed, "
+    "tier-combined; generated on first use) or a folder with index.json (default: $DYNABARN_WORLDS, else the "
+    "shipped 300)"
+)
+
+
 def add_world(p: argparse.ArgumentParser) -> None:
+    """`--set NAME --world ID`: the same two options wherever one world is named."""
     p.add_argument("--world", required=True, help=WORLD_HELP)
+    p.add_argument("--set", default=None, help=SET_OF_WORLD_HELP)
+
+
+class Renamed(argparse.Action):
+    """An option's old spelling, kept for one release: it stores into the new option's place
+    and says once, on stderr, what it is called now (`add_renamed`)."""
+
+    def __init__(self, option_strings, dest, new: str = "", **kwargs) -> None:
+        self.new = new
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        print(f"note: {option_string} is now {self.new}; the old spelling goes in the next release", file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
+def add_renamed(p: argparse.ArgumentParser, old: str, new: str, dest: str, **kwargs) -> None:
+    """Accept `old` for the option now called `new` (hidden from --help and the docs)."""
+    p.add_argument(old, dest=dest, action=Renamed, new=new, help=argparse.SUPPRESS, **kwargs)
 
 
 def add_protocol(p: argparse.ArgumentParser) -> None:

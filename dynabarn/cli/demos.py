@@ -10,6 +10,7 @@ from dynabarn.cli.common import (
     SET_HELP,
     add_jobs,
     add_protocol,
+    add_renamed,
     command,
     make_parser,
     ranged,
@@ -33,7 +34,8 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     ex.add_argument("demos", nargs="+", type=Path, help="recordings or folders of recordings")
-    ex.add_argument("--out", type=Path, required=True, help="dataset file (.npz)")
+    ex.add_argument("--dataset", type=Path, required=True, help="dataset file to write (.npz)")
+    add_renamed(ex, "--out", "--dataset", "dataset", type=Path)
     ex.add_argument("--all", action="store_true", help="keep unsuccessful episodes too")
     ex.add_argument(
         "--lookahead",
@@ -68,16 +70,16 @@ def _demos_export(args: argparse.Namespace) -> int:
 
     from dynabarn.demos.dataset import export
 
-    if args.out.suffix != ".npz":
-        raise DynabarnError(f"--out must be a .npz file, got {args.out.name!r}")
+    if args.dataset.suffix != ".npz":
+        raise DynabarnError(f"--dataset must be a .npz file, got {args.dataset.name!r}")
     meta = export(
         args.demos,
-        args.out,
+        args.dataset,
         include_all=args.all,
         lookahead=args.lookahead,
         progress=lambda it: tqdm(it, desc="reading", unit="rec", disable=None, leave=False),
     )
-    print(f"wrote {args.out}: {meta['episodes']} episodes, {meta['rows']} rows ({len(meta['skipped'])} skipped)")
+    print(f"wrote {args.dataset}: {meta['episodes']} episodes, {meta['rows']} rows ({len(meta['skipped'])} skipped)")
     return 0
 
 

@@ -8,7 +8,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from dynabarn.cli.common import command, make_parser, run_command
+from dynabarn.cli.common import add_renamed, command, make_parser, run_command
 from dynabarn.errors import DynabarnError
 
 
@@ -28,8 +28,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="rosbag1 = a ROS 1 .bag (Noetic types); rosbag2 = a ROS 2 bag folder, MCAP storage, CDR (Humble types)",
     )
     parser.add_argument(
-        "--out", type=Path, default=None, help="bag to write (default: the recording's name with .bag, or _rosbag2)"
+        "--bag", type=Path, default=None, help="bag to write (default: the recording's name with .bag, or _rosbag2)"
     )
+    add_renamed(parser, "--out", "--bag", "bag", type=Path)
     return parser
 
 
@@ -48,7 +49,7 @@ def _export(args: argparse.Namespace) -> int:
     if rec.truncated:
         print(f"warning: {args.recording} is truncated ({rec.error}); exporting up to the cut", file=sys.stderr)
     suffix = ".bag" if args.format == "rosbag1" else "_rosbag2"
-    out = args.out or args.recording.with_name(args.recording.stem + suffix)
+    out = args.bag or args.recording.with_name(args.recording.stem + suffix)
     if not out.parent.is_dir():
         raise DynabarnError(f"--out {out}: the folder {out.parent} does not exist")
     t0 = time.perf_counter()

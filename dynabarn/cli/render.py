@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
+    add_renamed,
     command,
     make_parser,
     ranged,
@@ -23,7 +24,8 @@ def build_parser() -> argparse.ArgumentParser:
         "Render a recorded episode to a video offscreen with MuJoCo (EGL or OSMesa, no GPU needed).",
     )
     parser.add_argument("recording", type=Path, help="MCAP recording (from dynabarn-run)")
-    parser.add_argument("--out", type=Path, required=True, help="video file, .mp4 or .gif")
+    parser.add_argument("--video", type=Path, required=True, help="video file to write, .mp4 or .gif")
+    add_renamed(parser, "--out", "--video", "video", type=Path)
     add_video_options(parser)
     return parser
 
@@ -94,11 +96,11 @@ def render_video(recording: Path, out: Path, settings: dict) -> None:
 
 
 def _render(args: argparse.Namespace) -> int:
-    if not args.out.parent.is_dir():
-        raise DynabarnError(f"--out {args.out}: the folder {args.out.parent} does not exist")
-    settings = video_settings(args, args.out)
+    if not args.video.parent.is_dir():
+        raise DynabarnError(f"--video {args.video}: the folder {args.video.parent} does not exist")
+    settings = video_settings(args, args.video)
     try:
-        render_video(args.recording, args.out, settings)
+        render_video(args.recording, args.video, settings)
     except OSError as exc:
-        raise DynabarnError(f"cannot write {args.out}: {exc.strerror or exc}") from None
+        raise DynabarnError(f"cannot write {args.video}: {exc.strerror or exc}") from None
     return 0

@@ -199,7 +199,7 @@ def _ros_episode(args: argparse.Namespace) -> int:
         raise DynabarnError("--launch '': an empty command; leave --launch out to start the stack yourself")
     if args.stack_log is not None and args.stack_log.is_dir():
         raise DynabarnError(f"--stack-log {args.stack_log}: a folder; name a file for the stack's output")
-    world_path = resolve_world(args.world)
+    world_path = resolve_world(args.world, args.set)
     world_name = read_world(world_path).name  # parsed and checked; compiled by run_spec
     protocol = get_protocol(args.protocol)
     ros_python()  # one clear line when ROS is missing, before a master is started

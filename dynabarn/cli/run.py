@@ -78,7 +78,7 @@ def _run_episode(args: argparse.Namespace) -> int:
     from dynabarn.sim import SimConfig
     from dynabarn.worldset import resolve_world
 
-    world_path = resolve_world(args.world)
+    world_path = resolve_world(args.world, args.set)
     protocol = get_protocol(args.protocol)
     name, preset, _ = planner_spec(args.planner)
     config = preset | planner_config(args.planner_config)

@@ -9,6 +9,7 @@ from pathlib import Path
 from dynabarn.cli.common import (
     EXIT_EPISODE_ERROR,
     add_protocol,
+    add_renamed,
     add_trial_seed,
     add_world,
     command,
@@ -40,8 +41,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--demos-dir", type=Path, default=Path("demos"), help="folder of demonstrations")
     parser.add_argument(
-        "--out", type=Path, default=None, help="recording file (default: DEMOS_DIR/<world>_<operator>_<NNN>.mcap)"
+        "--log",
+        type=Path,
+        default=None,
+        help="MCAP file to record to (default: DEMOS_DIR/<world>_<operator>_<NNN>.mcap)",
     )
+    add_renamed(parser, "--out", "--log", "log", type=Path)
     parser.add_argument(
         "--speed", type=ranged(float, 0.1, 10.0), default=1.0, help="simulated seconds per wall-clock second"
     )
@@ -67,10 +72,10 @@ def _teleop(args: argparse.Namespace) -> int:
         raise DynabarnError("dynabarn-teleop needs a display (or Xvfb); none is set")
     if args.speed <= 0:
         raise DynabarnError("--speed must be positive")
-    world_path = resolve_world(args.world)
+    world_path = resolve_world(args.world, args.set)
     protocol = get_protocol(args.protocol)
     world = read_world(world_path)
-    out = args.out or next_demo_path(args.demos_dir, world.name, args.operator)
+    out = args.log or next_demo_path(args.demos_dir, world.name, args.operator)
     result, pad = run_teleop(world_path, protocol, out, operator=args.operator, seed=args.seed, speed=args.speed)
     append_manifest(
         out.parent,

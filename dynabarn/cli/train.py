@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
     MAX_SEED,
     add_protocol,
+    add_renamed,
     command,
     make_parser,
     ranged,
@@ -34,7 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
         "bc", help="behaviour cloning from a dataset", formatter_class=argparse.ArgumentDefaultsHelpFormatter
     )
     bc.add_argument("--data", type=Path, required=True, help="dataset from `dynabarn-demos export`")
-    bc.add_argument("--out", type=Path, required=True, help="policy file to write (.pt)")
+    bc.add_argument("--out", type=Path, required=True, help="folder for policy.pt (as td3 and dagger)")
     bc.add_argument("--epochs", type=ranged(int, 1, 100_000), default=30, help="passes over the data")
     bc.add_argument("--batch-size", type=ranged(int, 1, 1_000_000), default=256, help="rows per gradient step")
     bc.add_argument("--lr", type=ranged(float, 1e-8, 1.0), default=1e-3, help="Adam learning rate")
@@ -86,8 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
     dg.add_argument(
         "--no-velocity", dest="velocity", action="store_false", help="leave the measured (v, w) out of the inputs"
     )
+    add_renamed(dg, "--profile-sets", "--profiles", "profiles")
     dg.add_argument(
-        "--profile-sets",
+        "--profiles",
         default=",".join(SHIPPED_STUDENT_PROFILE_SETS),
         help="comma-separated profile sets (table1, release2022) or tiers (tier-dense, tier-fast, tier-mixed, "
         "tier-combined: their profiles, never their worlds) the training worlds are drawn from",
@@ -121,9 +124,15 @@ def _train(args: argparse.Namespace) -> int:
     if args.command == "bc":
         from dynabarn.learn.bc import train_bc
 
+        if args.out.suffix == ".pt":  # the old spelling: a file
+            print("note: --out FILE.pt is now --out DIR (DIR/policy.pt); taken as the file this once", file=sys.stderr)
+            policy = args.out
+        else:
+            args.out.mkdir(parents=True, exist_ok=True)
+            policy = args.out / "policy.pt"
         report = train_bc(
             args.data,
-            args.out,
+            policy,
             epochs=args.epochs,
             batch_size=args.batch_size,
             lr=args.lr,
@@ -131,7 +140,7 @@ def _train(args: argparse.Namespace) -> int:
             progress=lambda it: tqdm(it, desc="epochs", disable=None, leave=False),
         )
         print(
-            f"wrote {args.out}: {report.rows} rows, {report.epochs} epochs in {report.seconds:.1f} s, "
+            f"wrote {policy}: {report.rows} rows, {report.epochs} epochs in {report.seconds:.1f} s, "
             f"loss {report.losses[0]:.4f} -> {report.losses[-1]:.4f}"
         )
         return 0
@@ -168,7 +177,7 @@ def _train_dagger(args: argparse.Namespace, tqdm) -> int:
     from dynabarn.learn.configs import DaggerConfig, cli_options
     from dynabarn.learn.dagger import train_dagger
 
-    profile_sets = [p for p in args.profile_sets.split(",") if p]
+    profile_sets = [p for p in args.profiles.split(",") if p]
     cfg = DaggerConfig(  # checks the protocol and profile sets: one line before any worker starts
         protocol=args.protocol,
         teacher=args.teacher,

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from dynabarn.cli.common import (
+    SET_OF_WORLD_HELP,
     WORLD_HELP,
     command,
     make_parser,
@@ -78,7 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
     sh = sub.add_parser(
         "show", help="summarise a world and optionally plot it", formatter_class=argparse.ArgumentDefaultsHelpFormatter
     )
-    sh.add_argument("world", help=WORLD_HELP)
+    sh.add_argument("world", nargs="?", default=None, help=WORLD_HELP + " (or --world)")
+    sh.add_argument("--world", dest="world_option", default=None, help="the same as the positional world")
+    sh.add_argument("--set", default=None, help=SET_OF_WORLD_HELP)
     sh.add_argument("--plot", type=Path, default=None, help="write a top-down PNG of the trajectories here")
 
     st = sub.add_parser(
@@ -92,6 +95,9 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         help="world sets to compare side by side: paper60, dynabarn300, or folders with index.json "
         f"(default: ${WORLDS_ENV}, else the shipped 300 worlds)",
+    )
+    st.add_argument(
+        "--set", dest="set_options", action="append", default=[], help="a world set to compare (repeat for more)"
     )
     st.add_argument("--worlds", default=None, help="only these world ids, e.g. 0-19,200-219 (None: all)")
     st.add_argument(
@@ -161,7 +167,9 @@ def _worlds_show(args: argparse.Namespace) -> int:
     from dynabarn.sim import Simulation
     from dynabarn.worldset import resolve_world
 
-    path = resolve_world(args.world)
+    if (args.world is None) == (args.world_option is None):
+        raise DynabarnError("name one world: dynabarn-worlds show [--set NAME] --world ID (or show ID)")
+    path = resolve_world(args.world or args.world_option, args.set)
     world = read_world(path)
     model = load_model(path)
     Simulation(path)  # what `dynabarn-run` refuses (e.g. an obstacle without its body), this does too
@@ -274,7 +282,7 @@ def _worlds_stats(args: argparse.Namespace) -> int:
     from dynabarn.provenance import worlds_dir
     from dynabarn.worldset import parse_ids
 
-    names = [str(f) for f in args.sets] or [str(worlds_dir())]
+    names = [str(f) for f in [*args.sets, *args.set_options]] or [str(worlds_dir())]
     ids = parse_ids(args.worlds)
     if args.predict is not None:
         return _predict(names, ids, args.predict)

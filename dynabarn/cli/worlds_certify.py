@@ -13,7 +13,8 @@ MAX_CERTIFY_TRIALS = 100
 
 def add_certify_arguments(c: argparse.ArgumentParser) -> None:
     """`certify`'s options, in the order `--help` shows them."""
-    c.add_argument("set", help=SET_HELP)
+    c.add_argument("set", nargs="?", default=None, help=SET_HELP + " (or --set)")
+    c.add_argument("--set", dest="set_option", default=None, help="the same as the positional set")
     c.add_argument(
         "--protocol",
         default="barn",
@@ -58,6 +59,9 @@ def worlds_certify(args: argparse.Namespace) -> int:
     from dynabarn.protocol import get_protocol
     from dynabarn.worldset import parse_ids, set_folder
 
+    if (args.set is None) == (args.set_option is None):
+        raise DynabarnError("name one world set: dynabarn-worlds certify --set NAME (or certify NAME)")
+    args.set = args.set or args.set_option
     protocol = get_protocol(args.protocol)
     if args.redraw:
         from dynabarn.bench.certify import certify_tier

@@ -275,14 +275,20 @@ def entry_path(index_dir: Path, entry: dict) -> Path:
 _WORLD_NAME = re.compile(r"(?:world_)?(\d{1,6})(?:\.xml)?")
 
 
-def resolve_world(id_or_path: str | int | Path) -> Path:
-    """A world of the current set by id or name ("137", "world_137", "world_137.xml"), or
-    the path of a world file, to an existing world file. A path that exists wins."""
+def resolve_world(id_or_path: str | int | Path, set_name: str | None = None) -> Path:
+    """A world by id or name ("137", "world_137", "world_137.xml") in the set `set_name`
+    (`--set`: paper60, dynabarn300, a tier, a folder with index.json; default: the current
+    set, $DYNABARN_WORLDS or the shipped 300), or the path of a world file, to an existing
+    world file. A path that exists wins where no set is named."""
     s = str(id_or_path).strip()
+    match = _WORLD_NAME.fullmatch(s)
+    if set_name is not None:
+        if match is None:
+            raise WorldError(f"--world {s!r}: with --set, a world id or name (210, world_210), not a path")
+        return Path(world_set(set_name, [int(match[1])])[0][1])
     path = Path(s)
     if path.is_file():
         return path
-    match = _WORLD_NAME.fullmatch(s)
     if match:
         folder = worlds_dir()
         path = folder / f"world_{int(match[1]):03d}.xml"
