@@ -212,7 +212,7 @@ def test_rosbag1_export_reads_back_with_rosbag(recording, tmp_path):
     path, result = recording
     bag = tmp_path / "run.bag"
     proc = subprocess.run(
-        [sys.executable, "-m", "dynabarn", "export", str(path), "--out", str(bag)], capture_output=True, text=True
+        [sys.executable, "-m", "dynabarn", "export", str(path), "--bag", str(bag)], capture_output=True, text=True
     )
     assert proc.returncode == 0, proc.stderr
     info = subprocess.run(["rosbag", "info", str(bag)], capture_output=True, text=True, timeout=60)
@@ -247,7 +247,7 @@ def test_rosbag2_export_reads_back_with_mcap_ros2(recording, tmp_path):
     path, result = recording
     out = tmp_path / "run_rosbag2"
     proc = subprocess.run(
-        [sys.executable, "-m", "dynabarn", "export", str(path), "--format", "rosbag2", "--out", str(out)],
+        [sys.executable, "-m", "dynabarn", "export", str(path), "--format", "rosbag2", "--bag", str(out)],
         capture_output=True,
         text=True,
     )

@@ -187,6 +187,7 @@
   window.addEventListener("load", charts);
 
   function charts() {
+  document.body.dataset.loadMs = Math.round(performance.now());
   if (typeof window.Plotly === "undefined") {
     document.getElementById("charts-missing").hidden = false;
     return;
