@@ -10,7 +10,7 @@ are alike, as in a real sweep. The true skill is the difference of the means. Wr
 `results/statistics/skill_coverage.json` and the table between the markers of
 docs/concepts/statistics.md:
 
-    python benchmarks/skill_coverage.py            # about a minute on 2 cores
+    python benchmarks/skill_coverage.py            # about half a minute on 2 cores
 """
 
 from __future__ import annotations

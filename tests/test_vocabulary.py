@@ -53,3 +53,16 @@ def test_an_old_spelling_still_works_and_says_its_new_name(capsys):
 
     args = build_parser().parse_args(["dagger", "--out", "x", "--profile-sets", "table1"])
     assert args.profiles == "table1" and "--profile-sets is now --profiles" in capsys.readouterr().err
+
+
+def test_a_required_option_is_given_by_either_spelling(capsys):
+    from pathlib import Path
+
+    from dynabarn.cli.render import build_parser
+
+    assert build_parser().parse_args(["rec.mcap", "--out", "v.mp4"]).video == Path("v.mp4")
+    assert build_parser().parse_args(["rec.mcap", "--video", "v.mp4"]).video == Path("v.mp4")
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as stop:
+        build_parser().parse_args(["rec.mcap"])
+    assert stop.value.code == 2 and "required: --video" in capsys.readouterr().err

@@ -98,6 +98,15 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str):  # type: ignore[override]
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
+    def parse_known_args(self, args=None, namespace=None):  # type: ignore[override]
+        parsed, rest = super().parse_known_args(args, namespace)
+        # A required option with an old spelling (`add_renamed`) is checked here: either
+        # spelling gives it, which argparse's own `required` cannot see.
+        for dest, new in getattr(self, "renamed_required", ()):
+            if getattr(parsed, dest, None) is None:
+                self.error(f"the following arguments are required: {new}")
+        return parsed, rest
+
 
 def ranged(kind: type, low: float, high: float) -> Callable[[str], float]:
     """An argparse type: a number of `kind` (int or float) in [low, high]; NaN, infinities
@@ -192,8 +201,14 @@ class Renamed(argparse.Action):
 
 
 def add_renamed(p: argparse.ArgumentParser, old: str, new: str, dest: str, **kwargs) -> None:
-    """Accept `old` for the option now called `new` (hidden from --help and the docs)."""
-    p.add_argument(old, dest=dest, action=Renamed, new=new, help=argparse.SUPPRESS, **kwargs)
+    """Accept `old` for the option now called `new` (hidden from --help and the docs; it
+    sets no default of its own). A required `new` stays required: either spelling gives it
+    (`Parser.parse_known_args` checks)."""
+    p.add_argument(old, dest=dest, action=Renamed, new=new, help=argparse.SUPPRESS, default=argparse.SUPPRESS, **kwargs)
+    for action in p._actions:
+        if new in action.option_strings and action.required:
+            action.required = False
+            p.renamed_required = [*getattr(p, "renamed_required", ()), (dest, new)]
 
 
 def add_protocol(p: argparse.ArgumentParser) -> None:
