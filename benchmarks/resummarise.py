@@ -1,7 +1,8 @@
 """Rewrite the committed results folders' summaries (`summary.csv`, `summary.md`,
-`fig5.png`) from their rows with this version's statistics, keeping each one's title: what
-a sweep writes at its end, for folders written before a change to the summary (issue 56's
-skill interval).
+`fig5.png`, and the report, which git ignores) from their rows with this version's
+statistics, keeping each one's title: what a sweep writes at its end
+(`sweep.write_folder_summary`), for folders written before a change to the summary (issue
+56's skill interval).
 
     python benchmarks/resummarise.py
 """
@@ -11,8 +12,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from dynabarn.bench.results import RESULTS, certified_episodes, paper_worlds, read_results
-from dynabarn.bench.summary import summarise, write_summary
+from dynabarn.bench.results import RESULTS, read_results
+from dynabarn.bench.sweep import write_folder_summary
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -25,8 +26,7 @@ def main() -> int:
             continue
         old = folder / "summary.md"
         title = old.read_text().splitlines()[0].removeprefix("# ") if old.is_file() else ""
-        summary = summarise(rows, paper_worlds(folder), certified_episodes(folder))
-        write_summary(summary, folder, title=title if title.strip() and not title.startswith("|") else "")
+        write_folder_summary(folder, rows, title if title.strip() and not title.startswith("|") else "")
         done.append(folder.name)
     print(f"rewrote the summaries of {len(done)} folder(s): {', '.join(done)}")
     return 0

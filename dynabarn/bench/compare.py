@@ -17,7 +17,7 @@ from pathlib import Path
 
 from dynabarn.bench.results import RESULTS, is_row, read_results
 from dynabarn.bench.row_rules import parse_key
-from dynabarn.bench.stats import MIN_WORLDS, paired_difference_interval
+from dynabarn.bench.stats import FEW_WORLDS_NOTE, MIN_WORLDS, difference_text, paired_difference_interval
 from dynabarn.bench.summary import DIFFICULTIES, FLOOR
 from dynabarn.errors import DynabarnError
 
@@ -52,20 +52,24 @@ def side(folder: Path, planner: str | None) -> tuple[str, list[dict]]:
 def compare(a_rows: list[dict], b_rows: list[dict]) -> dict:
     """The paired comparison of two planners' rows on their shared episodes."""
     b_by_episode = {_episode(r): r for r in b_rows}
-    pairs = [(a, b_by_episode[_episode(a)]) for a in a_rows if _episode(a) in b_by_episode]
+    pairs = []  # (the episode's world file, A's success, B's success), each key parsed once
     groups: dict[str, list] = defaultdict(list)
-    for a, b in pairs:
-        groups[a.get("difficulty", "?")].append((a, b))
-        groups["all"].append((a, b))
+    for a in a_rows:
+        episode = _episode(a)
+        b = b_by_episode.get(episode)
+        if b is not None:
+            pair = (episode[0], a["outcome"] == "success", b["outcome"] == "success")
+            pairs.append(pair)
+            groups[a.get("difficulty", "?")].append(pair)
+            groups["all"].append(pair)
     order = {d: i for i, d in enumerate((*DIFFICULTIES, "all"))}
     out = []
     for difficulty in sorted(groups, key=lambda d: order.get(d, len(order))):
         by_world: dict[str, list[tuple[bool, bool]]] = defaultdict(list)
-        for a, b in groups[difficulty]:
-            by_world[_episode(a)[0]].append((a["outcome"] == "success", b["outcome"] == "success"))
+        for world, a_won, b_won in groups[difficulty]:
+            by_world[world].append((a_won, b_won))
         estimate, lo, hi = paired_difference_interval([[float(x) - float(y) for x, y in v] for v in by_world.values()])
         n = len(groups[difficulty])
-        few = "\u2020" if len(by_world) < MIN_WORLDS else ""
         out.append(
             {
                 "difficulty": difficulty,
@@ -76,7 +80,7 @@ def compare(a_rows: list[dict], b_rows: list[dict]) -> dict:
                 "difference": estimate,
                 "lo": lo,
                 "hi": hi,
-                "text": f"{estimate:+.2f} [{lo:+.2f}, {hi:+.2f}]{few}",
+                "text": difference_text(estimate, lo, hi, len(by_world)),
                 "disagree": sorted(
                     (
                         {"world": Path(w).stem, "a": sum(x for x, _ in v), "b": sum(y for _, y in v), "trials": len(v)}
@@ -109,7 +113,5 @@ def format_comparison(result: dict, a: str, b: str) -> str:
             f"{r['text']:<24}{len(r['disagree'])}: {shown or '-'}{more}"
         )
     if any(r["worlds"] < MIN_WORLDS for r in result["rows"]):
-        lines.append(
-            f"\u2020 fewer than {MIN_WORLDS} worlds: read the interval as a rough guide (docs/concepts/statistics.md)"
-        )
+        lines.append(FEW_WORLDS_NOTE)
     return "\n".join(lines)

@@ -8,9 +8,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from dynabarn.errors import DynabarnError
 from dynabarn.metrics import Outcome
-from dynabarn.planners.from_code import LOADED, CodePlanner, load_code_planner
+from dynabarn.planners.from_code import LOADED, CodePlanner, load_again
 from dynabarn.planners.registry import PLANNERS, planner_factory, register_planner, registered_at_run_time
 from dynabarn.protocol import EvalProtocol
 from dynabarn.recording.writer import staging_path
@@ -95,8 +94,7 @@ def run_job(job: Job) -> dict:
             register_planner(job.factory, name=spec.planner)
         if job.code is not None:
             row["planner_code"] = job.code.identity()
-            if spec.planner not in PLANNERS and load_code_planner(job.code.source, job.code.search_path) != job.code:
-                raise DynabarnError(f"{job.code.source} changed during the sweep (its sha256 differs)")
+            load_again(job.code)
         record_in = Path(job.recordings_dir) if job.record != "none" else None  # NAME.part until whole
         result = run_spec(
             spec, record_in=record_in, on_built=lambda sim, planner: built.append(sim), on_recorder=recorders.append

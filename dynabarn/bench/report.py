@@ -54,15 +54,18 @@ OUTCOME_COLOURS = {"success": "#2e7d32", "collision": "#c62828", "timeout": "#f9
 __all__ = ["OUTCOMES", "OUTCOME_COLOURS", "REPORT", "STILLS", "render_report", "write_report"]
 
 
-def write_report(out_dir: Path) -> Path:
-    """Render `OUT/report.html` from the folder's rows (atomically); returns its path."""
+def write_report(out_dir: Path, rows: list[dict] | None = None, **options) -> Path:
+    """Render `OUT/report.html` (atomically) from the folder's rows, or from `rows` where the
+    caller has them already (the end of a sweep, a comparison); `options` go to
+    `render_report`. Returns its path."""
     out = Path(out_dir)
-    if not (out / RESULTS).is_file():
-        raise DynabarnError(f"{out}: no {RESULTS} (not a results folder of dynabarn-bench)")
-    rows = read_results(out / RESULTS)
+    if rows is None:
+        if not (out / RESULTS).is_file():
+            raise DynabarnError(f"{out}: no {RESULTS} (not a results folder of dynabarn-bench)")
+        rows = read_results(out / RESULTS)
     if not rows:
         raise DynabarnError(f"{out / RESULTS}: no results rows yet")
-    html = render_report(out, rows)
+    html = render_report(out, rows, **options)
     path = out / REPORT
     try:
         # A row's text may hold a lone surrogate (JSON allows "\ud800"): shown as U+FFFD.
@@ -77,17 +80,27 @@ def csp_hash(text: str) -> str:
     return "sha256-" + base64.b64encode(hashlib.sha256(text.encode("utf-8")).digest()).decode("ascii")
 
 
-def render_report(out: Path, rows: list[dict], *, site: bool = False, title: str = "", comparison=None) -> str:
+def render_report(
+    out: Path,
+    rows: list[dict],
+    *,
+    site: bool = False,
+    title: str = "",
+    comparison: dict | None = None,
+    summary: list[dict] | None = None,
+) -> str:
     """The page's HTML for the folder `out` and its rows. Everything from the rows or the
     folder's files is text to the page: autoescaped or in the JSON block, every URL a quoted
     relative path inside the folder, every command quoted for the shell; the page's own
     scripts and styles run by their hashes and nothing else does. `site`: for the
     documentation site (a verdict only when complete). `comparison`: the paired table of
-    `dynabarn-bench --compare` shown above the summary."""
+    `dynabarn-bench --compare` shown above the summary. `summary`: the rows' summary where
+    the caller made it already (`summarise` with the folder's paper worlds and certificates)."""
     import jinja2
 
     worlds = read_worlds(out)
-    summary = summarise(rows, paper_worlds(out), certified_episodes(out))
+    if summary is None:
+        summary = summarise(rows, paper_worlds(out), certified_episodes(out))
     planners = sorted({r["planner"] for r in rows}, key=lambda p: (p != FLOOR, p))
     table = episode_table(rows, worlds, planners)
     found, stills_note = recordings(out, rows, table)

@@ -5,7 +5,8 @@ The skill's interval (`paired_difference_interval`) is Tango's score interval fo
 difference of paired proportions, on an effective sample size that the worlds' clustering
 sets (the design effect of `design_effect`). Unlike a Wald or Student-t interval on the
 paired differences, it never leaves [-1, 1] and is never of zero width for a finite sample
-(all-success against all-failure on 3 worlds is about [+0.44, +1.00], not [+1.00, +1.00]).
+(all-success against all-failure on 3 worlds of 10 trials is [-0.12, +1.00]: three worlds
+cannot exclude zero; never [+1.00, +1.00]).
 Its coverage, beside the clustered Student-t interval used before, was measured by
 simulation (`benchmarks/skill_coverage.py`, docs/concepts/statistics.md)."""
 
@@ -139,8 +140,14 @@ def skill_text(s: dict) -> str:
     it rests on fewer than `MIN_WORLDS` worlds, `-` where there is none."""
     if s.get("skill") is None:
         return "-"
-    few = "\u2020" if (s.get("skill_worlds") or 0) < MIN_WORLDS else ""
-    return f"{s['skill']:+.2f} [{s['skill_lo']:+.2f}, {s['skill_hi']:+.2f}]{few}"
+    return difference_text(s["skill"], s["skill_lo"], s["skill_hi"], s.get("skill_worlds") or 0)
+
+
+def difference_text(estimate: float, lo: float, hi: float, worlds: int) -> str:
+    """A paired difference with its interval, `+0.25 [+0.10, +0.40]`, and a dagger where it
+    rests on fewer than `MIN_WORLDS` worlds (the skill over the floor, `--compare`'s A - B)."""
+    few = "\u2020" if worlds < MIN_WORLDS else ""
+    return f"{estimate:+.2f} [{lo:+.2f}, {hi:+.2f}]{few}"
 
 
 FEW_WORLDS_NOTE = (

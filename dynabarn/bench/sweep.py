@@ -131,5 +131,5 @@ def write_folder_summary(out_dir: Path, rows: list[dict], title: str = "") -> tu
 
     summary = summarise(rows, paper_worlds(out_dir), certified_episodes(out_dir))
     paths = write_summary(summary, out_dir, title=title)
-    paths["html"] = write_report(out_dir)
+    paths["html"] = write_report(out_dir, rows, summary=summary)
     return summary, paths

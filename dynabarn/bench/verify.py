@@ -24,7 +24,7 @@ from dynabarn.bench.results import METADATA, RESULTS, is_row, read_results, reco
 from dynabarn.bench.row_rules import RowRules, give, row_inputs, row_world_file, world_roots
 from dynabarn.errors import DynabarnError, NotInstalledHere
 from dynabarn.files import plain_name_problem, write_atomically
-from dynabarn.planners.from_code import LOADED, CodePlanner, load_code_planner
+from dynabarn.planners.from_code import LOADED, CodePlanner, load_again
 from dynabarn.processes import map_in_workers
 
 DEFAULT_SAMPLE = 20
@@ -140,11 +140,9 @@ def _added_parameters(old: object, new: object) -> list[str] | None:
 
 def _check(item: tuple[dict, dict, str, list[str], dict | None, CodePlanner | None]) -> RowCheck:
     row, parts, folder, roots, protocol, code = item
-    if code is not None and code.name not in LOADED:
-        # A planner from code that the person verifying named: this worker loads the same file.
+    if code is not None:  # a planner from code that the person verifying named: the same file here
         try:
-            if load_code_planner(code.source, code.search_path) != code:
-                return RowCheck(row["key"], False, problem=f"{code.source} changed while --verify ran")
+            load_again(code)
         except DynabarnError as exc:
             return RowCheck(row["key"], False, problem=str(exc))
     return check_row(row, parts, Path(folder), [Path(r) for r in roots], protocol)
@@ -211,6 +209,7 @@ def verify_results(
     checks.sort(key=lambda c: order[c.key])
     notes = _version_notes(chosen, versions(), machine())
     ran = [c for c in checks if not c.not_checked]
+    lacking = missing_extras()
     verdict = {
         "format": "dynabarn-verification",
         "results": str(file),
@@ -222,8 +221,8 @@ def verify_results(
         "ok": all(c.identical for c in ran),
         # A verdict on everything sampled, by an install with every extra: the only kind the
         # documentation site shows (a local one that skipped rows says nothing of them).
-        "complete": len(ran) == len(checks) and not missing_extras(),
-        "missing_extras": missing_extras(),
+        "complete": len(ran) == len(checks) and not lacking,
+        "missing_extras": lacking,
         "rows": [asdict(c) for c in checks],
         "differences": [d for c in checks for d in c.differences]
         + [{"key": c.key, "field": "-", "old": "", "new": c.problem} for c in checks if c.problem],

@@ -206,31 +206,32 @@ def _given(argv: Sequence[str] | None) -> list[str]:
 def bench_main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    given = _given(argv)  # the options written on the command line, read once
     if args.verify_golden or args.update_golden:
         # The golden set is fixed (its cases name their planners, worlds and seeds): a sweep's
         # choices would be silently ignored, so they are refused.
-        ignored = ["--" + key.replace("_", "-") for key in _given(argv) if key not in GOLDEN_OPTIONS]
+        ignored = ["--" + key.replace("_", "-") for key in given if key not in GOLDEN_OPTIONS]
         if ignored:
             parser.error(f"{', '.join(ignored)}: not for the golden set, which runs its own committed cases")
         return run_command(golden_command, args)
     if args.compare is not None:
-        ignored = ["--" + key.replace("_", "-") for key in _given(argv) if key not in COMPARE_OPTIONS]
+        ignored = ["--" + key.replace("_", "-") for key in given if key not in COMPARE_OPTIONS]
         if ignored:
             parser.error(f"{', '.join(ignored)}: not for --compare, which reads two existing results folders")
-        args.planner_given = "planner" in _given(argv)
+        args.planner_given = "planner" in given
         return run_command(compare_command, args)
     if args.report is not None or args.verify is not None:
-        ignored = ["--" + key.replace("_", "-") for key in _given(argv) if key not in CHECK_OPTIONS]
+        ignored = ["--" + key.replace("_", "-") for key in given if key not in CHECK_OPTIONS]
         if ignored:
             parser.error(f"{', '.join(ignored)}: not for --report or --verify, which read an existing results folder")
         if args.verify is None:
-            unused = ["--" + key.replace("_", "-") for key in _given(argv) if key in VERIFY_ONLY]
+            unused = ["--" + key.replace("_", "-") for key in given if key in VERIFY_ONLY]
             if unused:
                 parser.error(f"{', '.join(unused)}: only with --verify (--report re-runs nothing)")
-        args.set_given = "set" in _given(argv)  # --set's default names no folder of the rows'
-        args.planner_given = "planner" in _given(argv)
+        args.set_given = "set" in given  # --set's default names no folder of the rows'
+        args.planner_given = "planner" in given
         return run_command(check_command, args)
-    if "sample" in _given(argv):
+    if "sample" in given:
         parser.error("--sample: only with --verify")
     if args.out is None:
         parser.error("--out is required for a sweep")

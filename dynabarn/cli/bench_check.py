@@ -135,10 +135,8 @@ def report_so_far(out: Path) -> None:
 
 def compare_command(args: argparse.Namespace) -> int:
     """`--compare A B`: print the paired comparison; with `--out`, its report and JSON."""
-    import shutil
-
     from dynabarn.bench.compare import compare, format_comparison, side
-    from dynabarn.bench.report import REPORT, render_report
+    from dynabarn.bench.report import write_report
     from dynabarn.bench.results import WORLDS
     from dynabarn.files import write_atomically
 
@@ -161,8 +159,8 @@ def compare_command(args: argparse.Namespace) -> int:
         if out.exists() and not out.is_dir():
             raise DynabarnError(f"--out {out}: exists and is not a folder")
         out.mkdir(parents=True, exist_ok=True)
-        if (first / WORLDS).is_file():
-            shutil.copyfile(first / WORLDS, out / WORLDS)  # the measured difficulty of the worlds
+        if (first / WORLDS).is_file():  # the measured difficulty of the worlds
+            write_atomically(out / WORLDS, (first / WORLDS).read_bytes())
         write_atomically(
             out / "comparison.json", json.dumps({"a": labels[0], "b": labels[1]} | result, indent=1) + "\n"
         )
@@ -174,7 +172,6 @@ def compare_command(args: argparse.Namespace) -> int:
         left_out = result["a_only"] + result["b_only"]
         note = f"{left_out} episodes ran on one side only and are left out of the comparison." if left_out else ""
         comparison = {"a": labels[0], "b": labels[1], "note": note} | result
-        html = render_report(out, rows, title=f"{labels[0]} against {labels[1]}", comparison=comparison)
-        write_atomically(out / REPORT, html.encode("utf-8", "replace"))
-        print(f"wrote {out / REPORT}, {out / 'comparison.json'}")
+        page = write_report(out, rows, title=f"{labels[0]} against {labels[1]}", comparison=comparison)
+        print(f"wrote {page}, {out / 'comparison.json'}")
     return 0

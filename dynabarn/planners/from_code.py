@@ -140,6 +140,15 @@ def load_code_planner(spec: str, search_path: str = "") -> CodePlanner:
     return planner
 
 
+def load_again(code: CodePlanner) -> None:
+    """In a worker process (a sweep's, `--verify`'s): load the planner the parent loaded,
+    unless this process has it; refuse code that changed since (its sha256 differs)."""
+    if code.name in LOADED:
+        return
+    if load_code_planner(code.source, code.search_path) != code:
+        raise DynabarnError(f"{code.source} changed since it was named (its sha256 differs)")
+
+
 def planner_spec(spec: str) -> tuple[str, dict, str]:
     """`registry.planner_spec` for what a command line names: `NAME`, `NAME@PRESET`, and
     planners from code (`MODULE:CLASS`, `FILE.py:CLASS`, with `@PRESET` too), loaded and
