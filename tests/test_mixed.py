@@ -159,6 +159,13 @@ def test_closed_form_scan_of_static_cylinders_equals_mujoco_ray_casting(tmp_path
         if np.all(np.hypot(*(static[:, :2] - origin).T) > static[:, 2] + 1e-3):  # the laser not inside one
             assert np.allclose(ours, reference, atol=1e-9)
             hits_static += sum(sim.model.geom(g).name.startswith("static_") for g in geomid if g >= 0)
+            # The geoms the beams ended on agree too: a moving obstacle behind a static
+            # cylinder is hidden (the tracking scores' "in view" counts beams per obstacle).
+            ours_obstacle = sim.obstacle_of_geom[np.maximum(laser.geom_ids, 0)]
+            ours_obstacle[laser.geom_ids < 0] = -1
+            mujoco_obstacle = sim.obstacle_of_geom[np.maximum(geomid, 0)]
+            mujoco_obstacle[geomid < 0] = -1
+            assert np.array_equal(ours_obstacle, mujoco_obstacle)
     assert hits_static > 1000
 
 

@@ -71,7 +71,11 @@ class Laser:
         ranges = self._dist.copy()
         ranges[self._geomid < 0] = self.params.laser_range_max
         if len(self.static):
-            np.minimum(ranges, self._cast_static(origin[0], origin[1], yaw), out=ranges)
+            static = self._cast_static(origin[0], origin[1], yaw)
+            # mj_multiRay did not see the static field: a geom it hit behind a static
+            # cylinder is hidden (the beam ends on the cylinder, which has no geom id here).
+            self._geomid[static < ranges] = -1
+            np.minimum(ranges, static, out=ranges)
         return ranges
 
     @property
