@@ -35,6 +35,7 @@ from scipy.optimize import linear_sum_assignment
 from dynabarn.determinism import STATE_RESOLUTION, snap_array
 from dynabarn.interfaces.observation import EpisodeInfo
 from dynabarn.perception.detect import Detections, DetectorConfig, ObstacleDetector
+from dynabarn.perception.shape_fit import ShapeConfig
 from dynabarn.perception.tracks import Tracks
 
 _NO_MATCH = 1e6
@@ -43,9 +44,10 @@ _NO_MATCH = 1e6
 @dataclass
 class TrackerConfig:
     kind: str = "kalman"
-    """Which tracker (`perception.trackers.TRACKERS`): `kalman`, this module's, or one
-    registered or installed under `dynabarn.trackers`. Recorded with a planner's
-    configuration only where it is not `kalman` (`planners.tracking.recorded_config`)."""
+    """Which tracker (`perception.trackers.TRACKERS`): `kalman`, this module's (circles of
+    the known radius); `shaped` (`shaped_tracker`: outlines of boxes, capsules and
+    cylinders); or one registered or installed under `dynabarn.trackers`. Recorded with a
+    planner's configuration only where it is not `kalman` (`planners.tracking.recorded_config`)."""
     accel_std: float = 2.0
     """White-noise acceleration of the motion model [m/s^2] (the paper's obstacles change
     speed and turn along polynomial paths)."""
@@ -60,6 +62,8 @@ class TrackerConfig:
     max_unseen_in_view: float = 0.3
     """Seconds a track is kept while the laser sees through its place."""
     detector: DetectorConfig = field(default_factory=DetectorConfig)
+    shape: ShapeConfig = field(default_factory=ShapeConfig)
+    """Outlines (the `shaped` tracker's; `kalman` fits circles and leaves these unused)."""
 
     LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
         "accel_std": (0.0, 100.0),
@@ -78,6 +82,11 @@ class ObstacleTracker:
         cfg: the tracker's parameters (its detector's parameters are `detector.cfg`).
         detector: the episode's detector (its known map and laser).
     """
+
+    PER_TRACK: ClassVar[tuple[str, ...]] = (
+        "ids", "x", "v", "p_xx", "p_xv", "p_vv", "size", "born", "seen", "unseen_in_view",
+    )  # fmt: skip
+    """The arrays with one entry per track (kept or dropped together)."""
 
     def __init__(self, cfg: TrackerConfig, detector: ObstacleDetector) -> None:
         self.cfg = cfg
@@ -115,8 +124,9 @@ class ObstacleTracker:
         self.p_vv += q * dt
 
     def _correct(self, k: np.ndarray, z: np.ndarray, r: np.ndarray) -> None:
-        """Kalman update of tracks k with measured positions z (m, 2), variances r (m,)."""
-        s = self.p_xx[k] + r[:, None]
+        """Kalman update of tracks k with measured positions z (m, 2), variances r (m,) (the
+        same on both axes) or (m, 2)."""
+        s = self.p_xx[k] + (r[:, None] if r.ndim == 1 else r)
         gain_x, gain_v = self.p_xx[k] / s, self.p_xv[k] / s
         innovation = z - self.x[k]
         self.x[k] += gain_x * innovation
@@ -186,7 +196,7 @@ class ObstacleTracker:
         stale = (self.time - self.seen > cfg.max_coast) | (self.unseen_in_view > cfg.max_unseen_in_view)
         if stale.any():
             keep = ~stale
-            for name in ("ids", "x", "v", "p_xx", "p_xv", "p_vv", "size", "born", "seen", "unseen_in_view"):
+            for name in self.PER_TRACK:
                 setattr(self, name, getattr(self, name)[keep])
 
     def _birth(self, centres: np.ndarray, sizes: np.ndarray, var: np.ndarray, time: float) -> None:

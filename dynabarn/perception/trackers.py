@@ -1,11 +1,14 @@
 """Trackers by name (`TRACKERS`): what `TrackerConfig.kind` chooses. Built in: `kalman`
-(`tracker.ObstacleTracker`); another package adds one under the entry-point group
-`dynabarn.trackers`: a class with `for_episode(cfg, info)` whose instances have
-`update(time, scan, pose) -> Tracks` and `detections` (what a planner reads of them)."""
+(`tracker.ObstacleTracker`: circles of the known radius) and `shaped`
+(`shaped_tracker.ShapeTracker`: outlines of boxes, capsules and cylinders); another
+package adds one under the entry-point group `dynabarn.trackers`: a class with
+`for_episode(cfg, info)` whose instances have `update(time, scan, pose) -> Tracks` and
+`detections` (what a planner reads of them)."""
 
 from __future__ import annotations
 
 from dynabarn.interfaces import EpisodeInfo
+from dynabarn.perception.shaped_tracker import ShapeTracker
 from dynabarn.perception.tracker import ObstacleTracker, TrackerConfig
 from dynabarn.registry import Registry
 
@@ -17,7 +20,7 @@ def _check_tracker(item: object) -> None:
 
 
 TRACKERS: Registry[type] = Registry(
-    "tracker", {"kalman": ObstacleTracker}, group="dynabarn.trackers", check=_check_tracker
+    "tracker", {"kalman": ObstacleTracker, "shaped": ShapeTracker}, group="dynabarn.trackers", check=_check_tracker
 )
 """Every tracker by name: built in, registered at run time (`TRACKERS.register(cls, name=...)`), installed."""
 

@@ -26,6 +26,12 @@ class Tracks:
         position_velocity_cov: (n, 2) covariance of x with vx, y with vy [m^2/s].
         age: (n,) seconds since each track was born.
         last_seen: (n,) time of each track's last detection [s] (below `time`: coasting).
+        headings: (n,) heading of each obstacle's sides [rad], None from a tracker that
+            fits circles only (`kalman`).
+        half_sizes: (n, 2) half sizes of each obstacle's bounding rectangle along and across
+            its heading [m], None with `headings`.
+        half_size_std: (n, 2) how uncertain each half size is [m] (large where the laser has
+            not yet seen that extent whole), None with `headings`.
     """
 
     time: float
@@ -38,6 +44,9 @@ class Tracks:
     position_velocity_cov: np.ndarray
     age: np.ndarray
     last_seen: np.ndarray
+    headings: np.ndarray | None = None
+    half_sizes: np.ndarray | None = None
+    half_size_std: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -70,6 +79,43 @@ class Tracks:
         dt = dt[..., None]
         var = self.position_var + 2.0 * dt * self.position_velocity_cov + dt * dt * self.velocity_var
         return np.sqrt(np.maximum(var, 0.0)).max(axis=-1)
+
+    def covering_circles(self, extent_sigmas: float = 1.0) -> Tracks:
+        """These tracks with every outline replaced by circles that cover it (each circle a
+        track of its own: the same identity, velocity and uncertainty, its centre offset
+        along the outline's long axis); tracks without outlines unchanged (this object).
+
+        An outline of half sizes L >= S (grown by `extent_sigmas` standard deviations of
+        each) gets c = 1 + ceil(2 (L - S) / (1.5 S)) circles of radius sqrt(S^2 + (d/2)^2),
+        d = 2 (L - S) / (c - 1) apart: they cover the rectangle, corners included, with at
+        most a quarter of S to spare (a cylinder: one circle of its radius). What plans
+        against circles (the oracle's search, DWA, TEB) plans against the outline so.
+        """
+        if self.half_sizes is None or not len(self):
+            return self
+        half = self.half_sizes + extent_sigmas * (0.0 if self.half_size_std is None else self.half_size_std)
+        along = half[:, 0] >= half[:, 1]
+        long_, short = np.where(along, half[:, 0], half[:, 1]), np.maximum(np.minimum(half[:, 0], half[:, 1]), 1e-3)
+        count = 1 + np.ceil(np.maximum(2.0 * (long_ - short), 0.0) / (1.5 * short) - 1e-9).astype(np.int64)
+        gap = np.where(count > 1, 2.0 * (long_ - short) / np.maximum(count - 1, 1), 0.0)
+        radius = np.sqrt(short * short + 0.25 * gap * gap)
+        which = np.repeat(np.arange(len(self)), count)
+        index = np.arange(len(which)) - np.repeat(np.cumsum(count) - count, count)  # 0..c-1 in each
+        offset = (index - 0.5 * (count[which] - 1)) * gap[which]
+        heading = self.headings[which] + np.where(along[which], 0.0, 0.5 * np.pi)
+        direction = np.column_stack([np.cos(heading), np.sin(heading)])
+        return Tracks(
+            time=self.time,
+            ids=self.ids[which],
+            positions=self.positions[which] + offset[:, None] * direction,
+            velocities=self.velocities[which],
+            sizes=radius[which],
+            position_var=self.position_var[which],
+            velocity_var=self.velocity_var[which],
+            position_velocity_cov=self.position_velocity_cov[which],
+            age=self.age[which],
+            last_seen=self.last_seen[which],
+        )
 
     @staticmethod
     def empty(time: float = 0.0) -> Tracks:

@@ -64,9 +64,9 @@ class PredictivePlanner(OraclePlanner):
         return self._tracks
 
     def obstacle_future(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
-        tracks = self.tracker.update(obs.time, obs.scan, obs.pose)
-        self._tracks = tracks
+        self._tracks = self.tracker.update(obs.time, obs.scan, obs.pose)
         c = self.cfg
+        tracks = self._tracks.covering_circles(c.tracker.shape.extent_sigmas)  # outlines as circles
         times = obs.time + self._steps
         padding = np.minimum(c.max_padding, c.uncertainty_sigmas * tracks.position_std(times))  # (K, n)
         return tracks.predict(times), tracks.sizes[None, :] + padding

@@ -13,6 +13,7 @@ import numpy as np
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces import Observation, config_from_kwargs, nested_config
 from dynabarn.perception import DetectorConfig, ObstacleTracker, TrackerConfig, Tracks
+from dynabarn.perception.shape_fit import ShapeConfig
 from dynabarn.perception.trackers import TRACKERS
 
 
@@ -24,6 +25,7 @@ def with_tracker(kwargs: dict, what: str) -> dict:
         sub = nested_config(
             sub, "detector", lambda d: config_from_kwargs(DetectorConfig, d, f"{what} tracker detector"), what
         )
+        sub = nested_config(sub, "shape", lambda d: config_from_kwargs(ShapeConfig, d, f"{what} tracker shape"), what)
         cfg = config_from_kwargs(TrackerConfig, sub, f"{what} tracker")
         try:
             TRACKERS.get_item(cfg.kind)  # an unknown kind: one line, before anything runs
@@ -36,12 +38,13 @@ def with_tracker(kwargs: dict, what: str) -> dict:
 
 def recorded_config(cfg) -> dict:
     """A planner's configuration as results and recordings keep it (`asdict`), without the
-    tracker's `kind` where it is the default `kalman`: every result before the choice
-    existed used it and keeps its configuration (and the golden set its bytes)."""
+    tracker's `kind` and `shape` where it is the default `kalman`: every result before the
+    choice existed used it and keeps its configuration (and the golden set its bytes)."""
     d = asdict(cfg)
     tracker = d.get("tracker")
     if isinstance(tracker, dict) and tracker.get("kind") == TrackerConfig.kind:
         del tracker["kind"]
+        del tracker["shape"]  # the `shaped` tracker's outlines: unused by `kalman`
     return d
 
 
