@@ -46,11 +46,14 @@ class SegmentShapes:
             headings): near 1 for the sides of a box or a capsule, small for an arc.
         edge_rms: (m,) RMS distance of the returns from the nearest edge of their bounding
             rectangle at the best heading [m].
+        edge_max: (m,) the largest such distance [m]: a box's sides have every return on
+            an edge, a capsule's rounded end has returns well inside.
     """
 
     headings: np.ndarray
     straightness: np.ndarray
     edge_rms: np.ndarray
+    edge_max: np.ndarray
 
 
 def group_starts(segment: np.ndarray) -> np.ndarray:
@@ -64,14 +67,20 @@ def _frame(points: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> tuple[np.nda
     return x * cos + y * sin, y * cos - x * sin
 
 
-def _edge_cost(u: np.ndarray, v: np.ndarray, segment: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Sum of squared distances from each point to the nearest edge of its segment's
-    bounding rectangle, per heading row and segment: (rows, m)."""
+def _edge_distance(u: np.ndarray, v: np.ndarray, segment: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Distance from each point to the nearest edge of its segment's bounding rectangle,
+    per heading row: (rows, k)."""
     lo_u = np.minimum.reduceat(u, starts, axis=-1)[..., segment]
     hi_u = np.maximum.reduceat(u, starts, axis=-1)[..., segment]
     lo_v = np.minimum.reduceat(v, starts, axis=-1)[..., segment]
     hi_v = np.maximum.reduceat(v, starts, axis=-1)[..., segment]
-    edge = np.minimum(np.minimum(u - lo_u, hi_u - u), np.minimum(v - lo_v, hi_v - v))
+    return np.minimum(np.minimum(u - lo_u, hi_u - u), np.minimum(v - lo_v, hi_v - v))
+
+
+def _edge_cost(u: np.ndarray, v: np.ndarray, segment: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Sum of squared distances from each point to the nearest edge of its segment's
+    bounding rectangle, per heading row and segment: (rows, m)."""
+    edge = _edge_distance(u, v, segment, starts)
     return np.add.reduceat(edge * edge, starts, axis=-1)
 
 
@@ -97,10 +106,14 @@ def fit_headings(points: np.ndarray, segment: np.ndarray) -> SegmentShapes:
     pick = np.argmin(fine_cost, axis=0)
     m = np.arange(len(starts))
     low = fine_cost[pick, m]
+    heading = fine[pick, m]
+    s, c = sincos(heading[segment])
+    farthest = np.maximum.reduceat(_edge_distance(*_frame(points, c, s), segment, starts), starts)
     return SegmentShapes(
-        headings=np.mod(fine[pick, m], _QUARTER),
+        headings=np.mod(heading, _QUARTER),
         straightness=1.0 - low / np.maximum(mean_cost, 1e-12),
         edge_rms=np.sqrt(low / np.maximum(counts, 1)),
+        edge_max=farthest,
     )
 
 
@@ -218,6 +231,9 @@ class ShapeConfig:
     heading_gain: float = 0.3
     """How far a straight segment moves its track's heading towards its own (times its
     straightness; the first one sets it)."""
+    max_coast: float = 1.2
+    """Seconds a track is kept without a detection (this tracker's `tracker.max_coast`,
+    which stays the circle tracker's)."""
     extent_sigmas: float = 1.0
     """Planners that read outlines cover each one grown by this many standard deviations
     of its half sizes (`Tracks.covering_circles`): what the tracker has not seen of an
@@ -235,4 +251,5 @@ class ShapeConfig:
         "heading_gain": (0.0, 1.0),
         "birth_margin": (0.0, 5.0),
         "extent_sigmas": (0.0, 10.0),
+        "max_coast": (0.0, 60.0),
     }

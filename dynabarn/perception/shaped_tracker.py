@@ -21,7 +21,8 @@ looks like, and measures its centre from that:
   near side is matched with the box; a detection lying inside a track's outline is a
   piece of that obstacle cut by something in front of it, not a new track;
 - coasting through occlusion as `kalman` does (growing uncertainty; a track is dropped
-  only when unseen for `max_coast` or when the laser sees through its place).
+  only when unseen for `shape.max_coast` (1.2 s: an obstacle hidden for a second comes
+  back with its identity) or when the laser sees through its place).
 
 Vectorised over tracks, detections and points; elementwise arithmetic only, and the state
 on `STATE_RESOLUTION`'s grid, so the same scans give the same tracks on every CPU.
@@ -34,6 +35,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from dynabarn.determinism import STATE_RESOLUTION, sincos, snap_array
 from dynabarn.perception.detect import Detections, ObstacleDetector
@@ -47,13 +49,26 @@ from dynabarn.perception.shape_fit import (
     group_starts,
     spans,
 )
-from dynabarn.perception.tracker import _NO_MATCH, ObstacleTracker, TrackerConfig
+from dynabarn.perception.tracker import NO_MATCH, ObstacleTracker, TrackerConfig
 from dynabarn.perception.tracks import Tracks
 
 _QUARTER = 0.5 * math.pi
-_GRAZING = math.tan(math.radians(45.0))
-"""A side is faced when the laser stands more in front of it than beside it (beyond 45
- degrees: a rounded end seen more obliquely shows only part of its width)."""
+_GRAZING_SIDE = math.tan(math.radians(15.0))
+"""A straight side seen at less than 15 degrees is seen at a grazing angle: a few beams
+catch only its near end."""
+_GRAZING_END = math.tan(math.radians(70.0))
+"""A rounded end shows its whole width only to a laser almost in front of it (within
+20 degrees)."""
+_SHARP = 0.01
+"""[m] Returns all this close to their rectangle's edges are a box's sharp sides."""
+SEEN_EXTENT_STD = 0.05
+"""[m] Uncertainty of an extent seen whole: its ends fall between beams (5 cm apart at 8 m)
+and a rounded end's tip is seen at a grazing angle."""
+EXTENT_STEP = 0.1
+"""[m] The most a track's extent grows in one scan."""
+ROUNDNESS_GAIN = 0.2
+"""How far one vote moves a track's roundness: a cylinder's segment merged with a
+neighbour's (a crowd) fits no circle now and then, and must not make it a box."""
 HEADING_POINTS = 5
 """Returns a straight segment needs before it tells its track's heading."""
 ROUND_VOTE_POINTS = 6
@@ -88,6 +103,7 @@ class _Segments:
     is_round: np.ndarray  # (m,) the known-radius circle fits it: a cylinder
     straight: np.ndarray  # (m,) straight enough, with returns enough, to tell a heading
     circles: np.ndarray  # (m, 2) the known-radius circles' centres
+    residuals: np.ndarray  # (m,) and their RMS residuals
     sizes: np.ndarray  # (m,)
     n_points: np.ndarray  # (m,)
 
@@ -102,10 +118,13 @@ class _Segments:
         cut_first = (first == 0) | (scan[np.maximum(first - 1, 0)] < scan[first] - OCCLUDER_GAP)
         cut_last = (last == n_beams - 1) | (scan[np.minimum(last + 1, n_beams - 1)] < scan[last] - OCCLUDER_GAP)
         outline = fit_headings(points, segment)
-        is_round = (det.residuals < shape.round_rms) & (det.residuals <= outline.edge_rms)
+        # A rectangle fits three or four returns exactly: a few returns on the known circle
+        # count as round without the comparison.
+        few = det.n_points < ROUND_VOTE_POINTS
+        is_round = (det.residuals < shape.round_rms) & (few | (det.residuals <= outline.edge_rms))
         straight = (outline.straightness >= shape.min_straightness) & ~is_round & (det.n_points >= HEADING_POINTS)
         return cls(points, segment, starts, cut_first, cut_last, outline, is_round, straight,
-                   det.centres, det.sizes, det.n_points)  # fmt: skip
+                   det.centres, det.residuals, det.sizes, det.n_points)  # fmt: skip
 
 
 class ShapeTracker(ObstacleTracker):
@@ -128,6 +147,9 @@ class ShapeTracker(ObstacleTracker):
         self.visible_half = np.zeros((0, 2))  # the largest extents of returns seen
         self.roundness = np.zeros(0)  # running share of detections that were cylinders
 
+    def max_coast(self) -> float:
+        return self.cfg.shape.max_coast
+
     # -- outlines -----------------------------------------------------------------------------
     def half_sizes(self) -> np.ndarray:
         """(n, 2) half sizes of each track's bounding rectangle, along and across its heading."""
@@ -135,7 +157,10 @@ class ShapeTracker(ObstacleTracker):
         # An axis never seen whole: the prior, or a rounded end's depth (the visible
         # returns of a capsule's side and end reach its radius deep: half its width).
         depth = 2.0 * self.visible_half
-        rounded = (depth > _ROUNDED) & (depth < prior)
+        # Only across a long side (the other axis longer than the prior): seen end on, a
+        # capsule's cap is as deep as a side view's, but its length is what is hidden.
+        long_other = self.visible_half[:, ::-1] > prior
+        rounded = (depth > _ROUNDED) & (depth < prior) & long_other
         unseen = np.maximum(self.visible_half, np.where(rounded, depth, prior))
         half = np.where(self.seen_half > 0, np.maximum(self.seen_half, self.visible_half), unseen)
         radius = self.detector.cfg.radius
@@ -155,15 +180,17 @@ class ShapeTracker(ObstacleTracker):
         n, m = seen.lo.shape[:2]
         rows = np.repeat(np.arange(n), m)
         circles = np.broadcast_to(scan.circles, (n, m, 2)).reshape(-1, 2)
-        centres, var = self._centres(rows, seen.reshape(-1), sensor, circles)
+        fits = np.broadcast_to(scan.residuals, (n, m)).reshape(-1)
+        centres, var = self._centres(rows, seen.reshape(-1), sensor, circles, fits)
         return centres.reshape(n, m, 2), var.reshape(n, m, 2), seen
 
     def _centres(
-        self, rows: np.ndarray, seen: Extents, sensor: np.ndarray, circles: np.ndarray
+        self, rows: np.ndarray, seen: Extents, sensor: np.ndarray, circles: np.ndarray, fits: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Centres (p, 2) and their per-axis variances (p, 2) in the world measured by the
         outlines of tracks `rows` (p,) from returns of extents `seen` (p, 2) in each one's
-        frame; a round track's is its detection's known-radius circle, `circles` (p, 2)."""
+        frame; a round track's is its detection's known-radius circle, `circles` (p, 2), of
+        RMS residual `fits` (p,)."""
         s, c = sincos(self.heading[rows])
         half = self.half_sizes()[rows]
         sensor_uv = np.column_stack([sensor[0] * c + sensor[1] * s, sensor[1] * c - sensor[0] * s])
@@ -177,7 +204,11 @@ class ShapeTracker(ObstacleTracker):
         cc, ss = c * c, s * s
         var = np.column_stack([cc * var_uv[:, 0] + ss * var_uv[:, 1], ss * var_uv[:, 0] + cc * var_uv[:, 1]])
         round_track = self._round()[rows][:, None]
-        return np.where(round_track, circles, world), np.where(round_track, 0.0, var)
+        # A cylinder's segment the circle does not fit (merged with a neighbour's) says
+        # little of where it is: the prediction keeps it.
+        off_circle = (fits > 3.0 * self.cfg.shape.round_rms)[:, None]
+        circle_var = np.where(off_circle, 1.0, 0.0)
+        return np.where(round_track, circles, world), np.where(round_track, circle_var, var)
 
     # -- one scan -----------------------------------------------------------------------------
     def update(self, time: float, scan: np.ndarray, pose: np.ndarray) -> Tracks:
@@ -201,7 +232,7 @@ class ShapeTracker(ObstacleTracker):
             before = centres[rows, cols]
             matched = seen[rows, cols]
             self._learn_outline(rows, cols, segments, matched, sensor)
-            after, after_var = self._centres(rows, matched, sensor, det.centres[cols])
+            after, after_var = self._centres(rows, matched, sensor, det.centres[cols], det.residuals[cols])
             self.x[rows] += after - before
             self._correct(rows, after, var[cols][:, None] + after_var)
             self.seen[rows] = time
@@ -220,13 +251,12 @@ class ShapeTracker(ObstacleTracker):
         return self.tracks()
 
     def _associate_measured(self, centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        from scipy.optimize import linear_sum_assignment
-
+        """The Hungarian method on the distances from predicted to measured centres, gated."""
         d = np.sqrt(((self.x[:, None, :] - centres) ** 2).sum(axis=-1))
         gate = self.cfg.gate + 3.0 * np.sqrt(self.p_xx.max(axis=1))
-        cost = np.where(d <= gate[:, None], d, _NO_MATCH)
+        cost = np.where(d <= gate[:, None], d, NO_MATCH)
         rows, cols = linear_sum_assignment(cost)
-        ok = cost[rows, cols] < _NO_MATCH
+        ok = cost[rows, cols] < NO_MATCH
         return rows[ok], cols[ok]
 
     def _within_outlines(self, seen: Extents) -> np.ndarray:
@@ -236,7 +266,8 @@ class ShapeTracker(ObstacleTracker):
         centre_uv = np.column_stack([self.x[:, 0] * c + self.x[:, 1] * s, self.x[:, 1] * c - self.x[:, 0] * s])
         reach = self.half_sizes() + self.cfg.shape.birth_margin
         low, high = (centre_uv - reach)[:, None, :], (centre_uv + reach)[:, None, :]
-        return ((seen.lo >= low) & (seen.hi <= high)).all(axis=-1).any(axis=0)
+        inside = ((seen.lo >= low) & (seen.hi <= high)).all(axis=-1)
+        return (inside & ~self._round()[:, None]).any(axis=0)  # a cylinder's pieces fit its circle
 
     def _learn_outline(
         self, rows: np.ndarray, cols: np.ndarray, segments: _Segments, seen: Extents, sensor: np.ndarray
@@ -246,7 +277,7 @@ class ShapeTracker(ObstacleTracker):
         outline, is_round, n_points = segments.outline, segments.is_round[cols], segments.n_points[cols]
         # A few returns fit any circle: only a segment of `ROUND_VOTE_POINTS` votes.
         votes = n_points >= ROUND_VOTE_POINTS
-        self.roundness[rows] += np.where(votes, 0.5 * (is_round - self.roundness[rows]), 0.0)
+        self.roundness[rows] += np.where(votes, ROUNDNESS_GAIN * (is_round - self.roundness[rows]), 0.0)
         straight = segments.straight[cols]
         turn = _wrap_quarter(outline.headings[cols] - self.heading[rows])
         gain = np.where(self.heading_known[rows], shape.heading_gain * outline.straightness[cols], 1.0)
@@ -255,9 +286,9 @@ class ShapeTracker(ObstacleTracker):
         # Extents from clean outlines only: returns that fit no rectangle (two obstacles in
         # one segment, a cylinder's arc) would make a box of them.
         clean = (outline.edge_rms[cols] <= shape.max_edge_rms) & ~is_round
-        self._learn_extents(rows[clean], seen[clean], sensor)
+        self._learn_extents(rows[clean], seen[clean], sensor, outline.edge_max[cols][clean])
 
-    def _learn_extents(self, rows: np.ndarray, seen: Extents, sensor: np.ndarray) -> None:
+    def _learn_extents(self, rows: np.ndarray, seen: Extents, sensor: np.ndarray, edge_max: np.ndarray) -> None:
         """The returns' extents (p, 2) in each track's frame: lower bounds of its outline,
         and the whole of it along an axis when the laser faces the side along it and
         nothing cuts its ends."""
@@ -270,12 +301,18 @@ class ShapeTracker(ObstacleTracker):
         # angle (where a few beams catch only its near end): its extent along the side is then whole.
         off_u = np.maximum(np.maximum(lo[:, 0] - su, su - hi[:, 0]), 0.0)  # how far beside the extent
         off_v = np.maximum(np.maximum(lo[:, 1] - sv, sv - hi[:, 1]), 0.0)
-        facing = np.column_stack([off_v > _GRAZING * off_u, off_u > _GRAZING * off_v])
+        # Sharp sides (the returns on their rectangle's edges): seen whole from 15 degrees;
+        # rounded ends (a capsule's) show their whole width only from the front.
+        grazing = np.where(edge_max <= _SHARP, _GRAZING_SIDE, _GRAZING_END)
+        facing = np.column_stack([off_v > grazing * off_u, off_u > grazing * off_v])
         whole = facing & plausible & seen.whole
-        self.visible_half[rows] = np.where(
-            plausible, np.maximum(self.visible_half[rows], half), self.visible_half[rows]
-        )
-        self.seen_half[rows] = np.where(whole, np.maximum(self.seen_half[rows], half), self.seen_half[rows])
+        # Grown by at most `EXTENT_STEP` a scan: the whole of an extent is seen over a few
+        # scans, while a segment that merged two obstacles for one scan adds little.
+        visible, known = self.visible_half[rows], self.seen_half[rows]
+        grown = np.minimum(half, np.where(visible > 0, visible + EXTENT_STEP, half))
+        self.visible_half[rows] = np.where(plausible, np.maximum(visible, grown), visible)
+        grown = np.minimum(half, np.where(known > 0, known + EXTENT_STEP, half))
+        self.seen_half[rows] = np.where(whole, np.maximum(known, grown), known)
 
     def _birth_outlines(
         self, segments: _Segments, born: np.ndarray, sensor: np.ndarray, var: np.ndarray, time: float
@@ -295,13 +332,15 @@ class ShapeTracker(ObstacleTracker):
         self.heading_known = np.concatenate([self.heading_known, segments.straight[born]])
         self.seen_half = np.concatenate([self.seen_half, np.zeros((n, 2))])
         self.visible_half = np.concatenate([self.visible_half, np.zeros((n, 2))])
-        # A segment too short to vote starts undecided (one vote decides it).
+        # A segment too short to vote starts undecided, taken for the larger outline until
+        # its first vote (a cylinder's makes it round at once).
         undecided = segments.n_points[born] < ROUND_VOTE_POINTS
-        self.roundness = np.concatenate([self.roundness, np.where(undecided, 0.5, round_now.astype(np.float64))])
+        start = np.where(undecided, 0.5, round_now.astype(np.float64))
+        self.roundness = np.concatenate([self.roundness, start])
         new = np.arange(first, first + n)
-        self._learn_extents(new, seen, sensor)
+        self._learn_extents(new, seen, sensor, segments.outline.edge_max[born])
         # Where its outline says the centre is (the returns' middle was a start).
-        self.x[new], centre_var = self._centres(new, seen, sensor, segments.circles[born])
+        self.x[new], centre_var = self._centres(new, seen, sensor, segments.circles[born], segments.residuals[born])
         self.p_xx[new] = var[:, None] + centre_var
 
     def tracks(self) -> Tracks:
@@ -323,7 +362,7 @@ class ShapeTracker(ObstacleTracker):
     def half_size_std(self) -> np.ndarray:
         """(n, 2) uncertainty of each half size: an extent never seen whole could be up to
         the generator's largest (`shape.max_half`) from what was seen: that range, as a
-        uniform's standard deviation; a seen one, a few beam gaps'; a cylinder's, none."""
+        uniform's standard deviation; a seen one, `SEEN_EXTENT_STD`; a cylinder's, none."""
         unseen = np.maximum(self.cfg.shape.max_half - self.half_sizes(), 0.0) / math.sqrt(12.0)
-        std = np.where(self.seen_half > 0, 0.02, unseen)
+        std = np.where(self.seen_half > 0, SEEN_EXTENT_STD, unseen)
         return np.where(self._round()[:, None], 0.0, std)

@@ -38,7 +38,8 @@ from dynabarn.perception.detect import Detections, DetectorConfig, ObstacleDetec
 from dynabarn.perception.shape_fit import ShapeConfig
 from dynabarn.perception.tracks import Tracks
 
-_NO_MATCH = 1e6
+NO_MATCH = 1e6
+"""Association cost of a pair beyond the gate."""
 
 
 @dataclass
@@ -113,6 +114,10 @@ class ObstacleTracker:
         """An episode's tracker: its known map and laser from `info`."""
         return cls(cfg, ObstacleDetector.for_episode(cfg.detector, info))
 
+    def max_coast(self) -> float:
+        """Seconds a track is kept without a detection."""
+        return self.cfg.max_coast
+
     # -- the filter ---------------------------------------------------------------------------
     def _predict(self, dt: float) -> None:
         if dt <= 0.0 or not len(self.ids):
@@ -171,9 +176,9 @@ class ObstacleTracker:
             return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
         d = np.sqrt(((self.x[:, None, :] - det.centres[None, :, :]) ** 2).sum(axis=-1))
         gate = self.cfg.gate + 3.0 * np.sqrt(self.p_xx.max(axis=1))
-        cost = np.where(d <= gate[:, None], d, _NO_MATCH)
+        cost = np.where(d <= gate[:, None], d, NO_MATCH)
         rows, cols = linear_sum_assignment(cost)
-        ok = cost[rows, cols] < _NO_MATCH
+        ok = cost[rows, cols] < NO_MATCH
         return rows[ok], cols[ok]
 
     def _age_unmatched(self, k: np.ndarray, scan: np.ndarray, pose: np.ndarray, dt: float) -> None:
@@ -193,7 +198,7 @@ class ObstacleTracker:
             seen_through = np.zeros(len(k), dtype=bool)
             seen_through[in_view] = scan[beam[in_view]] > dist[in_view] + self.size[k][in_view]
             self.unseen_in_view[k] = np.where(seen_through, self.unseen_in_view[k] + dt, 0.0)
-        stale = (self.time - self.seen > cfg.max_coast) | (self.unseen_in_view > cfg.max_unseen_in_view)
+        stale = (self.time - self.seen > self.max_coast()) | (self.unseen_in_view > cfg.max_unseen_in_view)
         if stale.any():
             keep = ~stale
             for name in self.PER_TRACK:

@@ -1,0 +1,244 @@
+"""The `shaped` tracker against known answers: scenes built with `mujoco.MjSpec` (boxes,
+capsules, cylinders on mocap bodies, a standing cylinder of the known map) and scanned by
+MuJoCo's own ray casting from the Jackal's laser, with its noise."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from dynabarn.perception.detect import ObstacleDetector
+from dynabarn.perception.shape_fit import fit_headings
+from dynabarn.perception.shaped_tracker import SEEN_EXTENT_STD, ShapeTracker
+from dynabarn.perception.tracker import ObstacleTracker, TrackerConfig
+from dynabarn.perception.trackers import TRACKERS
+from dynabarn.perception.tracks import Tracks
+from dynabarn.robot import JACKAL
+
+ANGLES = JACKAL.laser_angles()
+LASER_Z = 0.3
+
+
+class Scene:
+    """Moving shapes (mocap bodies) and standing cylinders, scanned from a robot pose."""
+
+    def __init__(self, moving: list[dict], standing: np.ndarray | None = None) -> None:
+        spec = mujoco.MjSpec()
+        for i, shape in enumerate(moving):
+            yaw = shape.get("yaw", 0.0)
+            body = spec.worldbody.add_body(name=f"moving{i}", pos=[0, 0, 0], mocap=True)
+            turn = [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+            if shape["kind"] == "box":
+                body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[*shape["half"], 0.5], pos=[0, 0, 0.5], quat=turn)
+            elif shape["kind"] == "capsule":  # lying along its yaw, axis at height r
+                lie = np.zeros(4)
+                mujoco.mju_mulQuat(
+                    lie, np.array(turn), np.array([math.cos(math.pi / 4), 0.0, math.sin(math.pi / 4), 0.0])
+                )
+                r = shape["radius"]
+                body.add_geom(
+                    type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[r, shape["half_length"], 0], pos=[0, 0, r], quat=lie
+                )
+            else:
+                body.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[shape["radius"], 0.5, 0], pos=[0, 0, 0.5])
+        self.standing = np.zeros((0, 3)) if standing is None else np.asarray(standing, dtype=float)
+        for x, y, r in self.standing:
+            spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[r, 0.5, 0], pos=[x, y, 0.5])
+        self.model = spec.compile()
+        self.data = mujoco.MjData(self.model)
+        self.rng = np.random.default_rng(57)
+
+    def scan(self, positions: np.ndarray, pose: np.ndarray) -> np.ndarray:
+        self.data.mocap_pos[:, :2] = positions
+        self.data.mocap_pos[:, 2] = 0.0
+        mujoco.mj_kinematics(self.model, self.data)
+        origin = [pose[0] + JACKAL.laser_x * math.cos(pose[2]), pose[1] + JACKAL.laser_x * math.sin(pose[2]), LASER_Z]
+        a = ANGLES + pose[2]
+        vec = np.column_stack([np.cos(a), np.sin(a), np.zeros(len(a))]).ravel()
+        geom, dist = np.zeros(len(a), np.int32), np.zeros(len(a))
+        mujoco.mj_multiRay(self.model, self.data, np.array(origin), vec, None, 1, -1, geom, dist, None, len(a), 30.0)
+        ranges = np.where(geom < 0, 30.0, dist) + self.rng.normal(0.0, JACKAL.laser_noise_std, len(a))
+        return np.round(np.minimum(ranges, 30.0), 3)
+
+    def tracker(self, kind: type = ShapeTracker) -> ObstacleTracker:
+        cfg = TrackerConfig(kind="shaped")
+        detector = ObstacleDetector(
+            cfg.detector,
+            walls=np.zeros((0, 4)),
+            static_obstacles=self.standing,
+            laser_angles=ANGLES,
+            laser_offset=np.array([JACKAL.laser_x, 0.0]),
+            range_max=30.0,
+        )
+        return kind(cfg, detector)
+
+
+def _pose_looking_at(target: np.ndarray, bearing: float, distance: float) -> np.ndarray:
+    """A robot pose `distance` from `target` at `bearing` from it, facing it."""
+    x, y = target[0] + distance * math.cos(bearing), target[1] + distance * math.sin(bearing)
+    return np.array([x, y, bearing + math.pi])
+
+
+def _heading_error(estimate: float, truth: float) -> float:
+    """Difference of two rectangle headings (the same a right angle on) [rad]."""
+    return abs((estimate - truth + math.pi / 4) % (math.pi / 2) - math.pi / 4)
+
+
+def test_the_shaped_tracker_is_registered_and_the_circle_tracker_stays_the_default():
+    assert TRACKERS.get_item("shaped") is ShapeTracker
+    assert TrackerConfig().kind == "kalman"
+
+
+def test_a_box_seen_at_a_corner_gives_its_centre_extent_and_heading():
+    # Seen across a corner (two sides facing the laser), one scan tells a box whole.
+    centre, half, yaw = np.array([2.0, 1.0]), (0.5, 0.25), 0.4
+    scene = Scene([{"kind": "box", "half": half, "yaw": yaw}])
+    for bearing in yaw + np.array([0.25, 0.75, 1.25, 1.75]) * math.pi:  # the four corners
+        tracker = scene.tracker()
+        pose = _pose_looking_at(centre, bearing, 4.0)
+        tracks = tracker.update(0.0, scene.scan(centre[None], pose), pose)
+        assert len(tracks) == 1
+        assert np.hypot(*(tracks.positions[0] - centre)) < 0.03
+        assert _heading_error(tracks.headings[0], yaw) < math.radians(2.0)
+        assert sorted(tracks.half_sizes[0]) == pytest.approx(sorted(half), abs=0.03)
+
+
+def test_a_box_seen_from_every_side_gives_its_centre_extent_and_heading():
+    # Face on, a box's depth is hidden: the robot goes round it (8 views, one track).
+    centre, half, yaw = np.array([-1.0, 3.0]), (0.55, 0.3), 1.1
+    scene = Scene([{"kind": "box", "half": half, "yaw": yaw}])
+    tracker = scene.tracker()
+    for k, bearing in enumerate(np.linspace(0.0, 2.0 * math.pi, 8, endpoint=False)):
+        pose = _pose_looking_at(centre, bearing, 3.5)
+        tracks = tracker.update(0.1 * k, scene.scan(centre[None], pose), pose)
+        assert len(tracks) == 1 and tracks.ids[0] == 0
+    assert np.hypot(*(tracks.positions[0] - centre)) < 0.03
+    assert _heading_error(tracks.headings[0], yaw) < math.radians(2.0)
+    assert sorted(tracks.half_sizes[0]) == pytest.approx(sorted(half), abs=0.03)
+    assert np.all(tracks.half_size_std[0] <= SEEN_EXTENT_STD)  # every extent seen whole
+
+
+def test_a_box_seen_face_on_is_placed_behind_its_face_with_an_uncertain_depth():
+    centre, half, yaw = np.array([0.0, 0.0]), (0.5, 0.2), 0.0
+    scene = Scene([{"kind": "box", "half": half, "yaw": yaw}])
+    tracker = scene.tracker()
+    pose = _pose_looking_at(centre, -math.pi / 2, 4.0)  # straight at the long side
+    tracks = tracker.update(0.0, scene.scan(centre[None], pose), pose)
+    across = tracks.positions[0] - centre
+    assert abs(across[0]) < 0.03  # along the face: exact
+    # In depth: the near face is seen, the depth is the prior's (0.4 for the true 0.2).
+    assert across[1] == pytest.approx(0.4 - 0.2, abs=0.03)
+    assert tracks.half_size_std[0].max() > 0.1  # and the tracker says it does not know it
+
+
+CAPSULE = {"kind": "capsule", "yaw": 0.7, "radius": 0.35, "half_length": 0.7}
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_a_capsule_passed_by_is_tracked_by_its_outline_not_by_a_circle(side):
+    centre, yaw = np.array([1.0, -2.0]), CAPSULE["yaw"]
+    scene = Scene([CAPSULE])
+    shaped, circles = scene.tracker(), scene.tracker(ObstacleTracker)
+    for k, off_axis in enumerate(np.linspace(0.6, math.pi - 0.6, 12)):  # from one end to the other
+        pose = _pose_looking_at(centre, yaw + side * off_axis, 3.0)
+        scan = scene.scan(centre[None], pose)
+        tracks, circle_tracks = shaped.update(0.1 * k, scan, pose), circles.update(0.1 * k, scan, pose)
+    error = np.hypot(*(tracks.positions[0] - centre))
+    assert error < 0.1  # its rounded ends never show their whole width: the prior's (0.4 for 0.35)
+    assert error < 0.5 * np.hypot(*(circle_tracks.positions - centre).T).min()
+    assert _heading_error(tracks.headings[0], yaw) < math.radians(2.0)
+    # Its covering circles hold the capsule's ends.
+    cover = tracks.covering_circles()
+    axis = np.array([math.cos(yaw), math.sin(yaw)])
+    reach = CAPSULE["half_length"] + CAPSULE["radius"]
+    for end in (centre + reach * axis, centre - reach * axis):
+        assert (np.hypot(*(cover.positions - end).T) <= cover.sizes + 0.02).any()
+
+
+@pytest.mark.parametrize("end", [0.0, math.pi])
+def test_a_capsule_seen_end_on_is_placed_across_and_says_its_length_is_unknown(end):
+    centre, yaw = np.array([1.0, -2.0]), CAPSULE["yaw"]
+    scene = Scene([CAPSULE])
+    tracker = scene.tracker()
+    for k in range(4):
+        pose = _pose_looking_at(centre, yaw + end + 0.1 * k, 3.0)
+        tracks = tracker.update(0.1 * k, scene.scan(centre[None], pose), pose)
+    axis = np.array([math.cos(yaw), math.sin(yaw)])
+    error = tracks.positions[0] - centre
+    assert abs(error @ np.array([-axis[1], axis[0]])) < 0.08  # across the axis: seen
+    # Along it the length is hidden: the centre is the prior's depth behind the cap, and the
+    # tracker says how little it knows of that extent.
+    hidden = CAPSULE["half_length"] + CAPSULE["radius"] - tracker.cfg.shape.prior_half
+    assert abs(error @ axis) < hidden + 0.05
+    along = int(abs(math.cos(tracks.headings[0] - yaw)) < abs(math.sin(tracks.headings[0] - yaw)))
+    assert tracks.half_size_std[0, along] > 0.15
+
+
+def test_a_cylinder_keeps_the_circle_trackers_precision():
+    centre = np.array([3.0, 0.5])
+    scene = Scene([{"kind": "cylinder", "radius": 0.5}])
+    tracker = scene.tracker()
+    for k in range(4):
+        pose = _pose_looking_at(centre, 0.4 * k, 5.0)
+        tracks = tracker.update(0.1 * k, scene.scan(centre[None], pose), pose)
+    assert np.hypot(*(tracks.positions[0] - centre)) < 0.005
+    assert tracks.half_sizes[0] == pytest.approx([0.5, 0.5])
+    assert len(tracks.covering_circles()) == 1
+
+
+def test_two_obstacles_passing_close_keep_their_identities():
+    # A box and a cylinder cross 1.2 m apart (centres), each at 1.5 m/s, seen from the side.
+    scene = Scene([{"kind": "box", "half": (0.4, 0.3), "yaw": 0.2}, {"kind": "cylinder", "radius": 0.5}])
+    tracker = scene.tracker()
+    pose = np.array([0.0, -5.0, math.pi / 2])
+    identity = None
+    for k in range(31):
+        t = 0.1 * k
+        positions = np.array([[-2.25 + 1.5 * t, 0.6], [2.25 - 1.5 * t, -0.6]])
+        tracks = tracker.update(t, scene.scan(positions, pose), pose)
+        d = np.hypot(*(tracks.positions[:, None] - positions[None]).transpose(2, 0, 1))
+        assert d.min(axis=0).max() < 0.5  # both tracked throughout
+        nearest = tuple(int(tracks.ids[j]) for j in d.argmin(axis=0))
+        identity = identity or nearest
+        assert nearest == identity
+    assert len(set(identity)) == 2
+
+
+def test_a_track_hidden_behind_a_standing_cylinder_for_a_second_comes_back_with_its_identity():
+    # A box crosses behind a standing cylinder of the known map at 1.2 m/s: about a second
+    # with no return from it.
+    standing = np.array([[0.0, 1.0, 0.5]])
+    scene = Scene([{"kind": "box", "half": (0.3, 0.2), "yaw": 0.0}], standing)
+    tracker = scene.tracker()
+    pose = np.array([0.0, -2.0, math.pi / 2])
+    seen_ids, hidden, longest = set(), 0, 0
+    for k in range(40):
+        t = 0.1 * k
+        position = np.array([[-2.4 + 1.2 * t, 3.0]])
+        tracks = tracker.update(t, scene.scan(position, pose), pose)
+        hidden = 0 if len(tracker.detections) else hidden + 1
+        longest = max(longest, hidden)
+        near = np.hypot(*(tracks.positions - position[0]).T) < 0.3 if len(tracks) else np.zeros(0, bool)
+        seen_ids |= set(tracks.ids[near].tolist())
+    assert 9 <= longest <= 12  # a second (0.9-1.2 s) without a return from it
+    assert len(tracks) == 1 and np.hypot(*(tracks.positions[0] - position[0])) < 0.05
+    assert seen_ids == {0}  # one track before, behind and after: no new identity
+
+
+def test_outlines_fit_headings_of_sides_and_call_arcs_round():
+    x = np.linspace(-0.5, 0.5, 30)
+    yaw = 0.3
+    side = np.column_stack([x * math.cos(yaw), x * math.sin(yaw)])
+    arc = 0.5 * np.column_stack([np.cos(np.linspace(-1, 1, 30)), np.sin(np.linspace(-1, 1, 30))])
+    shapes = fit_headings(np.concatenate([side, arc + 5.0]), np.repeat([0, 1], 30))
+    assert _heading_error(shapes.headings[0], yaw) < math.radians(0.5)
+    assert shapes.straightness[0] > 0.9 > 0.5 > shapes.straightness[1]
+
+
+def test_covering_circles_leave_circle_tracks_alone():
+    tracks = Tracks(0.0, np.array([3]), np.zeros((1, 2)), np.ones((1, 2)), np.array([0.5]), *(np.zeros((1, 2)),) * 3,
+                    np.zeros(1), np.zeros(1))  # fmt: skip
+    assert tracks.covering_circles() is tracks
