@@ -126,3 +126,53 @@ def test_reactive_obstacles_are_not_certified():
     )
     cert = certify(reactive, BARN, clock_offset=0.0)
     assert not cert.certified and "reactive" in cert.reason
+
+
+def _passage_world(tmp_path, gap: float):
+    """A wall of standing cylinders (r = 0.25) across the arena at x = 0, with one passage
+    `gap` metres wide between two of them at y = 0, on the straight line to the goal."""
+    from dynabarn.mjcf import write_world
+
+    world = read_world(crafted_world(tmp_path / "empty.xml"))
+    r, pitch = 0.25, 0.45  # neighbours 0.05 m apart elsewhere: closed to the robot
+    upper = [(0.0, gap / 2 + r + k * pitch, r) for k in range(30)]
+    lower = [(0.0, -(gap / 2 + r + k * pitch), r) for k in range(30)]
+    half = world.layout.arena_half_size
+    cylinders = tuple(c for c in upper + lower if abs(c[1]) < half)
+    world = dataclasses.replace(world, layout=dataclasses.replace(world.layout, cylinders=cylinders))
+    path = tmp_path / f"passage_{gap:.2f}.xml"
+    write_world(world, path)
+    return path, world
+
+
+@pytest.mark.parametrize(
+    ("gap", "disc", "footprint"),
+    [
+        (1.20, True, True),  # wide: both
+        (0.72, False, True),  # narrower than the search's disc (0.84 with margins), wider than the Jackal
+        (0.40, False, False),  # narrower than the Jackal (0.43 wide): neither
+    ],
+)
+def test_the_footprint_search_certifies_passages_the_jackal_fits_and_its_disc_does_not(tmp_path, gap, disc, footprint):
+    from dynabarn.sim.certificate import CertificateConfig
+    from dynabarn.sim.certificate_occupancy import HALF_FOOTPRINT
+
+    assert 2 * HALF_FOOTPRINT[1] < 0.72 < 2 * ROBOT_RADIUS + 0.2
+    path, world = _passage_world(tmp_path, gap)
+    budget = 2_000_000
+    by_disc = certify(world, BARN, clock_offset=0.0, budget=budget)
+    by_footprint = certify(world, BARN, clock_offset=0.0, budget=budget, config=CertificateConfig(footprint=True))
+    assert by_disc.certified is disc
+    assert by_footprint.certified is footprint, by_footprint.reason
+    if footprint:  # and MuJoCo drives the witness through without touching a cylinder
+        result, error = replay_witness(path, by_footprint.witness, BARN, seed=0)
+        assert result.outcome.value == "success", result.reason
+        assert error < 0.05
+
+
+def test_the_footprint_resolution_is_recorded_as_version_3_and_the_disc_as_before():
+    from dynabarn.sim.certificate import CertificateConfig
+
+    assert CertificateConfig().to_dict()["version"] == 2
+    assert "footprint" not in CertificateConfig().to_dict()  # version 2's records unchanged
+    assert CertificateConfig(footprint=True).to_dict()["version"] == 3

@@ -134,3 +134,21 @@ def test_where_the_search_finds_no_witness_the_oracles_episode_is_tried(tmp_path
     (trial,) = json.loads((folder / "index.json").read_text())["worlds"][0]["certificates"]["barn"]["trials"]
     assert not trial["certified"] and "spawn" in trial["reason"]
     assert trial["oracle"]["outcome"] == "collision" and "by" not in trial
+
+
+def test_footprint_certificates_are_version_3_and_verified_at_their_own_resolution(tmp_path, capsys):
+    out = tmp_path / "w"
+    assert worlds_main(["generate", "--out", str(out), "--profile-file", str(EXAMPLE)]) == 0
+    argv = ["certify", str(out), "--worlds", "0", "--trials", "1", "--jobs", "1", "--footprint"]
+    assert worlds_main(argv) == 0
+    index = json.loads((out / "index.json").read_text())
+    assert index["certification"]["barn"]["resolution"]["version"] == 3
+    assert index["certification"]["barn"]["resolution"]["footprint"] is True
+    record = next(e for e in index["worlds"] if e["id"] == 0)["certificates"]["barn"]
+    assert record["resolution_version"] == 3
+    # Verified under the footprint it was made with: no difference.
+    assert worlds_main(["certify", str(out), "--worlds", "0", "--verify", "--jobs", "1"]) == 0
+    assert "no difference" in capsys.readouterr().out
+    # A tier's draws stay at the disc's resolution.
+    assert worlds_main(["certify", "tier-mixed", "--redraw", "--footprint"]) == 2
+    assert "not with --footprint" in capsys.readouterr().err

@@ -54,6 +54,8 @@ class Job:
     seeds: tuple[int, ...]
     budget: int | None = None
     """The search's budget (states expanded per trial; None: none), `sim.certificate.certify`."""
+    footprint: bool = False
+    """The search checks the static field against the Jackal's rectangle (resolution version 3)."""
 
 
 def unobstructed_arrival(protocol: EvalProtocol, config: CertificateConfig | None = None) -> float:
@@ -74,8 +76,9 @@ def certify_world(job: Job) -> tuple[str, list[dict]]:
     world = read_world(job.path)
     sim = None
     trials = []
+    config = CertificateConfig(footprint=job.footprint)
     for seed in job.seeds:
-        cert = certify(world, protocol, clock_offset=trial_clock_offset(seed), budget=job.budget)
+        cert = certify(world, protocol, clock_offset=trial_clock_offset(seed), budget=job.budget, config=config)
         row = {"seed": seed, **cert.to_dict()}
         if cert.witness is not None:
             sim = sim or Simulation(job.path)
@@ -134,19 +137,21 @@ def certify_set(
     ids: list[int] | None = None,
     jobs: int = 1,
     budget: int | None = None,
+    footprint: bool = False,
     progress: Callable = lambda it: it,
 ) -> dict:
     """Certify the worlds `ids` (default: all) of the set in `index_dir`; returns the
     updated index (also written to its index.json). `budget`: the search's, per trial
-    (`sim.certificate.certify`), recorded in the index for `verify_set`. The set's index lock
-    is held throughout (`worldset.index_locked`): a second writer at once is refused."""
+    (`sim.certificate.certify`), recorded in the index for `verify_set`; `footprint`: the
+    search's static field against the Jackal's rectangle (resolution version 3). The set's
+    index lock is held throughout (`worldset.index_locked`): a second writer at once is refused."""
     with index_locked(index_dir):
-        return _certify_set(index_dir, protocol, trials, ids, jobs, budget, progress)
+        return _certify_set(index_dir, protocol, trials, ids, jobs, budget, footprint, progress)
 
 
-def _certify_set(index_dir, protocol, trials, ids, jobs, budget, progress) -> dict:
+def _certify_set(index_dir, protocol, trials, ids, jobs, budget, footprint, progress) -> dict:
     index = read_index(index_dir)
-    config = CertificateConfig()
+    config = CertificateConfig(footprint=footprint)
     resolution = config.to_dict()
     seeds = tuple(range(trials))
     unobstructed = unobstructed_arrival(protocol, config)
@@ -157,14 +162,14 @@ def _certify_set(index_dir, protocol, trials, ids, jobs, budget, progress) -> di
             continue
         if not _current(entry, protocol.name, resolution, seeds):
             path = entry_path(Path(index_dir), entry)
-            todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget))
+            todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget, footprint))
     by_path = {Path(entry_path(Path(index_dir), e)).name: e for e in index["worlds"]}
     for done, (path, rows) in enumerate(progress(map_in_workers(certify_world, todo, jobs)), start=1):
         entry = by_path[Path(path).name]
         record = world_record(rows, unobstructed)
         entry.setdefault("certificates", {})[protocol.name] = {
             "sha256": entry["sha256"],
-            "resolution_version": config.VERSION,
+            "resolution_version": config.version,
             **record,
         }
         if done % CHECKPOINT_EVERY == 0:
@@ -186,7 +191,10 @@ def verify_set(
     worlds left out because they have no certificate). Refuses (one line) when none of the
     worlds has one: a pass on nothing is not a pass. Writes nothing."""
     index = read_index(index_dir)
-    budget = index.get("certification", {}).get(protocol.name, {}).get("search_budget")
+    certification = index.get("certification", {}).get(protocol.name, {})
+    budget = certification.get("search_budget")
+    # Under the resolution the certificates were made at: version 3's footprint, or not.
+    footprint = bool(certification.get("resolution", {}).get("footprint", False))
     wanted = set(ids) if ids is not None else None
     stored: dict[str, dict] = {}
     todo = []
@@ -208,7 +216,7 @@ def verify_set(
         path = entry_path(Path(index_dir), entry)
         stored[path.name] = record
         seeds = tuple(t["seed"] for t in record["trials"])
-        todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget))
+        todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget, footprint))
     if not todo and not differences:
         raise DynabarnError(
             f"{index_dir}: none of the {uncertified} world(s) asked for has a {protocol.name} certificate to verify; "

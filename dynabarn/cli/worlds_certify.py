@@ -51,6 +51,13 @@ def add_certify_arguments(c: argparse.ArgumentParser) -> None:
         "oracle's episode instead (recorded in the index; --verify uses it); default: no limit, the search runs "
         "to the time limit (in static fields that can take minutes a trial)",
     )
+    c.add_argument(
+        "--footprint",
+        action="store_true",
+        help="search with the Jackal's own rectangle at its heading against the static field, not the disc "
+        "around it (resolution version 3: passages the robot drives through lengthwise are searched too; the "
+        "committed sets were certified without it, at version 2); default: off",
+    )
     add_jobs(c)
 
 
@@ -67,6 +74,10 @@ def worlds_certify(args: argparse.Namespace) -> int:
         from dynabarn.bench.certify import certify_tier
         from dynabarn.worlds.tiers import TIERS
 
+        if args.footprint:
+            raise DynabarnError(
+                "--redraw keeps the tiers' draws at the disc's resolution (version 2): not with --footprint"
+            )
         if args.set not in TIERS or args.worlds is not None:
             raise DynabarnError(
                 f"--redraw certifies a whole tier ({', '.join(TIERS)}), not {args.set!r} or some worlds"
@@ -109,6 +120,7 @@ def worlds_certify(args: argparse.Namespace) -> int:
         ids=ids,
         jobs=args.jobs,
         budget=args.budget,
+        footprint=args.footprint,
         progress=progress_bar(f"certifying {args.set}", total),
     )
     entries = [e for e in index["worlds"] if ids is None or e["id"] in set(ids)]

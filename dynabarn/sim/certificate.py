@@ -13,7 +13,9 @@ The search (`certify`):
   limits per tick); the pose is integrated over the tick with the actuator's first-order
   lag (`JackalParams.velocity_gain`) at `substeps` points.
 - Safety: the robot is the disc around its footprint (radius: the footprint's farthest
-  corner), each obstacle the disc around its shape. At every substep point the gap between
+  corner), each obstacle the disc around its shape; with `footprint`, the static field is
+  checked against the Jackal's own rectangle at its heading instead
+  (`certificate_occupancy`). At every substep point the gap between
   the discs must be at least the most they can close in half a substep (the robot's top
   speed plus the obstacles' `SchedulePlayer.max_speed`), a whole substep where a looping
   schedule jumps back, plus the occupancy grid's lookup error and a tracking margin for
@@ -45,14 +47,14 @@ import numpy as np
 from dynabarn.determinism import STATE_RESOLUTION, exp, sincos, snap_array
 from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL
+from dynabarn.sim.certificate_occupancy import ROBOT_RADIUS, Occupancy
 from dynabarn.sim_config import SimConfig
 from dynabarn.worlds.schedule import SchedulePlayer
 from dynabarn.worlds.spec import SCRIPTED, WorldSpec
 
 _NOBODY = np.iinfo(np.int64).max
 """An unclaimed key in `certify`'s table of pruning cells."""
-ROBOT_RADIUS = math.hypot(JACKAL.length / 2, JACKAL.width / 2)
-"""[m] The disc around the Jackal's footprint: safe at any heading."""
+__all__ = ["ROBOT_RADIUS", "Certificate", "CertificateConfig", "Witness", "certify"]
 
 
 @dataclass(frozen=True)
@@ -72,11 +74,27 @@ class CertificateConfig:
     """[m/s] Forward speeds tried each tick (fastest first: first kept in a cell)."""
     turn_rates: tuple[float, ...] = (0.0, 1.5, -1.5, 3.0, -3.0)
     """[rad/s] Yaw rates tried each tick."""
+    footprint: bool = False
+    """Check the Jackal's own rectangle, at its heading, against the static field (a
+    configuration-space grid per heading bin), not the disc around it: passages the robot
+    drives through lengthwise but its disc does not fit are searched too (version 3).
+    Moving obstacles and walls are always checked against the disc."""
+    footprint_headings: int = 64
+    """Heading bins of the footprint's grids (each grown by what a half bin's turn sweeps)."""
     VERSION: ClassVar[int] = 2
-    """Bumped whenever the search changes what it certifies (2: the goal region shrunk by the tracking margin)."""
+    """Bumped whenever the search changes what it certifies (2: the goal region shrunk by
+    the tracking margin; 3: `footprint`, which records version 3 and keeps version 2's
+    certificates reproducible under their own resolution)."""
+
+    @property
+    def version(self) -> int:
+        return 3 if self.footprint else self.VERSION
 
     def to_dict(self) -> dict:
-        return {"version": self.VERSION, **asdict(self)}
+        d = asdict(self)
+        if not self.footprint:  # version 2's records, as they were written
+            del d["footprint"], d["footprint_headings"]
+        return {"version": self.version, **d}
 
 
 @dataclass(frozen=True)
@@ -110,72 +128,6 @@ class Certificate:
         if self.arrival is not None:
             d["arrival"] = self.arrival
         return d
-
-
-class _Occupancy:
-    """Occupancy grids of one world: the static part once, the obstacles per tick."""
-
-    def __init__(self, world: WorldSpec, player: SchedulePlayer, protocol: EvalProtocol, config: CertificateConfig):
-        g = config.grid
-        half = world.layout.arena_half_size
-        sx = protocol.spawn[0]
-        self.x0, self.y0 = min(-half, sx) - 1.0, -half - 1.0
-        self.nx = math.ceil((max(half, sx) + 2.0 - self.x0) / g) + 1
-        self.ny = math.ceil((half + 1.0 - self.y0) / g) + 1
-        self.g, self.player = g, player
-        lookup = g * math.sqrt(0.5)  # a point's distance to its cell's centre
-        self.base = ROBOT_RADIUS + config.tracking_margin + lookup
-        self.static = self._static(world)
-        obstacles = world.obstacles
-        self.radii = np.array([o.radius + math.hypot(o.half_length, o.half_width) for o in obstacles])
-        self.obstacle_speed = player.max_speed() if obstacles else 0.0
-        self.now = np.empty((config.substeps, self.ny, self.nx), dtype=bool)
-
-    def _centres(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.x0 + self.g * np.arange(self.nx), self.y0 + self.g * np.arange(self.ny)
-
-    def _static(self, world: WorldSpec) -> np.ndarray:
-        xs, ys = self._centres()
-        X, Y = np.meshgrid(xs, ys)
-        blocked = np.zeros(X.shape, dtype=bool)
-        blocked[[0, -1], :] = blocked[:, [0, -1]] = True  # the edge: where points beyond it look
-        for wall in world.layout.walls:  # boxes: the distance to a box, against the disc
-            dx = np.maximum(np.abs(X - wall.centre[0]) - wall.size[0] / 2, 0.0)
-            dy = np.maximum(np.abs(Y - wall.centre[1]) - wall.size[1] / 2, 0.0)
-            blocked |= dx * dx + dy * dy < self.base**2
-        for cx, cy, r in world.layout.cylinders:
-            blocked |= (X - cx) ** 2 + (Y - cy) ** 2 < (self.base + r) ** 2
-        return blocked
-
-    def stamp(self, times: np.ndarray, margins: np.ndarray) -> np.ndarray:
-        """The grids (substeps, ny, nx) at `times` (substeps,): the static part and every
-        obstacle grown by the robot's disc and `margins` (substeps,) [m]."""
-        now = self.now
-        now[:] = self.static
-        if len(self.radii) == 0:
-            return now
-        xy, _ = self.player.positions_at(times)  # (S, n, 2)
-        reach = self.base + self.radii[None, :] + margins[:, None]  # (S, n)
-        w = math.ceil(float(reach.max()) / self.g)
-        off = np.arange(-w, w + 1)
-        cx = np.rint((xy[..., 0] - self.x0) / self.g).astype(np.int64)  # (S, n)
-        cy = np.rint((xy[..., 1] - self.y0) / self.g).astype(np.int64)
-        ix = cx[..., None, None] + off[None, None, None, :]  # (S, n, 1, W)
-        iy = cy[..., None, None] + off[None, None, :, None]  # (S, n, W, 1)
-        px = self.x0 + self.g * ix - xy[..., 0, None, None]
-        py = self.y0 + self.g * iy - xy[..., 1, None, None]
-        inside = (px * px + py * py < (reach**2)[..., None, None]) & (ix >= 0) & (ix < self.nx) & (iy >= 0)
-        inside &= iy < self.ny
-        s = np.broadcast_to(np.arange(len(times))[:, None, None, None], inside.shape)
-        now[s[inside], np.broadcast_to(iy, inside.shape)[inside], np.broadcast_to(ix, inside.shape)[inside]] = True
-        return now
-
-    def free(self, sub: int, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Whether the points (x, y) are free at substep `sub`; beyond the grid is its
-        edge, which is blocked (`_static`)."""
-        ix = np.clip(np.rint((x - self.x0) / self.g), 0, self.nx - 1).astype(np.int64)
-        iy = np.clip(np.rint((y - self.y0) / self.g), 0, self.ny - 1).astype(np.int64)
-        return ~self.now[sub].ravel()[iy * self.nx + ix]
 
 
 class _Motion:
@@ -258,7 +210,7 @@ def certify(
     if reactive:
         return Certificate(False, f"reactive obstacles ({', '.join(reactive)}) have no schedule", clock_offset)
     player = SchedulePlayer(world, clock_offset=clock_offset)
-    occupancy = _Occupancy(world, player, protocol, config)
+    occupancy = Occupancy.of_search(world, player, protocol, config)
     if not math.isfinite(occupancy.obstacle_speed):
         return Certificate(False, "a schedule has a segment without duration (unbounded speed)", clock_offset)
     motion = _Motion(config, sim)
@@ -269,7 +221,7 @@ def certify(
     inner = dataclasses.replace(protocol, goal_tolerance=max(protocol.goal_tolerance - config.tracking_margin, 1e-3))
     spawn = tuple(float(v) for v in protocol.spawn)
     occupancy.stamp(np.zeros(1), np.array([0.5 * closing * motion.ds]))
-    if not occupancy.free(0, np.array([spawn[0]]), np.array([spawn[1]]))[0]:
+    if not occupancy.free(0, np.array([spawn[0]]), np.array([spawn[1]]), np.array([spawn[2]]))[0]:
         return Certificate(
             False, "the spawn is within the search's margin of an obstacle or wall at the start", clock_offset
         )
@@ -296,7 +248,7 @@ def certify(
         v, w, xs, ys, ths = motion.advance(*state, prim, parent)
         ok = np.ones(len(parent), dtype=bool)
         for j in range(config.substeps):
-            ok &= occupancy.free(j, xs[j], ys[j])
+            ok &= occupancy.free(j, xs[j], ys[j], ths[j])
             arrived = np.flatnonzero(ok & inner.reached(xs[j], ys[j], goal))
             if len(arrived):
                 history.append((parent[arrived[:1]], prim[arrived[:1]]))
@@ -317,7 +269,7 @@ def certify(
     return Certificate(False, reason, clock_offset, None, expanded)
 
 
-def _first_per_cell(x, y, th, owner: np.ndarray, occupancy: _Occupancy, config: CertificateConfig, cells_x: int):
+def _first_per_cell(x, y, th, owner: np.ndarray, occupancy: Occupancy, config: CertificateConfig, cells_x: int):
     """The indices of the first state in each pruning cell and heading bin, in order. The
     least index per key is scattered into `owner`, a table of every key (no sort of the
     candidates), which is left unclaimed again."""
