@@ -214,13 +214,8 @@ class ShapeTracker(ObstacleTracker):
     def update(self, time: float, scan: np.ndarray, pose: np.ndarray) -> Tracks:
         """Take one scan (and the robot's pose at it); the tracks at `time`."""
         cfg = self.cfg
-        dt = 0.0 if self.time is None else time - self.time
-        self._predict(dt)
-        self.time = time
-        det = self.detector.detect(scan, pose)
-        self.detections = det
+        det, dt, var = self._next_scan(time, scan, pose)
         sensor = self.detector.laser_origin(pose)
-        var = (cfg.measurement_std * np.sqrt(8.0 / np.maximum(det.n_points, 1))) ** 2 + 1e-6
         rows = cols = np.zeros(0, dtype=np.int64)
         segments = _Segments.of(det, scan, cfg.shape) if len(det) else None
         claimed = np.zeros(len(det), dtype=bool)

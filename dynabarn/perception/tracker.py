@@ -142,15 +142,20 @@ class ObstacleTracker:
         self.p_vv[k] = p_vv - gain_v * p_xv
 
     # -- one scan -----------------------------------------------------------------------------
-    def update(self, time: float, scan: np.ndarray, pose: np.ndarray) -> Tracks:
-        """Take one scan (and the robot's pose at it); the tracks at `time`."""
-        cfg = self.cfg
+    def _next_scan(self, time: float, scan: np.ndarray, pose: np.ndarray) -> tuple[Detections, float, np.ndarray]:
+        """Every track predicted to `time`, the scan's detections: (them, the time since the
+        last scan, each one's measurement variance)."""
         dt = 0.0 if self.time is None else time - self.time
         self._predict(dt)
         self.time = time
         det = self.detector.detect(scan, pose)
         self.detections = det
-        var = (cfg.measurement_std * np.sqrt(8.0 / np.maximum(det.n_points, 1))) ** 2 + 1e-6
+        var = (self.cfg.measurement_std * np.sqrt(8.0 / np.maximum(det.n_points, 1))) ** 2 + 1e-6
+        return det, dt, var
+
+    def update(self, time: float, scan: np.ndarray, pose: np.ndarray) -> Tracks:
+        """Take one scan (and the robot's pose at it); the tracks at `time`."""
+        det, dt, var = self._next_scan(time, scan, pose)
         track_rows, det_cols = self._associate(det)
         if len(track_rows):
             self._correct(track_rows, det.centres[det_cols], var[det_cols])
