@@ -8,18 +8,20 @@ looks like, and measures its centre from that:
 
 - an outline: the heading of its sides (fixed: obstacles translate without turning) and
   the half sizes of its bounding rectangle along them. A straight segment tells the
-  heading (`shape_fit.fit_headings`); the extent of the returns along an axis is the
-  obstacle's whole extent when the laser stands beyond the other axis' extent (it sees
-  that side end to end), and a lower bound otherwise; an axis never seen whole takes
-  `shape.prior_half`. A segment the known-radius circle fits closely is a cylinder, and a
-  track that is mostly that keeps the circle's centre (as `kalman` does);
+  heading (`shape_fit.fit_headings`); the extent of the returns along a side is the
+  obstacle's whole extent when the laser faces that side (beyond 15 degrees for a box's
+  sharp sides, within 20 of head-on for a rounded end) and neither end of the returns is
+  cut (`shape_fit.Extents`), and a lower bound otherwise; an axis never seen whole takes
+  `shape.prior_half`, and `Tracks.half_size_std` says how little is known of it. A segment
+  the known-radius circle fits closely is a cylinder, and a track that is mostly that
+  (a slow vote) keeps the circle's centre (as `kalman` does);
 - a centre measured with the track's own outline (`shape_fit.centre_from_spans`): the side
   facing the laser is where the returns start, and along an axis the scan leaves open the
   measurement keeps the prediction, with a variance that says so (the open width's,
   uniform), so the filter learns only what was seen;
 - association by that measured centre, for every track and detection pair, so a box's
-  near side is matched with the box; a detection lying inside a track's outline is a
-  piece of that obstacle cut by something in front of it, not a new track;
+  near side is matched with the box; a detection lying inside a box's or capsule's
+  outline is a piece of that obstacle cut by something in front of it, not a new track;
 - coasting through occlusion as `kalman` does (growing uncertainty; a track is dropped
   only when unseen for `shape.max_coast` (1.2 s: an obstacle hidden for a second comes
   back with its identity) or when the laser sees through its place).
