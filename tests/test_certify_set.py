@@ -151,4 +151,4 @@ def test_footprint_certificates_are_version_3_and_verified_at_their_own_resoluti
     assert "no difference" in capsys.readouterr().out
     # A tier's draws stay at the disc's resolution.
     assert worlds_main(["certify", "tier-mixed", "--redraw", "--footprint"]) == 2
-    assert "not --footprint" in capsys.readouterr().err
+    assert "not with --footprint" in capsys.readouterr().err
