@@ -48,8 +48,10 @@ from dynabarn.perception.shape_fit import (
     centre_from_spans,
     extents,
     fit_headings,
+    from_frame,
     group_starts,
     spans,
+    to_frame,
 )
 from dynabarn.perception.tracker import NO_MATCH, ObstacleTracker, TrackerConfig
 from dynabarn.perception.tracks import Tracks
@@ -195,11 +197,9 @@ class ShapeTracker(ObstacleTracker):
         RMS residual `fits` (p,)."""
         s, c = sincos(self.heading[rows])
         half = self.half_sizes()[rows]
-        sensor_uv = np.column_stack([sensor[0] * c + sensor[1] * s, sensor[1] * c - sensor[0] * s])
-        x = self.x[rows]
-        prior_uv = np.column_stack([x[:, 0] * c + x[:, 1] * s, x[:, 1] * c - x[:, 0] * s])
-        uv, slack = centre_from_spans(seen, half, sensor_uv, prior_uv)
-        world = np.column_stack([uv[:, 0] * c - uv[:, 1] * s, uv[:, 0] * s + uv[:, 1] * c])
+        headings = self.heading[rows]
+        uv, slack = centre_from_spans(seen, half, to_frame(sensor, headings), to_frame(self.x[rows], headings))
+        world = from_frame(uv, headings)
         # An axis whose whole extent was never seen stands on the prior: as uncertain as it.
         unknown = self.seen_half[rows] <= 0
         var_uv = slack * slack / 12.0 + np.where(unknown, self.cfg.shape.prior_half**2 / 3.0, 0.0)
@@ -259,8 +259,7 @@ class ShapeTracker(ObstacleTracker):
     def _within_outlines(self, seen: Extents) -> np.ndarray:
         """(m,) detections whose returns all lie inside some track's outline (grown by
         `birth_margin`) about its predicted centre: pieces of a tracked obstacle."""
-        s, c = sincos(self.heading)
-        centre_uv = np.column_stack([self.x[:, 0] * c + self.x[:, 1] * s, self.x[:, 1] * c - self.x[:, 0] * s])
+        centre_uv = to_frame(self.x, self.heading)
         reach = self.half_sizes() + self.cfg.shape.birth_margin
         low, high = (centre_uv - reach)[:, None, :], (centre_uv + reach)[:, None, :]
         inside = ((seen.lo >= low) & (seen.hi <= high)).all(axis=-1)
@@ -319,11 +318,8 @@ class ShapeTracker(ObstacleTracker):
         outline = segments.outline
         headings = outline.headings[born]
         seen = spans(segments.points, segments.segment, outline.headings, segments.cut_first, segments.cut_last)[born]
-        s, c = sincos(headings)
-        middle = 0.5 * (seen.lo + seen.hi)
         round_now = segments.is_round[born]
-        self._birth(np.column_stack([middle[:, 0] * c - middle[:, 1] * s, middle[:, 0] * s + middle[:, 1] * c]),
-                    segments.sizes[born], var, time)  # fmt: skip
+        self._birth(from_frame(0.5 * (seen.lo + seen.hi), headings), segments.sizes[born], var, time)
         n = len(born)
         self.heading = np.concatenate([self.heading, headings])
         self.heading_known = np.concatenate([self.heading_known, segments.straight[born]])
