@@ -67,11 +67,24 @@ def test_the_set_encoder_reads_each_input_where_the_layout_puts_it():
     moved = x.copy()
     moved[:, a] += 0.3
     assert np.abs(_out(actor, moved) - base).max() > 1e-6
-    # The current scan, each history frame, the goal and the velocity all count.
+    # The current scan, each history frame, the goal and the velocity all count (and the
+    # map, where given: `test_the_map_channel_is_read`).
     for lo, hi in ((0, 720), lay["history"], (720, 722), lay["velocity"]):
         y = x.copy()
         y[:, lo:hi] = rng.uniform(0.0, 1.0, (len(y), hi - lo))
         assert np.abs(_out(actor, y) - base).max() > 1e-6, (lo, hi)
+
+
+def test_the_map_channel_is_read():
+    features = FeatureConfig(history=2, static_map=True, velocity=True, tracks=8)
+    torch.manual_seed(0)
+    actor = student_for(features, CLASSES.astype(np.float32), "set").double().eval()
+    rng = np.random.default_rng(4)
+    x = rng.uniform(0.0, 1.0, (4, features.size()))
+    a, b = features.layout()["static_map"]
+    y = x.copy()
+    y[:, a:b] = rng.uniform(0.0, 1.0, (4, b - a))
+    assert np.abs(_out(actor, y) - _out(actor, x)).max() > 1e-6
 
 
 def test_a_set_student_file_keeps_its_encoder_and_acts_the_same(tmp_path):
@@ -134,10 +147,13 @@ def test_a_cpu_runs_policy_bytes_do_not_depend_on_its_workers_or_device_choice(t
     ("encoder", "features", "classes"),
     [
         ("set", FEATURES, CLASSES),
+        ("set", FeatureConfig(history=2, static_map=True, velocity=True, tracks=8), CLASSES),  # the map's channel
+        ("set", FeatureConfig(static_map=True, history_pool=7), CLASSES),  # a map but no history frames
         ("set", FeatureConfig(history_pool=7), CLASSES),  # no history, velocity or tracks; 720 = 7 * 103 - 1
         ("set", FeatureConfig(history=3, history_pool=6, tracks=3), None),  # the regression head
         ("mlp", FEATURES, CLASSES),
         ("mlp", FeatureConfig(history=1, velocity=True), None),
+        ("mlp", FeatureConfig(history=1, static_map=True), CLASSES),
     ],
 )
 def test_the_numpy_network_decides_as_the_pytorch_network(encoder, features, classes):

@@ -88,6 +88,13 @@ def build_parser() -> argparse.ArgumentParser:
     dg.add_argument(
         "--no-velocity", dest="velocity", action="store_false", help="leave the measured (v, w) out of the inputs"
     )
+    dg.add_argument(
+        "--no-static-map",
+        dest="static_map",
+        action="store_false",
+        help="leave the known map's ranges along the pooled beams out of the inputs (every student before "
+        "issue 57; default: given)",
+    )
     add_renamed(dg, "--profile-sets", "--profiles", "profiles")
     dg.add_argument(
         "--profiles",
@@ -185,6 +192,7 @@ def _train_dagger(args: argparse.Namespace, tqdm) -> int:
         encoder=args.encoder,
         device=args.device,
         velocity=args.velocity,
+        static_map=args.static_map,
         profile_sets=profile_sets,
         **{name: getattr(args, name) for name, *_ in cli_options(DaggerConfig)},
     )

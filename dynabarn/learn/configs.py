@@ -123,6 +123,9 @@ class DaggerConfig:
     history: int = option(2, 0, 16, "earlier scans the student sees (0: the paper's single scan)")
     history_every: int = option(2, 1, 50, "control ticks between history frames")
     velocity: bool = True
+    static_map: bool = True
+    """The known map's ranges along the pooled beams among the inputs (`FeatureConfig.static_map`):
+    what its teacher plans on. Every student before issue 57 trained without it."""
     tracks: int = option(16, 0, 64, "laser-tracker tracks the student sees, nearest first (0: no tracker)")
     protocol: str = "barn"
     workers: int = option(CORES, 1, MAX_JOBS, "collection processes (default: the cores this process may use)")
@@ -147,11 +150,16 @@ class DaggerConfig:
 
     def features(self) -> FeatureConfig:
         return FeatureConfig(
-            history=self.history, history_every=self.history_every, velocity=self.velocity, tracks=self.tracks
+            history=self.history,
+            history_every=self.history_every,
+            static_map=self.static_map,
+            velocity=self.velocity,
+            tracks=self.tracks,
         )
 
 
 BEFORE_THE_FIELD = {
+    "static_map": False,
     "head": "regress",
     "teacher": "oracle_present",
     "encoder": "mlp",
@@ -160,7 +168,7 @@ BEFORE_THE_FIELD = {
 """What a DAgger run written before a field existed did, where that is not the field's
 default: every student before the classifier regressed; before `--teacher`, `--encoder`
 and `--profile-sets` every run was taught by `oracle_present`, flat, on the paper's and
-the release's profiles."""
+the release's profiles; before `--no-static-map` no student saw the map."""
 
 
 def completed_config(saved: dict) -> dict:

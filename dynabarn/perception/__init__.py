@@ -2,6 +2,7 @@
 that use it and above the simulator (it sees only `Observation` and `EpisodeInfo`).
 
 - `map_distance`: distance to the known map (walls, static cylinders);
+- `map_scan`: the ranges the laser would read of the known map alone;
 - `detect`: obstacle detections in one scan (segments, split arcs, known-radius circles);
 - `tracks`: the `Tracks` a tracker reports, and their constant-velocity future;
 - `tracker`: association (Hungarian), a constant-velocity Kalman filter per track, births,
@@ -10,6 +11,7 @@ that use it and above the simulator (it sees only `Observation` and `EpisodeInfo
 
 from dynabarn.perception.detect import Detections, DetectorConfig, ObstacleDetector
 from dynabarn.perception.map_distance import MapDistance
+from dynabarn.perception.map_scan import MapScan
 from dynabarn.perception.tracker import ObstacleTracker, TrackerConfig
 from dynabarn.perception.tracks import Tracks
 
@@ -17,6 +19,7 @@ __all__ = [
     "Detections",
     "DetectorConfig",
     "MapDistance",
+    "MapScan",
     "ObstacleDetector",
     "ObstacleTracker",
     "TrackerConfig",

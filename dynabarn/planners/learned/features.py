@@ -8,6 +8,10 @@ in the results where it is used):
   min-pooled over `history_pool` neighbouring beams (a 720-beam frame every tick would
   quadruple the inputs; the nearest return in each pool is what avoidance needs). Motion
   becomes visible as the difference between frames (as in LfH-CP and Dyna-LfLH).
+- `static_map`: the known map (walls and standing cylinders, what `predictive` and the
+  oracles plan on) as the laser would see it alone from the robot's pose
+  (`perception.MapScan`), min-pooled as the history frames are: where the scan reads
+  shorter, something the map does not hold is in the way.
 - `velocity`: the robot's measured forward speed and turn rate.
 - `tracks`: the N nearest tracks of the laser tracker (`dynabarn.perception`): position
   and velocity in the robot frame, size, and a flag that the slot holds a track; empty
@@ -28,7 +32,7 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.interfaces import EpisodeInfo, Observation, config_from_kwargs
-from dynabarn.perception import ObstacleTracker, TrackerConfig
+from dynabarn.perception import MapScan, ObstacleTracker, TrackerConfig
 from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.tracking import recorded_config, with_tracker
@@ -50,6 +54,8 @@ class FeatureConfig:
     """Control ticks between history frames (2: 0.2 s)."""
     history_pool: int = 4
     """Beams min-pooled into one history input (720 / 4 = 180 per frame)."""
+    static_map: bool = False
+    """Give the known map's ranges along the pooled beams (`perception.MapScan`)."""
     velocity: bool = False
     """Give the robot's measured (v, w)."""
     tracks: int = 0
@@ -85,12 +91,15 @@ class FeatureConfig:
 
     def layout(self, n_beams: int = JACKAL.laser_beams) -> dict:
         """Where each input lies in the vector (what `set_encoder` splits it by): the beams'
-        count and pooled width, (start, end) of the history frames, the velocity and the track
-        slots (the velocity and the tracks None where not given), and the vector's size."""
+        count and pooled width, (start, end) of the history frames, the map's pooled ranges,
+        the velocity and the track slots (the map, the velocity and the tracks None where not
+        given), and the vector's size."""
         pooled = math.ceil(n_beams / self.history_pool)
         i = n_beams + 2
         history = (i, i + self.history * pooled)
         i = history[1]
+        static_map = (i, i + pooled) if self.static_map else None
+        i += pooled if self.static_map else 0
         velocity = (i, i + 2) if self.velocity else None
         i += 2 if self.velocity else 0
         tracks = (i, i + self.tracks * TRACK_FIELDS) if self.tracks else None
@@ -99,6 +108,7 @@ class FeatureConfig:
             "beams": n_beams,
             "pooled": pooled,
             "history": history,
+            "static_map": static_map,
             "velocity": velocity,
             "tracks": tracks,
             "size": i,
@@ -109,6 +119,8 @@ class FeatureConfig:
         out = ["scan+goal"]
         if self.history:
             out.append(f"history {self.history}x{self.history_every * 0.1:.1f}s")
+        if self.static_map:
+            out.append("map")
         if self.velocity:
             out.append("velocity")
         if self.tracks:
@@ -123,6 +135,7 @@ class Features:
         self.cfg = cfg
         self.tracker: ObstacleTracker | None = None
         self.global_planner: GlobalPlanner | None = None
+        self.map_scan: MapScan | None = None
         self.last_tracks = None
 
     def reset(self, info: EpisodeInfo) -> None:
@@ -131,9 +144,11 @@ class Features:
         self.size = c.size(self.n_beams)
         self.global_planner = GlobalPlanner.for_robot(info.walls, info.goal, info.footprint, info.static_obstacles)
         self.tracker = make_tracker(c.tracker, info) if c.tracks else None
+        self.map_scan = MapScan(info) if c.static_map else None
         self.last_tracks = None
-        pooled = math.ceil(self.n_beams / c.history_pool)
-        # The scan padded to whole pools with 1.0 (far away) beyond its last beam.
+        pooled = self._pooled = math.ceil(self.n_beams / c.history_pool)
+        # The scan (and the map's ranges) padded to whole pools with 1.0 (far away) beyond
+        # the last beam.
         self._padded = np.ones(pooled * c.history_pool)
         # Ring of pooled frames: the last history * history_every ticks (frame 0 repeated
         # until the episode is old enough, as a robot standing still would see).
@@ -163,6 +178,10 @@ class Features:
                 i += ring.shape[1]
             ring[self._ticks % m] = pooled
         self._ticks += 1
+        if c.static_map:
+            self._padded[:n] = np.minimum(self.map_scan(obs.pose), c.range_scale) / c.range_scale
+            out[i : i + self._pooled] = self._padded.reshape(-1, c.history_pool).min(axis=1)
+            i += self._pooled
         if c.velocity:
             out[i : i + 2] = obs.velocity / SPEED_SCALE
             i += 2

@@ -119,7 +119,11 @@ class _SetForward:
     def __init__(self, net: SetEncoderNet) -> None:
         lay = net.layout
         self.n, self.pooled, self.pool = lay["beams"], lay["pooled"], net.pool
-        self.history, self.velocity, self.tracks = lay["history"], lay["velocity"], lay["tracks"]
+        self.velocity, self.tracks = lay["velocity"], lay["tracks"]
+        # The history frames, then the map's pooled ranges where given: contiguous in the
+        # vector, each one more channel of the film.
+        a, b = lay["history"]
+        self.history = (a, lay["static_map"][1] if lay["static_map"] else b)
         frames = 1 + (self.history[1] - self.history[0]) // self.pooled
         # Beams beyond the last whole pool read as far away (1.0), as the network pads them.
         self.scan = np.ones(self.pooled * self.pool)

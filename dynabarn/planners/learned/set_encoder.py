@@ -8,7 +8,9 @@ vector through three fully connected layers (750,000 weights). This network spli
   (`history_pool` beams to one: the nearest return is what avoidance needs), stacked with
   the K earlier frames as channels and read by two strided 1D convolutions along the beams.
   A convolution sees the same motion at every bearing the same way, where a dense layer has
-  to learn it once per beam; the frames' differences are where obstacles move.
+  to learn it once per beam; the frames' differences are where obstacles move. With
+  `static_map`, the known map's pooled ranges are one more channel: where the scan reads
+  shorter than the map, something the map does not hold is there.
 - **the tracks as a set** (Deep Sets, Zaheer et al. 2017): one small network applied to
   every track slot, its outputs of empty slots zeroed, then pooled by maximum and by mean
   over the slots. The output does not depend on the order of the tracks, and a track in
@@ -51,7 +53,7 @@ class SetEncoderNet(nn.Module):
     def __init__(self, features: FeatureConfig, n_out: int, *, bounded: bool) -> None:
         super().__init__()
         lay = self.layout = features.layout()
-        frames = 1 + features.history
+        frames = 1 + features.history + (1 if lay["static_map"] else 0)
         self.pool = features.history_pool
         c1, c2 = SCAN_CHANNELS
         self.scan = nn.Sequential(
@@ -79,6 +81,8 @@ class SetEncoderNet(nn.Module):
             scan = torch.cat([scan, scan.new_ones(x.shape[0], pad)], dim=1)
         now = -nn.functional.max_pool1d(-scan[:, None, :], self.pool)  # min-pooled, (batch, 1, pooled)
         a, b = lay["history"]
+        if lay["static_map"]:  # the map's channel right after the history frames, as the vector holds them
+            b = lay["static_map"][1]
         film = torch.cat([now, x[:, a:b].reshape(x.shape[0], -1, pooled)], dim=1) if b > a else now
         parts = [self.scan_out(self.scan(film)), x[:, n : n + 2]]
         if lay["velocity"]:
