@@ -85,7 +85,7 @@ def _features(info, pose) -> np.ndarray:
 
 
 def test_the_students_map_input_changes_where_the_map_changes_and_nowhere_else(field_world):
-    world, sim = field_world
+    _, sim = field_world
     info = sim.episode_info(get_protocol("barn"), seed=0)
     cfg = FeatureConfig(history=2, static_map=True)
     lay = cfg.layout()
