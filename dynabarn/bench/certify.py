@@ -20,7 +20,7 @@ import json
 import math
 import statistics
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from dynabarn.errors import DynabarnError
@@ -54,8 +54,8 @@ class Job:
     seeds: tuple[int, ...]
     budget: int | None = None
     """The search's budget (states expanded per trial; None: none), `sim.certificate.certify`."""
-    footprint: bool = False
-    """The search checks the static field against the Jackal's rectangle (resolution version 3)."""
+    resolution: dict = field(default_factory=dict)
+    """The search's resolution (`CertificateConfig.to_dict`; empty: the default's)."""
 
 
 def unobstructed_arrival(protocol: EvalProtocol, config: CertificateConfig | None = None) -> float:
@@ -76,7 +76,7 @@ def certify_world(job: Job) -> tuple[str, list[dict]]:
     world = read_world(job.path)
     sim = None
     trials = []
-    config = CertificateConfig(footprint=job.footprint)
+    config = CertificateConfig.from_dict(job.resolution)
     for seed in job.seeds:
         cert = certify(world, protocol, clock_offset=trial_clock_offset(seed), budget=job.budget, config=config)
         row = {"seed": seed, **cert.to_dict()}
@@ -137,21 +137,21 @@ def certify_set(
     ids: list[int] | None = None,
     jobs: int = 1,
     budget: int | None = None,
-    footprint: bool = False,
+    config: CertificateConfig | None = None,
     progress: Callable = lambda it: it,
 ) -> dict:
     """Certify the worlds `ids` (default: all) of the set in `index_dir`; returns the
     updated index (also written to its index.json). `budget`: the search's, per trial
-    (`sim.certificate.certify`), recorded in the index for `verify_set`; `footprint`: the
-    search's static field against the Jackal's rectangle (resolution version 3). The set's
-    index lock is held throughout (`worldset.index_locked`): a second writer at once is refused."""
+    (`sim.certificate.certify`), recorded in the index for `verify_set`; `config`: the
+    search's resolution (default: version 2's disc, breadth-first), recorded beside it. The
+    set's index lock is held throughout (`worldset.index_locked`): a second writer at once
+    is refused."""
     with index_locked(index_dir):
-        return _certify_set(index_dir, protocol, trials, ids, jobs, budget, footprint, progress)
+        return _certify_set(index_dir, protocol, trials, ids, jobs, budget, config or CertificateConfig(), progress)
 
 
-def _certify_set(index_dir, protocol, trials, ids, jobs, budget, footprint, progress) -> dict:
+def _certify_set(index_dir, protocol, trials, ids, jobs, budget, config: CertificateConfig, progress) -> dict:
     index = read_index(index_dir)
-    config = CertificateConfig(footprint=footprint)
     resolution = config.to_dict()
     seeds = tuple(range(trials))
     unobstructed = unobstructed_arrival(protocol, config)
@@ -162,7 +162,7 @@ def _certify_set(index_dir, protocol, trials, ids, jobs, budget, footprint, prog
             continue
         if not _current(entry, protocol.name, resolution, seeds):
             path = entry_path(Path(index_dir), entry)
-            todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget, footprint))
+            todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget, resolution))
     by_path = {Path(entry_path(Path(index_dir), e)).name: e for e in index["worlds"]}
     for done, (path, rows) in enumerate(progress(map_in_workers(certify_world, todo, jobs)), start=1):
         entry = by_path[Path(path).name]
@@ -193,8 +193,8 @@ def verify_set(
     index = read_index(index_dir)
     certification = index.get("certification", {}).get(protocol.name, {})
     budget = certification.get("search_budget")
-    # Under the resolution the certificates were made at: version 3's footprint, or not.
-    footprint = bool(certification.get("resolution", {}).get("footprint", False))
+    # Under the resolution the certificates were made at (its version's fields).
+    resolution = recorded_resolution(index_dir, certification).to_dict()
     wanted = set(ids) if ids is not None else None
     stored: dict[str, dict] = {}
     todo = []
@@ -216,7 +216,7 @@ def verify_set(
         path = entry_path(Path(index_dir), entry)
         stored[path.name] = record
         seeds = tuple(t["seed"] for t in record["trials"])
-        todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget, footprint))
+        todo.append(Job(str(path), entry["sha256"], protocol.to_dict(), seeds, budget, resolution))
     if not todo and not differences:
         raise DynabarnError(
             f"{index_dir}: none of the {uncertified} world(s) asked for has a {protocol.name} certificate to verify; "
@@ -232,6 +232,18 @@ def verify_set(
                         f"{Path(path).name} seed {old['seed']}: {key} {old.get(key)!r} -> {new.get(key)!r}"
                     )
     return differences, checked, uncertified
+
+
+def recorded_resolution(index_dir: Path, certification: dict) -> CertificateConfig:
+    """The search's resolution an index's certification records (version 2's default where
+    it records none); one `DynabarnError` line where the record is not one."""
+    raw = certification.get("resolution", {})
+    try:
+        if not isinstance(raw, dict):
+            raise TypeError(f"not an object: {type(raw).__name__}")
+        return CertificateConfig.from_dict(raw)
+    except (TypeError, ValueError) as exc:
+        raise DynabarnError(f"{index_dir}: its certification's resolution is not one the search has ({exc})") from None
 
 
 def _current(entry: dict, protocol: str, resolution: dict, seeds: tuple[int, ...]) -> bool:
@@ -300,12 +312,51 @@ def certify_tier(
             if draws[i] > MAX_DRAWS:
                 raise DynabarnError(f"{name}: world {i} was not certified in {MAX_DRAWS} draws; change the profile")
         pending = failed
+    return _write_tier_record(name, protocol, trials, draws, index)
+
+
+def recertify_tier(
+    name: str,
+    protocol: EvalProtocol,
+    *,
+    config: CertificateConfig,
+    trials: int = 10,
+    jobs: int = 1,
+    budget: int | None = None,
+    progress: Callable = lambda it: it,
+) -> dict:
+    """Certify tier `name`'s committed draws again at the resolution `config` (a newer
+    version of the search), every world and trial, and write those certificates beside its
+    profile in place of the old: the worlds stay exactly the ones every committed result
+    ran (no redraw; a trial neither the search nor the oracle's episode certifies stays
+    uncertified, counted). Returns the record written."""
+    from dynabarn.worlds.tiers import get_tier
+    from dynabarn.worldset.tiers import generate_tier, tier_dir
+
+    tier = get_tier(name)
+    draws = tier.draws()
+    folder = tier_dir(name).with_name(f".{name}.recertifying")  # kept: a stopped run resumes from it
+    generate_tier(name, folder, draws=draws)  # unchanged files keep the certificates made so far
+    index = certify_set(
+        folder, protocol, trials=trials, ids=list(tier.ids), jobs=jobs, budget=budget, config=config, progress=progress
+    )
+    return _write_tier_record(name, protocol, trials, draws, index)
+
+
+def _write_tier_record(name: str, protocol: EvalProtocol, trials: int, draws: dict[int, int], index: dict) -> dict:
+    """Write a tier's draws and certificates beside its profile (`Tier.certified_file`) and
+    regenerate its folder with them."""
+    from dynabarn.worlds.tiers import get_tier
+    from dynabarn.worldset.tiers import generate_tier, tier_dir
+
+    tier = get_tier(name)
+    wanted = set(tier.ids)
     record = {
         "tier": name,
         "protocol": protocol.name,
         "trials": trials,
         "draws": {str(i): k for i, k in sorted(draws.items())},
-        "certificates": {str(e["id"]): e["certificates"] for e in index["worlds"]},
+        "certificates": {str(e["id"]): e["certificates"] for e in index["worlds"] if e["id"] in wanted},
         "certification": index["certification"],
     }
     try:

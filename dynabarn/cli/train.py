@@ -28,8 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     # After make_parser has chosen MuJoCo's OpenGL platform (Gymnasium's registration loads
     # MuJoCo); no PyTorch: --help works without the extra.
-    from dynabarn.learn.configs import DEVICES, SHIPPED_STUDENT_PROFILE_SETS, TEACHERS, DaggerConfig, TD3Config
-    from dynabarn.planners.learned.spaces import ENCODERS, HEADS
+    from dynabarn.learn.configs import TD3Config
 
     sub = subcommands(parser)
     bc = sub.add_parser(
@@ -51,6 +50,15 @@ def build_parser() -> argparse.ArgumentParser:
     add_protocol(td)
     _add_options(td, TD3Config)
     td.add_argument("--out", type=Path, required=True, help="folder for checkpoints, policy.pt and the learning curve")
+    _add_dagger(sub)
+    return parser
+
+
+def _add_dagger(sub) -> None:
+    """`dynabarn-train dagger`'s options: the configuration's fields, then the choices."""
+    from dynabarn.learn.configs import DEVICES, SHIPPED_STUDENT_PROFILE_SETS, TEACHERS, DaggerConfig
+    from dynabarn.planners.learned.spaces import ENCODERS, HEADS
+
     dg = sub.add_parser(
         "dagger",
         help="DAgger with a search planner as teacher on procedural training worlds "
@@ -103,7 +111,6 @@ def build_parser() -> argparse.ArgumentParser:
         "tier-combined: their profiles, never their worlds) the training worlds are drawn from",
     )
     dg.add_argument("--out", type=Path, required=True, help="folder for data, checkpoints, policy.pt and the curve")
-    return parser
 
 
 def _add_options(parser: argparse.ArgumentParser, config: type) -> None:

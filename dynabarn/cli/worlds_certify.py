@@ -36,6 +36,13 @@ def add_certify_arguments(c: argparse.ArgumentParser) -> None:
         "its profile (dynabarn/worlds/tier_profiles/*.certified.json, committed)",
     )
     c.add_argument(
+        "--recertify",
+        action="store_true",
+        help="for a tier: certify its committed draws again at this resolution (--footprint, --beam, --budget) "
+        "and write those certificates beside its profile in place of the old; the worlds stay the ones every "
+        "committed result ran (no redraw)",
+    )
+    c.add_argument(
         "--verify",
         action="store_true",
         help="compute the selected worlds' certificates again and compare them with those the index holds "
@@ -58,25 +65,37 @@ def add_certify_arguments(c: argparse.ArgumentParser) -> None:
         "around it (resolution version 3: passages the robot drives through lengthwise are searched too; the "
         "committed sets were certified without it, at version 2); default: off",
     )
+    c.add_argument(
+        "--beam",
+        type=ranged(int, 1, 10**9),
+        default=None,
+        metavar="STATES",
+        help="keep at most this many states per control tick, those nearest the goal along the static map "
+        "(resolution version 4: a goal-guided search that reaches through static fields within a budget, and "
+        "makes no claim where it finds no witness); default: none, breadth-first",
+    )
     add_jobs(c)
 
 
 def worlds_certify(args: argparse.Namespace) -> int:
     from dynabarn.bench.certify import certify_set
     from dynabarn.protocol import get_protocol
+    from dynabarn.sim.certificate import CertificateConfig
     from dynabarn.worldset import parse_ids, set_folder
 
     if (args.set is None) == (args.set_option is None):
         raise DynabarnError("name one world set: dynabarn-worlds certify --set NAME (or certify NAME)")
     args.set = args.set or args.set_option
     protocol = get_protocol(args.protocol)
+    if args.recertify:
+        return _recertify(args, protocol)
     if args.redraw:
         from dynabarn.bench.certify import certify_tier
         from dynabarn.worlds.tiers import TIERS
 
-        if args.footprint:
+        if args.footprint or args.beam:
             raise DynabarnError(
-                "--redraw keeps the tiers' draws at the disc's resolution (version 2): not with --footprint"
+                "--redraw keeps the tiers' draws at the disc's resolution (version 2): not with --footprint or --beam"
             )
         if args.set not in TIERS or args.worlds is not None:
             raise DynabarnError(
@@ -120,7 +139,7 @@ def worlds_certify(args: argparse.Namespace) -> int:
         ids=ids,
         jobs=args.jobs,
         budget=args.budget,
-        footprint=args.footprint,
+        config=CertificateConfig(footprint=args.footprint, beam=args.beam or 0),
         progress=progress_bar(f"certifying {args.set}", total),
     )
     entries = [e for e in index["worlds"] if ids is None or e["id"] in set(ids)]
@@ -152,3 +171,34 @@ def print_certificates(name: str, entries: list[dict], protocol: str) -> None:
                 f"  world {world_id}: {len(failed)} of {len(record['trials'])} trials not certified "
                 f"(seed {failed[0]['seed']}: {failed[0]['reason']})"
             )
+
+
+def _recertify(args: argparse.Namespace, protocol) -> int:
+    from dynabarn.bench.certify import recertify_tier
+    from dynabarn.sim.certificate import CertificateConfig
+    from dynabarn.worlds.tiers import TIERS
+
+    if args.redraw or args.verify or args.set not in TIERS or args.worlds is not None:
+        raise DynabarnError(
+            f"--recertify certifies a whole tier's committed draws ({', '.join(TIERS)}), not {args.set!r}, "
+            "some worlds, or with --redraw or --verify"
+        )
+    ids = TIERS[args.set].ids
+    record = recertify_tier(
+        args.set,
+        protocol,
+        config=CertificateConfig(footprint=args.footprint, beam=args.beam or 0),
+        trials=args.trials,
+        jobs=args.jobs,
+        budget=args.budget,
+        progress=progress_bar(f"certifying {args.set} again", len(ids)),
+    )
+    trials = [t for c in record["certificates"].values() for t in c[protocol.name]["trials"]]
+    by_oracle = sum(t["certified"] and "by" in t for t in trials)
+    by_search = sum(t["certified"] and "by" not in t for t in trials)
+    print(
+        f"{args.set}: {len(ids)} worlds, {len(trials)} trials: {by_search} certified by the search, "
+        f"{by_oracle} by the exact oracle's episode, {len(trials) - by_search - by_oracle} not certified "
+        f"(resolution version {record['certification'][protocol.name]['resolution']['version']})"
+    )
+    return 0

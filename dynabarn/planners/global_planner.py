@@ -25,6 +25,7 @@ import numpy as np
 
 from dynabarn.perception.map_distance import BOUNDS, grid_indices
 from dynabarn.robot import JACKAL
+from dynabarn.worlds.grid_graph import grid_dijkstra
 
 RESOLUTION = 0.1
 """Grid cell size [m]."""
@@ -52,9 +53,6 @@ def _dijkstra_field(
     circles: tuple = (),
     circle_inflation: float = CIRCLE_INFLATION,
 ) -> _Field:
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import dijkstra
-
     x0, x1, y0, y1 = BOUNDS
     nx = round((x1 - x0) / resolution)
     ny = round((y1 - y0) / resolution)
@@ -70,26 +68,9 @@ def _dijkstra_field(
     # grow them by its half width (plus 5 cm), not by the circumscribed radius.
     for cx, cy, r in circles:
         occupied |= np.hypot(gx - cx, gy - cy) < r + circle_inflation
-    free = ~occupied.ravel()
-    idx = np.arange(nx * ny).reshape(ny, nx)
-    rows, cols, weights = [], [], []
-    ia, ja = np.divmod(idx.ravel(), nx)
-    # Half of the 8 neighbourhoods; the graph is undirected.
-    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        ib, jb = ia + di, ja + dj
-        ok = (ib < ny) & (jb >= 0) & (jb < nx)
-        na, nb = ia[ok] * nx + ja[ok], ib[ok] * nx + jb[ok]
-        keep = free[na] & free[nb]
-        rows.append(na[keep])
-        cols.append(nb[keep])
-        weights.append(np.full(int(keep.sum()), resolution * math.hypot(di, dj)))
-    r = np.concatenate(rows)
-    c = np.concatenate(cols)
-    w = np.concatenate(weights)
-    graph = coo_matrix((w, (r, c)), shape=(nx * ny, nx * ny)).tocsr()
     goal_cell = _cell(goal[0], goal[1], nx, ny, resolution)
-    cost, pred = dijkstra(graph, directed=False, indices=goal_cell, return_predecessors=True)
-    return _Field(cost=cost.reshape(ny, nx), pred=pred.tolist(), pred_array=pred.astype(np.int32), nx=nx, ny=ny)
+    cost, pred = grid_dijkstra(~occupied, goal_cell, resolution)
+    return _Field(cost=cost, pred=pred.tolist(), pred_array=pred.astype(np.int32), nx=nx, ny=ny)
 
 
 def _cell(x: float, y: float, nx: int, ny: int, resolution: float) -> int:

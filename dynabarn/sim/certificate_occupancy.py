@@ -21,6 +21,7 @@ import numpy as np
 
 from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL
+from dynabarn.worlds.grid_graph import grid_dijkstra
 from dynabarn.worlds.schedule import SchedulePlayer
 from dynabarn.worlds.spec import WorldSpec
 
@@ -165,12 +166,31 @@ class Occupancy:
         now[s[inside], np.broadcast_to(iy, inside.shape)[inside], np.broadcast_to(ix, inside.shape)[inside]] = True
         return now
 
+    def cells(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The flat grid cells of points (x, y); beyond the grid, its edge."""
+        ix = np.clip(np.rint((x - self.x0) / self.g), 0, self.nx - 1).astype(np.int64)
+        iy = np.clip(np.rint((y - self.y0) / self.g), 0, self.ny - 1).astype(np.int64)
+        return iy * self.nx + ix
+
+    def lookup(self, grid: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The values of a (ny, nx) grid of this occupancy's cells at points (x, y)."""
+        return grid.ravel()[self.cells(x, y)]
+
+    def cost_to_go(self, goal: tuple[float, float]) -> np.ndarray:
+        """(ny, nx) [m]: each cell's distance to the goal's through the cells where the robot
+        can stand at some heading, the static part alone (walls and the field; inf where
+        none leads): the certificate search's goal guidance (`CertificateConfig.beam`)."""
+        free = ~self.static
+        if self.field is not None:
+            free &= ~self.field.all(axis=0)
+        source = int(self.cells(np.array([goal[0]]), np.array([goal[1]]))[0])
+        cost, _ = grid_dijkstra(free, source, self.g)
+        return cost
+
     def free(self, sub: int, x: np.ndarray, y: np.ndarray, heading: np.ndarray) -> np.ndarray:
         """Whether the robot at poses (x, y, heading) is free at substep `sub`; beyond the
         grid is its edge, which is blocked (`_walls`)."""
-        ix = np.clip(np.rint((x - self.x0) / self.g), 0, self.nx - 1).astype(np.int64)
-        iy = np.clip(np.rint((y - self.y0) / self.g), 0, self.ny - 1).astype(np.int64)
-        cell = iy * self.nx + ix
+        cell = self.cells(x, y)
         free = ~self.now[sub].ravel()[cell]
         if self.field is not None:
             bins = self.headings
