@@ -176,3 +176,64 @@ def test_the_footprint_resolution_is_recorded_as_version_3_and_the_disc_as_befor
     assert CertificateConfig().to_dict()["version"] == 2
     assert "footprint" not in CertificateConfig().to_dict()  # version 2's records unchanged
     assert CertificateConfig(footprint=True).to_dict()["version"] == 3
+
+
+def test_the_goal_guided_search_certifies_within_a_budget_the_breadth_first_search_spends_elsewhere(tmp_path):
+    """Version 4 (`beam`): the passage on the straight line to the goal, narrower than the
+    disc. Breadth-first, the search fills the open arena and spends half a million states
+    before it gets there; keeping the 100 states nearest the goal along the static map, it
+    drives straight through, arriving when an empty arena's search does, and MuJoCo drives
+    its witness without touching a cylinder."""
+    from dynabarn.sim.certificate import CertificateConfig
+
+    path, world = _passage_world(tmp_path, 0.72)
+    budget = 500_000
+    wide = certify(world, BARN, clock_offset=0.0, budget=budget, config=CertificateConfig(footprint=True))
+    assert not wide.certified and "budget" in wide.reason
+    guided = certify(world, BARN, clock_offset=0.0, budget=budget, config=CertificateConfig(footprint=True, beam=100))
+    assert guided.certified, guided.reason
+    from dynabarn.bench.certify import unobstructed_arrival
+
+    assert guided.arrival == pytest.approx(unobstructed_arrival(BARN), abs=0.2)
+    result, error = replay_witness(path, guided.witness, BARN, seed=0)
+    assert result.outcome.value == "success", result.reason
+    assert error < 0.05
+
+
+@pytest.mark.parametrize(
+    ("gap", "footprint", "reachable"), [(0.72, True, True), (0.72, False, False), (0.40, True, False)]
+)
+def test_the_cost_to_go_runs_through_the_passages_the_robot_fits(tmp_path, gap, footprint, reachable):
+    """The goal guidance's distances: through the gap along y = 0 the spawn is 20 m from the
+    goal (the grid's straight steps are exact); where the robot does not fit at any heading
+    (or its disc does not, without the footprint), the spawn is cut off."""
+    from dynabarn.sim.certificate import CertificateConfig
+    from dynabarn.sim.certificate_occupancy import Occupancy
+    from dynabarn.worlds.schedule import SchedulePlayer
+
+    _, world = _passage_world(tmp_path, gap)
+    config = CertificateConfig(footprint=footprint, beam=100)
+    occupancy = Occupancy.of_search(world, SchedulePlayer(world, clock_offset=0.0), BARN, config)
+    cost = occupancy.cost_to_go((float(world.layout.goal[0]), float(world.layout.goal[1])))
+    at_spawn = occupancy.lookup(cost, np.array([BARN.spawn[0]]), np.array([BARN.spawn[1]]))[0]
+    if reachable:
+        assert at_spawn == pytest.approx(20.0, abs=0.06)
+    else:
+        assert np.isinf(at_spawn)
+
+
+def test_each_resolution_is_recorded_with_its_version_and_read_back_as_it_was():
+    from dynabarn.sim.certificate import CertificateConfig
+
+    for config, version in (
+        (CertificateConfig(), 2),
+        (CertificateConfig(footprint=True), 3),
+        (CertificateConfig(footprint=True, beam=1000), 4),
+        (CertificateConfig(beam=50), 4),
+    ):
+        d = config.to_dict()
+        assert d["version"] == version
+        assert ("beam" in d) is (version == 4)
+        assert CertificateConfig.from_dict(d) == config
+    with pytest.raises(ValueError, match="version"):
+        CertificateConfig.from_dict({**CertificateConfig(footprint=True).to_dict(), "version": 2})

@@ -152,3 +152,32 @@ def test_footprint_certificates_are_version_3_and_verified_at_their_own_resoluti
     # A tier's draws stay at the disc's resolution.
     assert worlds_main(["certify", "tier-mixed", "--redraw", "--footprint"]) == 2
     assert "not with --footprint" in capsys.readouterr().err
+
+
+def test_goal_guided_certificates_are_version_4_and_verified_at_their_own_resolution(tmp_path, capsys):
+    out = tmp_path / "w"
+    assert worlds_main(["generate", "--out", str(out), "--profile-file", str(EXAMPLE)]) == 0
+    argv = ["certify", str(out), "--worlds", "0", "--trials", "1", "--jobs", "1", "--footprint", "--beam", "300"]
+    assert worlds_main(argv) == 0
+    index = json.loads((out / "index.json").read_text())
+    resolution = index["certification"]["barn"]["resolution"]
+    assert resolution["version"] == 4 and resolution["beam"] == 300 and resolution["footprint"] is True
+    assert next(e for e in index["worlds"] if e["id"] == 0)["certificates"]["barn"]["resolution_version"] == 4
+    assert worlds_main(["certify", str(out), "--worlds", "0", "--verify", "--jobs", "1"]) == 0
+    assert "no difference" in capsys.readouterr().out
+    # A resolution the search does not have is one line, exit 2, not a traceback.
+    index["certification"]["barn"]["resolution"] = {**resolution, "version": 3}
+    (out / "index.json").write_text(json.dumps(index))
+    assert worlds_main(["certify", str(out), "--worlds", "0", "--verify", "--jobs", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "resolution is not one the search has" in err and "Traceback" not in err
+
+
+def test_recertify_takes_a_whole_tier_and_nothing_else(capsys):
+    for argv in (
+        ["certify", "paper60", "--recertify"],
+        ["certify", "tier-mixed", "--recertify", "--worlds", "0-3"],
+        ["certify", "tier-mixed", "--recertify", "--redraw"],
+    ):
+        assert worlds_main(argv) == 2
+        assert "--recertify certifies a whole tier's committed draws" in capsys.readouterr().err
