@@ -111,3 +111,43 @@ def test_the_students_map_input_changes_where_the_map_changes_and_nowhere_else(f
     # Without the option the vector has no map and does not depend on it.
     plain = FeatureConfig(history=2)
     assert plain.layout()["static_map"] is None and plain.size() == cfg.size() - lay["pooled"]
+
+
+def _one_track(x: float, y: float, size: float):
+    from dynabarn.perception import Tracks
+
+    one, z = np.ones(1), np.zeros((1, 2))
+    return Tracks(0.0, np.zeros(1, dtype=np.int64), np.array([[x, y]]), z, size * one, z, z, z, one, one)
+
+
+def test_unexplained_returns_are_the_ones_neither_the_map_nor_a_track_explains(field_world):
+    """What `predictive`'s scan guard plans against: a scan of the known map alone leaves
+    nothing; an obstacle 2 m ahead that no track holds leaves its near face, one point per
+    4 beams; a track around it explains it."""
+    from dynabarn.perception import Tracks
+    from dynabarn.perception.unexplained import UnexplainedReturns
+
+    _, sim = field_world
+    info = sim.episode_info(get_protocol("barn"), seed=0)
+    unexplained = UnexplainedReturns(info)
+    pose = np.array([8.0, 0.0, math.pi])
+    the_map = np.minimum(MapScan(info)(pose), info.laser_range[1])
+    obs = Observation(
+        time=0.0, scan=the_map, pose=pose, velocity=np.zeros(2), goal_in_robot=np.zeros(2), goal_in_world=info.goal
+    )
+    assert len(unexplained(obs, Tracks.empty())) == 0
+    # A box's face 2 m ahead of the laser, 0.4 m wide: about +-5.7 degrees of beams.
+    face = np.abs(info.laser_angles) < math.atan(0.2 / 2.0)
+    scan = the_map.copy()
+    scan[face] = 2.0 / np.cos(info.laser_angles[face])
+    obs = Observation(
+        time=0.0, scan=scan, pose=pose, velocity=np.zeros(2), goal_in_robot=np.zeros(2), goal_in_world=info.goal
+    )
+    points = unexplained(obs, Tracks.empty())
+    laser_x = pose[0] - info.laser_offset[0]
+    assert len(points) == pytest.approx(face.sum() / 4, abs=2)
+    np.testing.assert_allclose(points[:, 0], laser_x - 2.0, atol=1e-9)
+    assert np.abs(points[:, 1]).max() <= 0.2 + 1e-9
+    assert len(unexplained(obs, _one_track(laser_x - 2.1, 0.0, 0.25))) == 0
+    # A track elsewhere explains nothing here.
+    assert len(unexplained(obs, _one_track(laser_x - 2.1, 3.0, 0.25))) == len(points)

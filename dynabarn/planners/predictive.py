@@ -8,6 +8,12 @@ with time and are least certain for young tracks (a new track's speed is unknown
 second detection), so the radius kept clear of grows with the prediction's standard
 deviation: size + `uncertainty_sigmas` x std(t), at most `max_padding` beyond the size.
 The known map (walls, static cylinders) is handled as by the oracle.
+
+With `scan_guard` > 0, the laser returns neither the map nor a track explains
+(`perception.unexplained`: an obstacle the tracker lost, split or has not confirmed yet,
+the corner of a box outside its circle) are planned against too, as standing points for
+the first `scan_guard` seconds of every rollout: what a costmap's obstacle layer would
+hold, where the tracks fall short.
 """
 
 from __future__ import annotations
@@ -20,8 +26,12 @@ import numpy as np
 from dynabarn.interfaces import EpisodeInfo, Observation, config_from_kwargs
 from dynabarn.perception import TrackerConfig, Tracks
 from dynabarn.perception.trackers import make_tracker
+from dynabarn.perception.unexplained import UnexplainedReturns
 from dynabarn.planners.oracle import OracleConfig, OraclePlanner
 from dynabarn.planners.tracking import with_tracker
+
+FAR_AWAY = 1e6
+"""[m] Where a standing point is put for the rollout steps beyond `scan_guard`."""
 
 
 @dataclass
@@ -30,6 +40,11 @@ class PredictiveConfig(OracleConfig):
     """Standard deviations of a prediction's position added to an obstacle's radius."""
     max_padding: float = 0.3
     """Most that uncertainty adds to an obstacle's radius [m]."""
+    scan_guard: float = 0.0
+    """[s] How far ahead the returns no track or map explains are planned against, as
+    standing points (0: not at all, as every result before issue 57)."""
+    scan_guard_radius: float = 0.05
+    """[m] The radius each such point is kept clear of."""
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     """The tracker's parameters (`tracker.KEY=...`, `tracker.detector.KEY=...`)."""
 
@@ -37,6 +52,8 @@ class PredictiveConfig(OracleConfig):
         **OracleConfig.LIMITS,
         "uncertainty_sigmas": (0.0, 10.0),
         "max_padding": (0.0, 5.0),
+        "scan_guard": (0.0, 10.0),
+        "scan_guard_radius": (0.0, 1.0),
     }
 
     @classmethod
@@ -59,9 +76,18 @@ class PredictivePlanner(OraclePlanner):
         super().reset(info)
         self.tracker = make_tracker(self.cfg.tracker, info)
         self._tracks = Tracks.empty()
+        self._unexplained = UnexplainedReturns(info) if self.cfg.scan_guard > 0 else None
+        # The rollout steps a standing point holds for; beyond them it is out of the way.
+        self._guarded = self._steps <= self.cfg.scan_guard
 
     def tracks(self) -> Tracks:
         return self._tracks
+
+    def config(self) -> dict:
+        d = super().config()
+        if not self.cfg.scan_guard:  # every result before the guard keeps its configuration as recorded
+            del d["scan_guard"], d["scan_guard_radius"]
+        return d
 
     def obstacle_future(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
         self._tracks = self.tracker.update(obs.time, obs.scan, obs.pose)
@@ -69,4 +95,12 @@ class PredictivePlanner(OraclePlanner):
         tracks = self._tracks.covering_circles(c.tracker.shape.extent_sigmas)  # outlines as circles
         times = obs.time + self._steps
         padding = np.minimum(c.max_padding, c.uncertainty_sigmas * tracks.position_std(times))  # (K, n)
-        return tracks.predict(times), tracks.sizes[None, :] + padding
+        future, radii = tracks.predict(times), tracks.sizes[None, :] + padding
+        if self._unexplained is None:
+            return future, radii
+        points = self._unexplained(obs, self._tracks)
+        if not len(points):
+            return future, radii
+        held = np.where(self._guarded[:, None, None], points[None], FAR_AWAY)  # (K, m, 2)
+        radius = np.broadcast_to(c.scan_guard_radius, (len(times), len(points)))
+        return np.concatenate([future, held], axis=1), np.concatenate([radii, radius], axis=1)
