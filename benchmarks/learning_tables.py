@@ -147,6 +147,7 @@ procedural validation worlds (one JSON per group of profile sets)."""
 ENTRY_TITLES = {
     "shipped": "first student (`dagger.pt`: `mlp`, trained on `table1`, `release2022`; 12 iterations)",
     "set_predictive": "`set`, taught by `predictive` (`dagger_predictive.pt`, the shipped `dagger`; 10 iterations)",
+    "map": "the same recipe with the known map among the inputs (`dagger_map.pt`; 10 iterations)",
     "set": "`set` encoder, trained with the tiers' profiles too (10 iterations, no final fit)",
     "mlp_tiers": "`mlp`, the same data and seeds as `set` (5 iterations)",
     "set_5": "`set`, the same run after 5 iterations",
@@ -191,28 +192,31 @@ beside the sweep with the shipped student, its teacher and the floor (results/FO
 compared on the same episodes."""
 NEW_STUDENTS = {
     "dagger_set": "`set` student taught by `oracle_present` (`dagger_set.pt`)",
+    "dagger_map": "`set` student taught by `predictive`, the known map among its inputs (`dagger_map.pt`)",
 }
-SET_STUDENT_ROWS = (
+"""Each student's own sweeps (results/PREFIX_FOLDER) and its title: one table each."""
+OTHER_ROWS = (
     ("dagger", "`dagger`: the `set` student taught by `predictive` (shipped `dagger_predictive.pt`)"),
-    *NEW_STUDENTS.items(),
     ("predictive", "`predictive` (the shipped student's teacher)"),
     ("oracle_present", "`oracle_present` (privileged; the `dagger_set.pt` student's teacher)"),
     (FLOOR, "blind floor"),
 )
 
 
-def set_student_table() -> str:
-    """Success [95% interval] per difficulty of the issue-44 students and, on the same worlds
-    and trial seeds, the shipped student, both teachers and the floor."""
+def student_table(prefix: str) -> str:
+    """Success [95% interval] per difficulty of the student of `prefix` (`NEW_STUDENTS`)
+    and, on the same worlds and trial seeds, the shipped student, both teachers and the
+    floor."""
     from dynabarn.bench.results import read_results
     from dynabarn.bench.summary import summarise
 
+    rows = ((prefix, NEW_STUDENTS[prefix]), *OTHER_ROWS)
     lines = [
         "| worlds | trials | planner | " + " | ".join(DIFFICULTIES) + " | all |",
         "|---|---|---|" + "---|" * (len(DIFFICULTIES) + 1),
     ]
     for folder, title in SET_STUDENT_SETS.items():
-        ours = [r for prefix in NEW_STUDENTS for r in _student_rows(prefix, folder) if r["planner"] == prefix]
+        ours = [r for r in _student_rows(prefix, folder) if r["planner"] == prefix]
         if not ours:
             continue
         episodes = {(r["world"], r["seed"]) for r in ours}
@@ -220,7 +224,7 @@ def set_student_table() -> str:
         same = [r for r in rest if (r.get("world"), r.get("seed")) in episodes]
         by = {(s["planner"], s["difficulty"]): s for s in summarise(ours + same)}
         trials = len({r["seed"] for r in ours})
-        for planner, name in SET_STUDENT_ROWS:
+        for planner, name in rows:
             cells = [_cell(by, planner, d, skill=False) for d in (*DIFFICULTIES, "all")]
             if any(c != "-" for c in cells):
                 lines.append(f"| {title} | {trials} | {name} | " + " | ".join(cells) + " |")
@@ -230,6 +234,7 @@ def set_student_table() -> str:
 DAGGER_RUNS = {
     "dagger_set_training": "`set`, teacher `oracle_present`",
     "dagger_set_predictive_training": "`set`, teacher `predictive`",
+    "dagger_map_training": "`set`, teacher `predictive`, the map among the inputs",
     "dagger_mlp_tiers_training": "`mlp`, teacher `oracle_present`",
 }
 """Training runs on the same split, seeds and profile sets (the tiers' too), compared

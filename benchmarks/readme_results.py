@@ -34,7 +34,7 @@ from dynabarn.bench.summary import FLOOR, plot_fig5
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from certified_tables import calibration_table, certification_table, certified_ladder, certified_sets
 from leaderboard import leaderboard_table, tier_ladder_table
-from learning_tables import dagger_curves, dagger_training, generalisation_table, set_student_table, student_ablation
+from learning_tables import dagger_curves, dagger_training, generalisation_table, student_ablation, student_table
 from ros_tables import MOVE_BASE_SETS, ablation_table, move_base_table
 from tracker_tables import SHAPED_SETS, shaped_tracker_table
 
@@ -329,7 +329,8 @@ BLOCKS = {
     "generalisation": lambda f, s: generalisation_table(s),
     "dagger-training": lambda f, s: dagger_training(),
     "student-ablation": lambda f, s: student_ablation(),
-    "set-student": lambda f, s: set_student_table(),
+    "set-student": lambda f, s: student_table("dagger_set"),
+    "map-student": lambda f, s: student_table("dagger_map"),
     "dagger-curves": lambda f, s: dagger_curves(),
     "move-base": lambda f, s: move_base_table(f),
     "dwa-ablation": lambda f, s: ablation_table(f),
@@ -360,7 +361,7 @@ PAGES = {
     DOCS / "tutorials" / "training.md": ("td3-training", "dagger-training"),
     DOCS / "tutorials" / "ros.md": ("move-base", "dwa-ablation"),
     DOCS / "concepts" / "difficulty.md": ("calibration",),
-    DOCS / "concepts" / "learning.md": ("student-ablation", "dagger-curves", "set-student"),
+    DOCS / "concepts" / "learning.md": ("student-ablation", "dagger-curves", "set-student", "map-student"),
     DOCS / "leaderboard.md": ("leaderboard",),
 }
 """Each page and the blocks it must hold (every block of BLOCKS is on some page)."""

@@ -10,11 +10,10 @@ into results/shaped_tracker_<set>/; about 40 minutes on 2 cores.
 
 from __future__ import annotations
 
-import subprocess
 import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from bench_command import ROOT, run_dynabarn
+
 SWEEPS = (
     ("tier-combined", "predictive@shaped_tracker,predictive"),
     ("tier-mixed", "predictive@shaped_tracker,predictive"),
@@ -28,12 +27,10 @@ HARD = "200-219"
 def main() -> int:
     for world_set, planners in SWEEPS:
         out = ROOT / "results" / f"shaped_tracker_{world_set.replace('-', '_')}"
-        command = [
-            sys.executable, "-m", "dynabarn", "bench", "--set", world_set, "--worlds", HARD,
+        if run_dynabarn(
+            "bench", "--set", world_set, "--worlds", HARD,
             "--planner", planners, "--trials", "10", "--jobs", "2", "--out", str(out.relative_to(ROOT)),
-        ]  # fmt: skip
-        print(" ".join(command[2:]), flush=True)
-        if subprocess.run(command, cwd=ROOT).returncode:
+        ):  # fmt: skip
             return 1
     return 0
 
