@@ -79,13 +79,17 @@ def _kind(reason: str) -> str:
     return reason
 
 
+VERSIONS = {2: "the disc, breadth-first", 3: "the footprint, breadth-first", 4: "goal-guided"}
+"""What each version of the search's resolution is, in a few words (`CertificateConfig`)."""
+
+
 def certification_table(sets: dict[str, list[dict]]) -> str:
     """Per set: worlds certified for every trial, trials certified, the witnesses' slack,
     and the worlds that are not certified with what stopped their trials."""
     lines = [
-        "| worlds | certified (every trial) | trials certified | by the search / by the oracle's episode "
-        "| witness slack, median [s] | not certified |",
-        "|---|---|---|---|---|---|",
+        "| worlds | search version | certified (every trial) | trials certified "
+        "| by the search / by the oracle's episode | witness slack, median [s] | not certified |",
+        "|---|---|---|---|---|---|---|",
     ]
     for title, worlds in sets.items():
         records = [(w, w["certificates"][PROTOCOL]) for w in worlds if PROTOCOL in w.get("certificates", {})]
@@ -102,8 +106,10 @@ def certification_table(sets: dict[str, list[dict]]) -> str:
         not_certified = f"worlds {', '.join(map(str, failed))} ({why})" if failed else "-"
         by_oracle = sum(1 for t in trials if t["certified"] and t.get("by"))
         by_search = sum(t["certified"] for t in trials) - by_oracle
+        versions = sorted({r.get("resolution_version", 2) for _, r in records})
+        version = ", ".join(f"{v} ({VERSIONS[v]})" if v in VERSIONS else str(v) for v in versions)
         lines.append(
-            f"| {title} | {sum(r['certified'] for _, r in records)} of {len(records)} "
+            f"| {title} | {version} | {sum(r['certified'] for _, r in records)} of {len(records)} "
             f"| {sum(t['certified'] for t in trials)} of {len(trials)} | {by_search} / {by_oracle} "
             f"| {statistics.median(slack) if slack else float('nan'):.2f} | {not_certified} |"
         )
