@@ -97,11 +97,10 @@ def _add_dagger(sub) -> None:
         "--no-velocity", dest="velocity", action="store_false", help="leave the measured (v, w) out of the inputs"
     )
     dg.add_argument(
-        "--no-static-map",
-        dest="static_map",
-        action="store_false",
-        help="leave the known map's ranges along the pooled beams out of the inputs (every student before "
-        "issue 57; default: given)",
+        "--static-map",
+        action="store_true",
+        help="give the known map's ranges along the pooled beams among the inputs (as dagger_map.pt was "
+        "trained; the shipped dagger's recipe leaves them out)",
     )
     add_renamed(dg, "--profile-sets", "--profiles", "profiles")
     dg.add_argument(

@@ -123,9 +123,10 @@ class DaggerConfig:
     history: int = option(2, 0, 16, "earlier scans the student sees (0: the paper's single scan)")
     history_every: int = option(2, 1, 50, "control ticks between history frames")
     velocity: bool = True
-    static_map: bool = True
-    """The known map's ranges along the pooled beams among the inputs (`FeatureConfig.static_map`):
-    what its teacher plans on. Every student before issue 57 trained without it."""
+    static_map: bool = False
+    """The known map's ranges along the pooled beams among the inputs (`FeatureConfig.static_map`,
+    `--static-map`): what its teacher plans on. Off in the shipped `dagger`'s recipe;
+    `dagger_map.pt` (issue 57) trained with it."""
     tracks: int = option(16, 0, 64, "laser-tracker tracks the student sees, nearest first (0: no tracker)")
     protocol: str = "barn"
     workers: int = option(CORES, 1, MAX_JOBS, "collection processes (default: the cores this process may use)")
@@ -159,7 +160,6 @@ class DaggerConfig:
 
 
 BEFORE_THE_FIELD = {
-    "static_map": False,
     "head": "regress",
     "teacher": "oracle_present",
     "encoder": "mlp",
@@ -168,7 +168,7 @@ BEFORE_THE_FIELD = {
 """What a DAgger run written before a field existed did, where that is not the field's
 default: every student before the classifier regressed; before `--teacher`, `--encoder`
 and `--profile-sets` every run was taught by `oracle_present`, flat, on the paper's and
-the release's profiles; before `--no-static-map` no student saw the map."""
+the release's profiles."""
 
 
 def completed_config(saved: dict) -> dict:
