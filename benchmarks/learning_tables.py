@@ -145,16 +145,17 @@ STUDENT_VALIDATION = ROOT / "results" / "student_validation"
 """`benchmarks/student_validation.py`'s records: students and references on the same
 procedural validation worlds (one JSON per group of profile sets)."""
 ENTRY_TITLES = {
-    "shipped": "first student (`dagger.pt`: `mlp`, trained on `table1`, `release2022`; 12 iterations)",
     "set_predictive": "`set`, taught by `predictive` (`dagger_predictive.pt`, the shipped `dagger`; 10 iterations)",
     "map": "the same recipe with the known map among the inputs (`dagger_map.pt`; 10 iterations)",
     "set": "`set` encoder, trained with the tiers' profiles too (10 iterations, no final fit)",
     "mlp_tiers": "`mlp`, the same data and seeds as `set` (5 iterations)",
     "set_5": "`set`, the same run after 5 iterations",
+    "shipped": "first student (`dagger.pt`: `mlp`, trained on `table1`, `release2022`; 12 iterations)",
     "teacher": "the teacher, `oracle_present` (privileged)",
     "predictive": "`predictive` (laser only)",
     "floor": "blind floor (`straight`)",
 }
+"""Each validation entry's title, in the order the table lists them."""
 
 
 def student_ablation() -> str:
@@ -166,13 +167,20 @@ def student_ablation() -> str:
         "| validation worlds | entry | easy | medium | hard | all |",
         "|---|---|---|---|---|---|",
     ]
+    # Records of the same worlds (a later run's entries beside an earlier run's) make one
+    # group; an entry run again on them gives the same episodes, and is listed once.
+    groups: dict[str, dict[str, dict]] = {}
     for path in records:
         record = json.loads(path.read_text())
         worlds = f"{record['worlds']} of {', '.join(f'`{p}`' for p in record['profile_sets'])}"
         for name, row in record["success"].items():
+            groups.setdefault(worlds, {}).setdefault(name, row)
+    order = list(ENTRY_TITLES)
+    for worlds, rows in groups.items():
+        for name in sorted(rows, key=lambda n: order.index(n) if n in order else len(order)):
             cells = [
                 f"{c['rate']:.2f} [{c['interval'][0]:.2f}, {c['interval'][1]:.2f}]" if c["episodes"] else "-"
-                for c in (row[d] for d in (*DIFFICULTIES, "all"))
+                for c in (rows[name][d] for d in (*DIFFICULTIES, "all"))
             ]
             lines.append(f"| {worlds} | {ENTRY_TITLES.get(name, name)} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
