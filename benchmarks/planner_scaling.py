@@ -30,8 +30,9 @@ WORLDS = (0, 15, 105, 155, 205, 215)
 HARD = range(200, 248)
 
 
-def planner_compute(planner: str, worlds=WORLDS) -> tuple[float, float, int]:
-    """(mean, p95 [ms], calls) of `planner.act` over one episode in each of `worlds`."""
+def planner_compute(planner: str, worlds=WORLDS, **extra) -> tuple[float, float, int]:
+    """(mean, p95 [ms], calls) of `planner.act` over one episode in each of `worlds` (the
+    planner's configuration with `extra` on top, e.g. a student's `policy`)."""
     times: list[float] = []
 
     class Timer(EpisodeObserver):
@@ -40,7 +41,8 @@ def planner_compute(planner: str, worlds=WORLDS) -> tuple[float, float, int]:
 
     name, config, _ = planner_spec(planner)
     for w in worlds:
-        run_episode(resolve_world(w), get_planner(name, **config), get_protocol("barn"), seed=0, observers=[Timer()])
+        planner_ = get_planner(name, **config, **extra)
+        run_episode(resolve_world(w), planner_, get_protocol("barn"), seed=0, observers=[Timer()])
     arr = np.array(times)
     return float(arr.mean()), float(np.percentile(arr, 95)), len(arr)
 

@@ -41,6 +41,7 @@ from recording_cost import fixed_costs, recording_breakdown
 from sweep_speed import SHIPPED, print_sweep_speeds
 
 from dynabarn.planners import get_planner
+from dynabarn.planners.learned.policy import SHIPPED as SHIPPED_POLICIES
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, read_recording
 from dynabarn.runner import EpisodeSpec, run_spec
@@ -386,6 +387,9 @@ def main(argv: list[str] | None = None) -> int:
     for planner in SHIPPED[1:]:
         mean, p95, calls = planner_compute(planner)
         print(f"{planner:<44}{mean:>11.2f}{p95:>11.2f}{calls:>8}")
+    # The student that sees the map (issue 57): the map's closed-form cast on top of its call.
+    mean, p95, calls = planner_compute("dagger", policy=str(SHIPPED_POLICIES / "dagger_map.pt"))
+    print(f"{'dagger, policy dagger_map.pt':<44}{mean:>11.2f}{p95:>11.2f}{calls:>8}")
     print_breakdown(("oracle", "predictive", "dwa@dwa_dynabarn_authors", "teb", "dagger"))
     print_sweep_speeds()
     mean, p95, n_obstacles = min(tracker_cost() for _ in range(args.repeat))
