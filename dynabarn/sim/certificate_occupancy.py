@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 
+from dynabarn.determinism import snap_array
 from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL
 from dynabarn.worlds.grid_graph import grid_dijkstra
@@ -28,6 +29,8 @@ from dynabarn.worlds.spec import WorldSpec
 ROBOT_RADIUS = math.hypot(JACKAL.length / 2, JACKAL.width / 2)
 """[m] The disc around the Jackal's footprint: safe at any heading."""
 HALF_FOOTPRINT = (JACKAL.length / 2, JACKAL.width / 2)
+COST_RESOLUTION = 1e-3
+"""[m] The grid the goal guidance's distances are snapped to (`Occupancy.cost_to_go`)."""
 """[m] The Jackal's rectangle: half its length (along its heading) and half its width."""
 
 
@@ -185,7 +188,9 @@ class Occupancy:
             free &= ~self.field.all(axis=0)
         source = int(self.cells(np.array([goal[0]]), np.array([goal[1]]))[0])
         cost, _ = grid_dijkstra(free, source, self.g)
-        return cost
+        # On a 1 mm grid: the order the search ranks states by is the same on every machine
+        # (equal paths summed in another order differ in their last bits).
+        return snap_array(cost, COST_RESOLUTION, out=cost)
 
     def free(self, sub: int, x: np.ndarray, y: np.ndarray, heading: np.ndarray) -> np.ndarray:
         """Whether the robot at poses (x, y, heading) is free at substep `sub`; beyond the
