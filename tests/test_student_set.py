@@ -194,6 +194,7 @@ def test_the_numpy_network_decides_as_the_pytorch_network(encoder, features, cla
         ("dagger.pt", "oracle_present", "mlp"),
         ("dagger_set.pt", "oracle_present", "set"),
         ("dagger_predictive.pt", "predictive", "set"),
+        ("dagger_map.pt", "predictive", "set"),
     ],
 )
 def test_each_shipped_student_names_its_teacher_and_drives(policy, teacher, encoder):
@@ -206,8 +207,9 @@ def test_each_shipped_student_names_its_teacher_and_drives(policy, teacher, enco
     from dynabarn.sim import run_episode
     from dynabarn.worldset import resolve_world
 
-    actor, _, header = load_student(SHIPPED / policy)
+    actor, features, header = load_student(SHIPPED / policy)
     assert header["notes"]["config"]["teacher"] == teacher and actor.encoder == encoder
+    assert features.static_map is (policy == "dagger_map.pt")  # only the issue-57 student sees the map
     planner = get_planner("dagger", policy=str(SHIPPED / policy))
     result = run_episode(resolve_world(3), planner, get_protocol("barn"), seed=0)
     assert result.outcome in (Outcome.SUCCESS, Outcome.COLLISION, Outcome.TIMEOUT) and result.n_ticks > 5
