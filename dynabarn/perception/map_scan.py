@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dynabarn.determinism import sincos
 from dynabarn.interfaces import EpisodeInfo
 from dynabarn.robot import mounted_pose
 from dynabarn.sim.laser import box_ranges, circle_ranges
@@ -32,7 +33,9 @@ class MapScan:
     def __call__(self, pose: np.ndarray) -> np.ndarray:
         # The laser sits at its offset in the robot frame, as the simulator mounts it.
         ox, oy, yaw = (float(v) for v in mounted_pose(pose, self.offset))
-        out = box_ranges(ox, oy, yaw, self.angles, self.walls, self.range_max)
+        s, c = sincos(self.angles + yaw)  # the same bits on every CPU (numpy's cos and sin are not)
+        out = box_ranges(ox, oy, yaw, self.angles, self.walls, self.range_max, (c, s))
         if len(self.cylinders):
-            np.minimum(out, circle_ranges(ox, oy, yaw, self.angles, self.cylinders, self.range_max), out=out)
+            cylinders = circle_ranges(ox, oy, yaw, self.angles, self.cylinders, self.range_max, (c, s))
+            np.minimum(out, cylinders, out=out)
         return out

@@ -113,10 +113,18 @@ class Laser:
 
 
 def circle_ranges(
-    ox: float, oy: float, yaw: float, angles: np.ndarray, circles: np.ndarray, range_max: float
+    ox: float,
+    oy: float,
+    yaw: float,
+    angles: np.ndarray,
+    circles: np.ndarray,
+    range_max: float,
+    directions: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """Ranges (n,) along beams at `angles` (evenly spaced, robot frame) from (ox, oy) heading
     `yaw` to the nearest of `circles` (k, 3: x, y, radius); range_max where none is hit.
+    `directions`: every beam's (cos, sin) of angle + yaw where the caller has them (None:
+    numpy's, of the beams that can hit).
 
     Each circle is tested only against the beams inside its angular extent
     [theta - alpha, theta + alpha] (np.repeat over the extents: the work is the number of
@@ -141,9 +149,13 @@ def circle_ranges(
         return out
     which = np.repeat(np.arange(len(counts)), counts)
     beam = lo[which] + np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
-    a = angles[beam] + yaw
+    if directions is None:
+        a = angles[beam] + yaw
+        ux, uy = np.cos(a), np.sin(a)
+    else:
+        ux, uy = directions[0][beam], directions[1][beam]
     dc = d[which]
-    b = np.cos(a) * dc[:, 0] + np.sin(a) * dc[:, 1]
+    b = ux * dc[:, 0] + uy * dc[:, 1]
     disc = b * b - (dist[which] ** 2 - r[which] ** 2)
     hit = disc >= 0
     t = b[hit] - np.sqrt(disc[hit])
@@ -151,13 +163,24 @@ def circle_ranges(
     return out
 
 
-def box_ranges(ox: float, oy: float, yaw: float, angles: np.ndarray, boxes: np.ndarray, range_max: float) -> np.ndarray:
+def box_ranges(
+    ox: float,
+    oy: float,
+    yaw: float,
+    angles: np.ndarray,
+    boxes: np.ndarray,
+    range_max: float,
+    directions: tuple[np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
     """Ranges (n,) along beams at `angles` from (ox, oy) heading `yaw` to the nearest of the
     axis-aligned `boxes` (k, 4: centre x, centre y, full size x, full size y, as walls are
     given); range_max where none is hit within it. The slab method, every box against every
-    beam at once (a world has a handful of walls)."""
-    a = angles + yaw
-    ux, uy = np.cos(a), np.sin(a)
+    beam at once (a world has a handful of walls). `directions` as `circle_ranges`'."""
+    if directions is None:
+        a = angles + yaw
+        ux, uy = np.cos(a), np.sin(a)
+    else:
+        ux, uy = directions
     half = boxes[:, 2:4] / 2
     lo = boxes[:, :2] - half - (ox, oy)  # (k, 2): the corners seen from the laser
     hi = boxes[:, :2] + half - (ox, oy)
