@@ -16,7 +16,7 @@ import numpy as np
 from dynabarn.determinism import sincos
 from dynabarn.interfaces import EpisodeInfo
 from dynabarn.robot import mounted_pose
-from dynabarn.sim.laser import box_ranges, circle_ranges
+from dynabarn.worlds.ray_cast import box_ranges, circle_ranges
 
 
 class MapScan:
