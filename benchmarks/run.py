@@ -87,7 +87,7 @@ def runner(world_id: int, planner: str, seeds: range, *, record: bool, in_proces
             observers = [McapRecorder(path)] if record and in_process else []
             t0 = time.perf_counter()
             spec = EpisodeSpec.make(resolve_world(world_id), planner, get_protocol("barn"), seed=seed)
-            r = run_spec(spec, record_to=path if record and not in_process else None, observers=observers)
+            r = run_spec(spec, record_to=path if record and not in_process else None, observers=observers).result
             wall += time.perf_counter() - t0
             sim_time += r.sim_time
     return sim_time / wall, sim_time

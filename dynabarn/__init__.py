@@ -25,6 +25,8 @@ _WHERE = {
     "EpisodeObserver": "dynabarn.interfaces",
     "EpisodeStart": "dynabarn.interfaces",
     "EpisodeResult": "dynabarn.metrics",
+    "EpisodeRun": "dynabarn.runner",
+    "EpisodeSpec": "dynabarn.runner",
     "EvalProtocol": "dynabarn.protocol",
     "Layout": "dynabarn.worlds.spec",
     "McapRecorder": "dynabarn.recording",
@@ -68,7 +70,7 @@ _WHERE = {
     "register_planner": "dynabarn.planners",
     "register_protocol": "dynabarn.protocol",
     "resolve_world": "dynabarn.worldset",
-    "run_episode": "dynabarn.sim",
+    "run_spec": "dynabarn.runner",
     "write_world": "dynabarn.mjcf",
 }
 
@@ -82,6 +84,8 @@ __all__ = [
     "EpisodeInfo",
     "EpisodeObserver",
     "EpisodeResult",
+    "EpisodeRun",
+    "EpisodeSpec",
     "EpisodeStart",
     "EvalProtocol",
     "Layout",
@@ -121,7 +125,7 @@ __all__ = [
     "register_planner",
     "register_protocol",
     "resolve_world",
-    "run_episode",
+    "run_spec",
     "write_world",
 ]
 
@@ -150,7 +154,8 @@ if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eag
     from dynabarn.protocol import PROTOCOLS, EvalProtocol, get_protocol, register_protocol
     from dynabarn.recording import McapRecorder, Recording, read_recording
     from dynabarn.recording.topics import Topic
-    from dynabarn.sim import SimConfig, Simulation, run_episode
+    from dynabarn.runner import EpisodeRun, EpisodeSpec, run_spec
+    from dynabarn.sim import SimConfig, Simulation
     from dynabarn.sim.behaviors import ObstacleBehavior
     from dynabarn.worlds.generate import PAPER60, generate_world
     from dynabarn.worlds.profiles import (

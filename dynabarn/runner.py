@@ -3,8 +3,10 @@ what it runs: the simulation with the spec's settings, the planner with its conf
 the recorder.
 
 Every command that runs an episode goes through here: `dynabarn-run`, `dynabarn-ros`,
-`dynabarn-bench` (each job is a spec), `--verify`, the golden set and teleop, none with a
-simulation of its own (what needs the compiled world, a viewer, gets it from `on_built`).
+`dynabarn-bench` (each job is a spec), `--verify`, the golden set, teleop and the
+certificates' oracle stage, none with a simulation of its own (a viewer, which needs the
+compiled world, gets it from `on_built`). What was built comes back in an `EpisodeRun`: the
+result, where the recording is, the world, the planner's report.
 So the simulation's settings (`--dt`, `--control-rate`) are given once, in the spec, and
 travel with an episode into a sweep, a resumed sweep and the golden set; and a recording
 is made, finished and failed in one place:
@@ -20,17 +22,20 @@ is made, finished and failed in one place:
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces import EpisodeObserver, Planner
+from dynabarn.metrics import EpisodeResult
 from dynabarn.protocol import EvalProtocol
 from dynabarn.sim import SimConfig, Simulation
+from dynabarn.worlds.spec import WorldSpec
 
 _DEFAULT_SIM = SimConfig()
 
@@ -38,6 +43,11 @@ _DEFAULT_SIM = SimConfig()
 class RecordingFailed(DynabarnError):
     """The recording could not be started or written (the machine's fault, not the
     episode's: a sweep runs such an episode again)."""
+
+    def __init__(self, message: str, *, target: Path | str | None = None) -> None:
+        super().__init__(message)
+        self.target = Path(target) if target is not None else None
+        """The file the recording was asked for (its `NAME.part` may hold what was written)."""
 
 
 @dataclass(frozen=True)
@@ -115,58 +125,96 @@ class EpisodeSpec:
         )
 
 
+class LiveView(Protocol):
+    """Outputs that watch an episode as it runs (`dynabarn-run --viewer/--live`), opened by
+    the runner once the planner's configuration has been checked and closed when the
+    episode ends, whatever happens (a context manager)."""
+
+    contexts: tuple
+    """Foxglove contexts the recorder also streams to."""
+    observers: tuple
+    """Observers after the recorder (pacing, rerun)."""
+
+    def __enter__(self) -> LiveView: ...
+
+    def __exit__(self, *exc) -> None: ...
+
+    def watch(self, sim: Simulation, planner: Planner) -> Sequence[EpisodeObserver]:
+        """Observers that need the compiled world (MuJoCo's viewer), after the others."""
+
+    def attach(self, recorder) -> None:
+        """The recorder, whose latched messages late subscribers get again."""
+
+
+@dataclass(frozen=True)
+class EpisodeRun:
+    """What `run_spec` ran and built: the result, where its recording is, the world it
+    compiled and what the planner said of the episode (`Planner.report`)."""
+
+    spec: EpisodeSpec
+    result: EpisodeResult
+    world: WorldSpec
+    """The world as compiled (its name, its profile set, its obstacles)."""
+    recording: Path | None = None
+    """Where the finished recording is; None when none was asked for or its writer ended early."""
+    recording_target: Path | None = None
+    """The file the recording was asked for (`record_to`, or its default name in `record_in`)."""
+    recording_problem: str | None = None
+    """Why the recording is cut short or missing (a full disk, an installed topic's bug, its
+    writer ended early); None when it is whole or none was asked for."""
+    planner_report: dict = field(default_factory=dict)
+
+
 def run_spec(
     spec: EpisodeSpec,
     *,
     record_to: Path | None = None,
     record_in: Path | None = None,
-    live_contexts: tuple = (),
+    live: LiveView | None = None,
     observers: Sequence[EpisodeObserver] = (),
     on_built: Callable[[Simulation, Planner], Sequence[EpisodeObserver] | None] | None = None,
-    on_recorder: Callable | None = None,
-    record_options: dict | None = None,
-):
-    """Build what `spec` describes (the simulation with its settings, the planner with its
-    configuration, the recorder) and run the episode; its `EpisodeResult`. Each setting is
-    given once, in the spec: nothing passed here changes what happens in the episode.
+) -> EpisodeRun:
+    """Build what `spec` describes (the planner with its configuration, the simulation with
+    its settings, the recorder), run the episode and hand back what became of it
+    (`EpisodeRun`). Each setting is given once, in the spec: nothing passed here changes
+    what happens in the episode. The runner owns the lifecycle of what it builds: the
+    planner's `finish` is called whatever happens, the recording is finished or said to be
+    cut short, the live view closed.
 
     Args:
         record_to: record the episode to this MCAP file (NAME.part until whole).
         record_in: or to this folder, under the default name (`default_run_path`: world,
             the planner as results show it, protocol, seed).
-        live_contexts: foxglove contexts the recorder also streams to.
-        observers: further observers (pacing, live views), after the recorder.
-        on_built: called with the compiled simulation and the planner before the episode
-            starts; returns observers that need them (a viewer of the MuJoCo model), which run
-            after the others.
-        on_recorder: called with the recorder before the episode starts.
-        record_options: the recorder's options (`McapRecorder`: channels and metadata of its
-            own, e.g. teleop's input channel); with them it records in this process, where
-            the planner can write to it.
+        live: outputs that watch the episode as it runs (`LiveView`), opened here after the
+            configuration is checked: a bad one is one line before a server starts.
+        observers: further observers, after the recorder and the live view's.
+        on_built: for viewers: called with the compiled simulation and the planner before
+            the episode starts; returns observers that need them, which run after the others.
     """
     from dynabarn.planners import get_planner
-    from dynabarn.recording import McapRecorder, default_run_path
-    from dynabarn.recording.background import BackgroundRecorder
+
+    # The configuration is checked here, once, before anything starts: one line.
+    planner = get_planner(spec.planner, **dict(spec.planner_config))
+    try:
+        with live if live is not None else contextlib.nullcontext():
+            return _run_built(spec, planner, record_to, record_in, live, observers, on_built)
+    except Exception:
+        _finished(planner, "error")  # what broke outside the loop (an observer, the recorder): its processes end too
+        raise
+
+
+def _run_built(spec, planner, record_to, record_in, live, observers, on_built) -> EpisodeRun:
+    """`run_spec` once the planner is built and the live view open."""
+    from dynabarn.recording import default_run_path
     from dynabarn.sim import run_episode
 
-    # Before the world is compiled: a bad configuration is one line at once.
-    planner = get_planner(spec.planner, **dict(spec.planner_config))
     sim = Simulation(spec.world, config=spec.sim_config)
+    if live is not None:
+        observers = [*live.observers, *observers, *live.watch(sim, planner)]
     observers = [*observers, *((on_built(sim, planner) or ()) if on_built is not None else ())]
     if record_to is None and record_in is not None:
         record_to = default_run_path(record_in, sim.world.name, spec.shown, spec.protocol["name"], spec.seed)
-    recorder = None
-    if record_to is not None or live_contexts:
-        try:
-            # A file alone is written by a writer process beside the episode (the same bytes,
-            # on the other core); a live view, or a planner writing to it, from this process.
-            here = live_contexts or record_options is not None
-            options = record_options or {}
-            recorder = McapRecorder(record_to, live=live_contexts, **options) if here else BackgroundRecorder(record_to)
-        except OSError as exc:  # a full disk, a missing or read-only folder
-            raise RecordingFailed(f"cannot record to {record_to}: {exc.strerror or exc}") from None
-    if recorder is not None and on_recorder is not None:
-        on_recorder(recorder)
+    recorder = _recorder(record_to, planner, live)
     try:
         result = run_episode(
             sim,
@@ -178,11 +226,52 @@ def run_spec(
         )
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: the recorder closed it whole
         if record_to is not None:
-            kept = getattr(recorder, "kept", None)
+            kept = recorder.kept if recorder is not None else None
             raise type(exc)(f"recording kept: {kept}" if kept else f"recording started in {record_to}.part") from None
         raise
     except OSError as exc:  # the recording could not be started or written
-        raise RecordingFailed(f"cannot record to {record_to}: {exc.strerror or exc}") from None
-    if recorder is not None and recorder.stopped:  # the disk filled up: the result stands, the file is cut
-        print(f"warning: {record_to}: {recorder.stopped}", file=sys.stderr)
-    return result
+        raise RecordingFailed(f"cannot record to {record_to}: {exc.strerror or exc}", target=record_to) from None
+    problem = recorder.stopped if recorder is not None else None
+    if problem:  # the disk filled up: the result stands, the file is cut
+        print(f"warning: {record_to}: {problem}", file=sys.stderr)
+    return EpisodeRun(
+        spec=spec,
+        result=result,
+        world=sim.world,
+        recording=recorder.kept if recorder is not None else None,
+        recording_target=Path(record_to) if record_to is not None else None,
+        recording_problem=problem,
+        planner_report=planner.report(),
+    )
+
+
+def _recorder(record_to: Path | None, planner: Planner, live: LiveView | None):
+    """The episode's recorder, or None: a file alone is written by a writer process beside
+    the episode (the same bytes, on the other core); a live view, or a planner that writes
+    channels of its own (`Planner.recording_options`), are served from this process."""
+    from dynabarn.recording import McapRecorder
+    from dynabarn.recording.background import BackgroundRecorder
+
+    contexts = live.contexts if live is not None else ()
+    if record_to is None and not contexts:
+        return None
+    options = planner.recording_options()
+    try:
+        if contexts or options:
+            recorder = McapRecorder(record_to, live=contexts, **options)
+        else:
+            recorder = BackgroundRecorder(record_to)
+    except OSError as exc:  # a full disk, a missing or read-only folder
+        raise RecordingFailed(f"cannot record to {record_to}: {exc.strerror or exc}", target=record_to) from None
+    if options:
+        planner.attach_recording(recorder)
+    if live is not None:
+        live.attach(recorder)
+    return recorder
+
+
+def _finished(planner: Planner, outcome: str) -> None:
+    """The planner's `finish` once more where the episode did not end through the loop
+    (which calls it): a planner's finish is safe to call twice, releasing nothing twice."""
+    with contextlib.suppress(Exception):
+        planner.finish(outcome)

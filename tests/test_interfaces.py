@@ -43,6 +43,6 @@ def test_an_observer_overrides_only_what_it_needs(tmp_path):
             self.ticks += 1
 
     counter = CountTicks()
-    world, planner = dynabarn.resolve_world(137), dynabarn.get_planner("straight")
-    result = dynabarn.run_episode(world, planner, dynabarn.get_protocol("barn"), observers=[counter])
+    spec = dynabarn.EpisodeSpec.make(dynabarn.resolve_world(137), "straight", dynabarn.get_protocol("barn"))
+    result = dynabarn.run_spec(spec, observers=[counter]).result
     assert counter.ticks == result.n_ticks > 0

@@ -207,7 +207,7 @@ def run_case(case: GoldenCase, world: Path) -> dict:
     spec = EpisodeSpec.make(world, case.planner, protocol, config=config, seed=case.seed, sim=case.sim)
     with tempfile.TemporaryDirectory(prefix="dynabarn-golden-") as tmp:
         rec = Path(tmp) / "episode.mcap"
-        result = run_spec(spec, record_to=rec)
+        result = run_spec(spec, record_to=rec).result
         digest = message_digest(rec)
     return {"case": case.key, **result.to_dict(), "recording_digest": digest}
 

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -85,8 +86,6 @@ def row_head(job: Job) -> dict:
 def run_job(job: Job) -> dict:
     """Run one episode; never raises (an exception becomes an `error` row with its traceback)."""
     row = row_head(job)
-    recorders: list = []
-    built: list = []
     try:
         spec = job.spec
         if job.factory is not None and spec.planner not in PLANNERS:
@@ -96,20 +95,18 @@ def run_job(job: Job) -> dict:
             row["planner_code"] = job.code.identity()
             load_again(job.code)
         record_in = Path(job.recordings_dir) if job.record != "none" else None  # NAME.part until whole
-        result = run_spec(
-            spec, record_in=record_in, on_built=lambda sim, planner: built.append(sim), on_recorder=recorders.append
-        )
+        run = run_spec(spec, record_in=record_in)
+        result = run.result
         row.update(result.to_dict())
         # The profile the world was drawn from (the sweep's worlds.json has its numbers).
-        row["profile_set"] = built[0].world.profile_set
-        if recorders and recorders[0].stopped:  # disk nearly full: the result stands, run it again
-            row.update({"retry": True, "recording_error": recorders[0].stopped})
-        if recorders:
-            rec_path = recorders[0].path
+        row["profile_set"] = run.world.profile_set
+        if run.recording_problem:  # disk nearly full: the result stands, run it again
+            row.update({"retry": True, "recording_error": run.recording_problem})
+        if run.recording_target is not None:
             if job.record == "all" or result.outcome is not Outcome.SUCCESS:
-                row["recording"] = str(rec_path)
+                row["recording"] = str(run.recording_target)
             else:
-                rec_path.unlink(missing_ok=True)
+                run.recording_target.unlink(missing_ok=True)
     except (OSError, MemoryError, RecordingFailed) as exc:  # the machine failed, not the planner: run it again later
         row.update(
             {
@@ -118,8 +115,10 @@ def run_job(job: Job) -> dict:
                 "retry": True,
             }
         )
-        if recorders:
-            staging_path(recorders[0].path).unlink(missing_ok=True)  # what the recorder had written
+        target = getattr(exc, "target", None)
+        if target is not None:  # what the recorder had written, in the sweep's own folder
+            with contextlib.suppress(OSError):
+                staging_path(target).unlink(missing_ok=True)
     except Exception as exc:  # foreign planner code, a broken world...: record and go on
         row.update(
             {

@@ -97,7 +97,7 @@ def check_row(row: dict, parts: dict, folder: Path, roots: list[Path], protocol_
     with tempfile.TemporaryDirectory(prefix="dynabarn-verify-") as tmp:
         recording = Path(tmp) / "episode.mcap"
         try:
-            now = run_spec(spec, record_to=recording).to_dict() | {"planner": spec.shown}
+            now = run_spec(spec, record_to=recording).result.to_dict() | {"planner": spec.shown}
         except NotInstalledHere as exc:  # this install lacks what the row needs: not a difference
             return RowCheck(key, False, not_checked=str(exc), install=exc.install)
         except Exception as exc:  # a planner that no longer runs: that row does not reproduce

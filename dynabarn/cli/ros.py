@@ -186,7 +186,7 @@ def _ros_episode(args: argparse.Namespace) -> int:
     from dynabarn.mjcf import read_world
     from dynabarn.protocol import get_protocol
     from dynabarn.recording import default_run_path
-    from dynabarn.ros.bridge import bridge_overhead, remap_problem, ros_python
+    from dynabarn.ros.bridge import remap_problem, ros_python
     from dynabarn.ros.stacks import stack_command
     from dynabarn.runner import EpisodeSpec, run_spec
     from dynabarn.worldset import resolve_world
@@ -221,11 +221,9 @@ def _ros_episode(args: argparse.Namespace) -> int:
         )
         stack_log.parent.mkdir(parents=True, exist_ok=True)
     config = _bridge_config(args, workspace, stack_log)
-    built: list = []
 
     def announce(sim, planner) -> None:
         """The bridge is built (its master up): say where, before the stack starts."""
-        built.append(planner)
         mode = "lockstep" if planner.cfg.lockstep else f"paced at {planner.cfg.rate:g}x"
         print(
             f"ROS master {planner.master.uri}; {mode}" + (f"; stack output: {stack_log}" if stack_log else ""),
@@ -233,24 +231,16 @@ def _ros_episode(args: argparse.Namespace) -> int:
         )
 
     # The `ros` planner of the registry (`ros.bridge.ros_planner`): a bad setting (an
-    # unbalanced quote in --launch) is one line before a master starts.
+    # unbalanced quote in --launch) is one line before a master starts. The runner ends the
+    # stack, the node and the master (the planner's `finish`) whatever happens.
     spec = EpisodeSpec.make(world_path, "ros", protocol, config=config, seed=args.seed)
-    try:
-        result = run_spec(spec, record_to=log_path, on_built=announce)
-    finally:
-        for planner in built:
-            planner.finish("interrupted")  # run_episode has done so already unless something broke
-            planner.master.close()
-    (planner,) = built
-    overhead = bridge_overhead(planner)
-    extra = {
-        "bridge_ms_per_tick": None if overhead is None else round(overhead, 3),
-        "held_periods": planner.held,
-        "stack_log": str(stack_log) if stack_log else None,
-    }
+    run = run_spec(spec, record_to=log_path, on_built=announce)
+    result, report = run.result, run.planner_report
+    overhead, held = report["bridge_ms_per_tick"], report["held_periods"]
+    extra = {**report, "stack_log": str(stack_log) if stack_log else None}
     print_result(result, as_json=args.json, recording=log_path, extra=extra)
     if not args.json:
-        held = f"; {planner.held} control periods without a /cmd_vel (the last command held)" if planner.held else ""
+        held_note = f"; {held} control periods without a /cmd_vel (the last command held)" if held else ""
         cost = "n/a (no control period ran)" if overhead is None else f"{overhead:.2f} ms per control period"
-        print(f"bridge overhead {cost}{held}", file=sys.stderr)
+        print(f"bridge overhead {cost}{held_note}", file=sys.stderr)
     return exit_status(result, as_json=args.json)

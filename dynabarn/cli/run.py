@@ -72,7 +72,7 @@ def run_main(argv: Sequence[str] | None = None) -> int:
 
 def _run_episode(args: argparse.Namespace) -> int:
 
-    from dynabarn.planners import get_planner, planner_spec
+    from dynabarn.planners import planner_spec
     from dynabarn.protocol import get_protocol
     from dynabarn.runner import EpisodeSpec, run_spec
     from dynabarn.sim import SimConfig
@@ -84,7 +84,6 @@ def _run_episode(args: argparse.Namespace) -> int:
     config = preset | planner_config(args.planner_config)
     if args.policy is not None:
         config["policy"] = str(args.policy)
-    get_planner(name, **config)  # checked here: a bad configuration is one line before a live output opens
     settings = SimConfig(dt=args.dt, control_rate=args.control_rate)
     spec = EpisodeSpec.make(world_path, name, protocol, config=config, seed=args.seed, sim=settings, label=args.planner)
     log_path = None
@@ -95,24 +94,17 @@ def _run_episode(args: argparse.Namespace) -> int:
         import tempfile
 
         log_path = Path(tempfile.mkdtemp()) / "episode.mcap"
-    recorders: list = []
-
-    def attach(recorder) -> None:
-        recorders.append(recorder)
-        live.attach(recorder)
-
-    with LiveOutputs(args, protocol) as live:
-        result = run_spec(
-            spec,
-            record_to=log_path,
-            record_in=None if args.no_log else args.runs_dir,
-            live_contexts=live.contexts,
-            observers=live.observers,
-            on_built=live.watch,
-            on_recorder=attach,
-        )
+    # The runner checks the configuration, then opens the live outputs: a bad one is one
+    # line before a server starts.
+    run = run_spec(
+        spec,
+        record_to=log_path,
+        record_in=None if args.no_log else args.runs_dir,
+        live=LiveOutputs(args, protocol),
+    )
+    result = run.result
     # Where the recording is now: None when its writer died (run_spec said so on stderr).
-    kept = recorders[0].kept if recorders else None
+    kept = run.recording
     print_result(result, as_json=args.json, recording=None if args.no_log else kept)
     if args.video is not None and kept is None:
         raise DynabarnError(f"no recording to render {args.video} from: its writer ended early")
@@ -128,8 +120,6 @@ def _run_episode(args: argparse.Namespace) -> int:
         return 0
     from dynabarn.recording.topics import stopped_by_a_topic
 
-    if recorders and stopped_by_a_topic(
-        recorders[0].stopped
-    ):  # what was asked to be recorded is not (run_spec said why)
+    if stopped_by_a_topic(run.recording_problem):  # what was asked to be recorded is not (run_spec said why)
         return EXIT_EPISODE_ERROR
     return exit_status(result, as_json=args.json)

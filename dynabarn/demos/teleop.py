@@ -153,11 +153,27 @@ class TeleopPlanner(Planner):
     name = "teleop"
 
     def __init__(
-        self, state: TeleopState | None = None, recorder: McapRecorder | None = None, gamepad: Gamepad | None = None
+        self,
+        state: TeleopState | None = None,
+        recorder: McapRecorder | None = None,
+        gamepad: Gamepad | None = None,
+        operator: str = "human",
     ):
         self.state = state if state is not None else TeleopState()
         self.recorder = recorder
         self.gamepad = gamepad if gamepad is not None else Gamepad()
+        self.operator = operator
+
+    def recording_options(self) -> dict:
+        """The operator's input channel, and who drove: every input is on the recording."""
+        return {"extra_channels": (INPUT,), "extra_metadata": {"source": "human", "operator": self.operator}}
+
+    def attach_recording(self, recorder: McapRecorder) -> None:
+        self.recorder = recorder
+
+    def report(self) -> dict:
+        """The gamepad that drove, if any."""
+        return {"gamepad": self.gamepad.name if self.gamepad is not None else None}
 
     def reset(self, info: EpisodeInfo) -> None:
         self.info = info
@@ -229,13 +245,11 @@ def run_teleop(
 
     if "teleop" not in PLANNERS:
         register_planner(TeleopPlanner)  # this process's alone: the operator's keys reach only it
-    built: list[TeleopPlanner] = []
     viewers: list = []
 
     def watch(sim, planner: TeleopPlanner) -> tuple:
         """The operator's window on the compiled world: their keys drive; closing it ends
         the episode as Escape does."""
-        built.append(planner)
         sim.reset(protocol.spawn)
         viewer = MujocoViewer(
             sim,
@@ -249,14 +263,10 @@ def run_teleop(
         viewer.open()
         return (viewer,)
 
-    def log_inputs(recorder: McapRecorder) -> None:
-        built[0].recorder = recorder  # every input the operator gives, on the recording's INPUT channel
-
     try:
-        spec = EpisodeSpec.make(world_path, "teleop", protocol, seed=seed)
-        options = {"extra_channels": (INPUT,), "extra_metadata": {"source": "human", "operator": operator}}
-        result = run_spec(spec, record_to=out, record_options=options, on_built=watch, on_recorder=log_inputs)
+        spec = EpisodeSpec.make(world_path, "teleop", protocol, config={"operator": operator}, seed=seed)
+        run = run_spec(spec, record_to=out, on_built=watch)
     finally:
         for viewer in viewers:
             viewer.close()
-    return result, built[0].gamepad.name if built else None
+    return run.result, run.planner_report["gamepad"]

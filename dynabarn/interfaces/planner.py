@@ -3,7 +3,8 @@ else the episode loop may ask of it, all declared on one base class (`Planner`).
 
 A planner is an instance of `Planner`: it implements `act(obs) -> (v, w)` and overrides
 what it needs of the optional capabilities, each with a default that does nothing here
-(`reset`, `finish`, `tracks`, `debug`, `config`, `versions`, `waited_ms`). It sees only
+(`reset`, `finish`, `tracks`, `debug`, `config`, `versions`, `report`,
+`recording_options`, `attach_recording`, `waited_ms`). It sees only
 observations, never MuJoCo's data: the laser scan, its own pose and velocity, the goal,
 the time, and (only when it declares `privileged = True`) the true obstacle states and
 their schedules. `check_planner` is the one check of the contract: the registry applies it
@@ -150,6 +151,23 @@ class Planner(abc.ABC):
         """Versions of the libraries beyond the runner's that decide this planner's
         commands (e.g. PyTorch), recorded with every episode."""
         return {}
+
+    def report(self) -> dict:
+        """What the planner says of the episode once it has finished (plain JSON data, e.g.
+        the ROS bridge's overhead per period and the periods it held the last command):
+        handed back beside the result (`runner.EpisodeRun.planner_report`), not part of it."""
+        return {}
+
+    def recording_options(self) -> dict:
+        """Channels and metadata of its own this planner writes to the episode's recording
+        (`McapRecorder`'s `extra_channels`, `extra_metadata`; empty: none). A planner that
+        declares some gets the recorder through `attach_recording` before the episode, and
+        the recorder then runs in the episode's process."""
+        return {}
+
+    def attach_recording(self, recorder) -> None:  # noqa: B027 - optional hook
+        """The episode's recorder, before the first `act`, for a planner whose
+        `recording_options` declares channels of its own (teleop's operator input)."""
 
     waited_ms: float = 0.0
     """Milliseconds of the last `act` spent waiting on purpose (a ROS stack's start-up,

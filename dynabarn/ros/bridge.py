@@ -336,7 +336,9 @@ class RosPlanner(Planner):
         return body
 
     def finish(self, outcome: str) -> None:
-        """Tell the stack how the episode ended (/collision), then stop the stack and the node."""
+        """Tell the stack how the episode ended (/collision), then stop the stack, the node
+        and the master this planner started (one given by its URI is left running). Safe to
+        call again: nothing is stopped twice."""
         if self.node is not None and self.node.poll() is None:
             try:
                 self._send(b"E", outcome.encode())
@@ -347,29 +349,30 @@ class RosPlanner(Planner):
             if process is not None:
                 stop_process(process, timeout=5.0)
         self.stack = self.node = None
+        self.master.close()
 
-
-_worker_master: RosMaster | None = None
+    def report(self) -> dict:
+        """The bridge's cost and the stack's punctuality: the median bridge time per control
+        period [ms] (None when none ran) and the lockstep periods without a /cmd_vel."""
+        overhead = bridge_overhead(self)
+        return {
+            "bridge_ms_per_tick": None if overhead is None else round(overhead, 3),
+            "held_periods": self.held,
+        }
 
 
 def ros_planner(*, launch: str | None = None, master: str | None = None, **config) -> RosPlanner:
     """The `ros` planner of the registry (entry point): for `dynabarn-run --planner ros` and
-    `dynabarn-bench --planner ros --ros-launch CMD`. Each process (a bench worker) starts its
-    own master on a free port once, so parallel workers never share a master; the stack is
-    started per episode by `launch` and stopped when the episode ends."""
-    import atexit
-
+    `dynabarn-bench --planner ros --ros-launch CMD`. Each planner starts a master of its own
+    on a free port (parallel workers never share one) unless `master` names a running one,
+    and stops it in `finish`; the stack is started per episode by `launch` and stopped when
+    the episode ends."""
     from dynabarn.interfaces import config_from_kwargs
 
-    global _worker_master
     cfg = config_from_kwargs(BridgeConfig, {"launch": launch, **config}, "ros")
-    if master is not None:
-        return RosPlanner(RosMaster.start(master), cfg)
-    if _worker_master is None or (_worker_master.process is not None and _worker_master.process.poll() is not None):
-        ros_python()
-        _worker_master = RosMaster.start()
-        atexit.register(_worker_master.close)
-    return RosPlanner(_worker_master, cfg)
+    if master is None:
+        ros_python()  # one clear line when ROS is missing, before a master is started
+    return RosPlanner(RosMaster.start(master), cfg)
 
 
 ros_planner.external_options = RosPlanner.external_options  # type: ignore[attr-defined]
