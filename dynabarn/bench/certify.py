@@ -92,20 +92,19 @@ def certify_world(job: Job) -> tuple[str, list[dict]]:
                 row["certified"] = False
                 row["reason"] = f"the witness's replay ended in {result.outcome.value}"
         if not row["certified"]:
-            sim = sim or Simulation(job.path)
-            _oracle_stage(row, sim, protocol, seed)
+            _oracle_stage(row, job.path, protocol, seed)
         trials.append(row)
     return job.path, trials
 
 
-def _oracle_stage(row: dict, sim, protocol: EvalProtocol, seed: int) -> None:
-    """Where the search found no witness, the exact oracle's episode of the same trial: if
-    it reaches the goal without contact, that episode is the witness (MuJoCo drove it),
-    and the trial is certified by it; the search's reason stays beside it."""
-    from dynabarn.planners import get_planner
-    from dynabarn.sim import run_episode
+def _oracle_stage(row: dict, world: str, protocol: EvalProtocol, seed: int) -> None:
+    """Where the search found no witness, the exact oracle's episode of the same trial (run
+    as every episode is, `runner.run_spec`): if it reaches the goal without contact, that
+    episode is the witness (MuJoCo drove it), and the trial is certified by it; the
+    search's reason stays beside it."""
+    from dynabarn.runner import EpisodeSpec, run_spec
 
-    result = run_episode(sim, get_planner(ORACLE), protocol, seed=seed, planner_name=ORACLE)
+    result = run_spec(EpisodeSpec.make(world, ORACLE, protocol, seed=seed)).result
     row["oracle"] = {
         "outcome": result.outcome.value,
         "time": round(float(result.time), 4),
