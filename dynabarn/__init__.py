@@ -58,7 +58,11 @@ _WHERE = {
     "Trajectory": "dynabarn.worlds.trajectory",
     "WorldError": "dynabarn.errors",
     "WorldSpec": "dynabarn.worlds.spec",
+    "CheckFailed": "dynabarn.checks",
+    "CheckReport": "dynabarn.checks",
     "available_planners": "dynabarn.planners",
+    "check_planner": "dynabarn.checks",
+    "check_tracker": "dynabarn.checks",
     "generate_trajectory": "dynabarn.worlds.trajectory",
     "generate_world": "dynabarn.worlds.generate",
     "get_planner": "dynabarn.planners",
@@ -80,6 +84,8 @@ __all__ = [
     "PROTOCOLS",
     "SHAPE_MIXES",
     "STATIC_FIELDS",
+    "CheckFailed",
+    "CheckReport",
     "DynabarnError",
     "EpisodeInfo",
     "EpisodeObserver",
@@ -114,6 +120,8 @@ __all__ = [
     "WorldError",
     "WorldSpec",
     "available_planners",
+    "check_planner",
+    "check_tracker",
     "generate_trajectory",
     "generate_world",
     "get_planner",
@@ -137,6 +145,7 @@ if "gymnasium" in sys.modules:
 
 
 if TYPE_CHECKING:  # for type checkers and editors: the same names, imported eagerly
+    from dynabarn.checks import CheckFailed, CheckReport, check_planner, check_tracker
     from dynabarn.errors import DynabarnError, ProfileError, WorldError
     from dynabarn.interfaces import (
         EpisodeInfo,

@@ -40,6 +40,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("planners",),
     ("recording",),
     ("runner",),  # one episode described and run one way: every command goes through it
+    ("checks",),  # what a plugin author runs on a planner or tracker (`check_planner`, `check_tracker`)
     ("rerun_scene", "rerun_replay", "web_viewer"),  # consumers of the layers above, each may use the ones before it
     ("render",),
     ("live",),

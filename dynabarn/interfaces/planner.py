@@ -114,6 +114,10 @@ class Planner(abc.ABC):
     name: ClassVar[str] = "planner"
     privileged: ClassVar[bool] = False
     """True if the planner needs the true obstacle states (`Observation.obstacles`)."""
+    recorded_only: ClassVar[tuple[str, ...]] = ()
+    """Keys of `config()` that describe what the planner loaded or derived (a policy file's
+    sha256, its kind, its inputs) rather than parameters it takes: a planner is built again
+    from its recorded configuration without them (`dynabarn.check_planner` does so)."""
     external_options: ClassVar[dict[str, str]] = {}
     """Configuration options whose value names something outside the results, each with
     what it names ("a program it runs", "a file it reads"): a results file written elsewhere

@@ -36,6 +36,8 @@ class PolicyFilePlanner(Planner):
     read the same wherever the package is installed; any other by its path and content)."""
 
     external_options: ClassVar[dict[str, str]] = {"policy": "a policy file it loads"}
+    recorded_only: ClassVar[tuple[str, ...]] = ("policy_sha256", "kind", "lookahead", "head", "features")
+    """What the policy file says of itself (its content, its kind, its inputs), recorded beside `policy`."""
 
     def _torch_or_refuse(self, what: str):
         try:
