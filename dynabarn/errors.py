@@ -33,8 +33,13 @@ class EndEpisode(Exception):
 
 
 def unknown_choice(kind: str, name: str, available: list[str] | tuple[str, ...]) -> str:
-    """The message for a name not in a registry, listing what is available."""
-    return f"unknown {kind} {name!r}; available: {', '.join(sorted(available))}"
+    """The message for a name not in a registry: the nearest names first ("did you mean"),
+    then everything available."""
+    import difflib
+
+    near = difflib.get_close_matches(str(name), [str(a) for a in available], n=2, cutoff=0.75)
+    hint = f"; did you mean {' or '.join(repr(n) for n in near)}?" if near else ""
+    return f"unknown {kind} {name!r}{hint}; available: {', '.join(sorted(available))}"
 
 
 LEARN_INSTALL = "pip install 'dynabarn[learn]'"

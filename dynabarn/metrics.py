@@ -1,4 +1,4 @@
-"""Episode metrics (DESIGN.md "Episode, protocols and metrics").
+"""Episode metrics (docs/concepts/protocols.md).
 
 All functions are vectorised over the whole episode and run once, after it ends.
 """

@@ -18,7 +18,7 @@ import numpy as np
 from dynabarn.provenance import ASSETS_DIR
 
 PHYSICS_TIMESTEP = 0.005
-"""[s] The physics step the robot and every world are written with (DESIGN: at 0.01 s and
+"""[s] The physics step the robot and every world are written with (measured: at 0.01 s and
 above a 2 m/s obstacle passes through the robot); `SimConfig.dt` may run another."""
 
 JACKAL_XML = ASSETS_DIR / "jackal" / "jackal.xml"

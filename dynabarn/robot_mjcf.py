@@ -9,7 +9,7 @@ Model: a planar base (slide x, slide y, hinge yaw on one body) driven by three v
 actuators through a site at the base centre: `v` along the body's x axis, `slip` along
 its y axis (commanded 0: no side slip) and `w` about z. Wheels are visual only: four
 physically driven wheels skid badly in MuJoCo (yaw rate 30-40% of the command) and cost
-3-4x more (DESIGN.md, measured on mujoco 4.0).
+3-4x more (assets/jackal/README.md, measured on mujoco 4.0).
 """
 
 from __future__ import annotations

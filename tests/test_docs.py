@@ -227,3 +227,60 @@ def test_the_leaderboard_is_wide_sortable_and_search_works_from_disk(site):
         while browser.evaluate("document.querySelectorAll('.md-search-result__item').length") == 0:
             assert time.monotonic() < deadline, "the search answered nothing from file://"
             time.sleep(0.3)
+
+
+def _extending_table() -> list[list[str]]:
+    """The rows of the architecture page's "where additions go" table, cells stripped."""
+    text = (Path(__file__).resolve().parent.parent / "docs" / "architecture.md").read_text()
+    section = text[text.index("## Extending") :]
+    lines = section[section.index("| kind |") :].splitlines()
+    rows = []
+    for line in lines[2:]:
+        if not line.startswith("|"):
+            break
+        rows.append([cell.strip() for cell in line.strip().strip("|").split(" | ")])
+    return rows
+
+
+def test_the_architecture_table_is_one_row_per_kind_and_matches_the_code():
+    """One row per kind of addition, four cells each; every registry the package defines is
+    named in it, and every `module.NAME` its registry column names exists."""
+    import ast
+    import importlib
+    import re
+
+    rows = _extending_table()
+    assert all(len(row) == 4 for row in rows), [row[0] for row in rows if len(row) != 4]
+    kinds = [row[0] for row in rows]
+    assert len(kinds) == len(set(kinds)) and len(kinds) >= 15, kinds
+    named = " ".join(row[1] for row in rows)
+    package = Path(__file__).resolve().parent.parent / "dynabarn"
+    defined = set()
+    for path in package.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            value = getattr(node, "value", None)
+            if isinstance(node, ast.Assign | ast.AnnAssign) and isinstance(value, ast.Call):
+                called = value.func
+                name = called.id if isinstance(called, ast.Name) else getattr(called, "attr", "")
+                if name.endswith("Registry") or name == "_InstalledTopics":
+                    targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+                    defined |= {t.id for t in targets if isinstance(t, ast.Name)}
+    assert defined >= {"PLANNERS", "TRACKERS", "BEHAVIORS", "PROTOCOLS", "TIERS", "STACKS"}, defined
+    missing = sorted(name for name in defined if f".{name}`" not in named)
+    assert not missing, f"registries the architecture table does not name: {missing}"
+    for row in rows:  # the registry column's first name is the place in the code (then its entry-point group)
+        module, _, attr = re.search(r"`([^`]+)`", row[1]).group(1).partition("(")[0].rpartition(".")
+        target = importlib.import_module(f"dynabarn.{module}")
+        assert hasattr(target, attr), f"{row[0]}: the table names dynabarn.{module}.{attr}, which does not exist"
+
+
+def test_no_source_or_page_cites_a_file_the_repository_does_not_have():
+    """DESIGN.md (and the like) are the project's working notes outside the repository: a
+    reader of the code or the pages must find every file cited."""
+    root = Path(__file__).resolve().parent.parent
+    for path in [*root.joinpath("dynabarn").rglob("*.py"), *root.joinpath("docs").rglob("*.md"), root / "README.md"]:
+        assert "DESIGN" not in path.read_text(), path
+    for path in root.joinpath("tests").glob("*.py"):
+        if path.name != "test_docs.py":
+            assert "DESIGN" not in path.read_text(), path
+    assert "DESIGN" not in (root / "assets" / "jackal" / "README.md").read_text()

@@ -2,7 +2,7 @@
 layers below it, and no modules import each other in a circle.
 
 Read from the source (every `import`, also inside functions), so it holds for modules that
-import lazily too. The layers are DESIGN.md's "Intended shape".
+import lazily too. The layers are docs/architecture.md's "Layout".
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def _layer_of(module: str) -> int:
     for i, names in enumerate(LAYERS):
         if parts[1] in names:
             return i
-    raise AssertionError(f"{module}: not in any declared layer; add it to LAYERS (and DESIGN.md)")
+    raise AssertionError(f"{module}: not in any declared layer; add it to LAYERS (and docs/architecture.md)")
 
 
 def _module_name(path: Path) -> str:

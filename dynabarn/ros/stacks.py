@@ -8,7 +8,8 @@ import shlex
 from dataclasses import dataclass
 from pathlib import Path
 
-from dynabarn.errors import DynabarnError, NotInstalledHere
+from dynabarn.errors import NotInstalledHere
+from dynabarn.registry import Registry, instances_of
 from dynabarn.ros.nav_build import built, default_workspace
 from dynabarn.ros.teb_build import built as teb_built
 
@@ -28,32 +29,36 @@ class Stack:
     """Needs teb_local_planner (`make ros-teb`) in the workspace too."""
 
 
-STACKS = {
-    "move_base_dwa": Stack(
-        "move_base_dwa.launch",
-        about="move_base, navfn and base_local_planner's DWA as the DynaBARN authors configured them "
-        "(the BARN Challenge's dyna_barn branch)",
-    ),
-    "move_base_dwa_barn": Stack(
-        "move_base_dwa.launch",
-        (("overrides", "{launch}/barn_main/overrides.yaml"),),
-        about="the same with the BARN Challenge main branch's planner values (0.5 m/s, 6 x 20 samples; the "
-        "dyna_barn global costmap, since main's puts the goal off it)",
-    ),
-    "move_base_teb": Stack(
-        "move_base_teb.launch",
-        about="move_base, navfn and teb_local_planner with its ROS defaults, as the DynaBARN authors launch it "
-        "(the BARN Challenge's dyna_barn branch; `make ros-teb`)",
-        teb=True,
-    ),
-}
+STACKS: Registry[Stack] = Registry(
+    "ROS stack",
+    {
+        "move_base_dwa": Stack(
+            "move_base_dwa.launch",
+            about="move_base, navfn and base_local_planner's DWA as the DynaBARN authors configured them "
+            "(the BARN Challenge's dyna_barn branch)",
+        ),
+        "move_base_dwa_barn": Stack(
+            "move_base_dwa.launch",
+            (("overrides", "{launch}/barn_main/overrides.yaml"),),
+            about="the same with the BARN Challenge main branch's planner values (0.5 m/s, 6 x 20 samples; the "
+            "dyna_barn global costmap, since main's puts the goal off it)",
+        ),
+        "move_base_teb": Stack(
+            "move_base_teb.launch",
+            about="move_base, navfn and teb_local_planner with its ROS defaults, as the DynaBARN authors launch it "
+            "(the BARN Challenge's dyna_barn branch; `make ros-teb`)",
+            teb=True,
+        ),
+    },
+    check=instances_of(Stack),
+)
+"""The move_base stacks `--stack` starts by name; `STACKS.register(Stack(...), name=...)` adds one."""
 
 
 def stack_command(name: str, workspace: Path | None = None) -> list[str]:
     """The command that starts stack `name` from the built workspace (one clear error when
     the stack is unknown or move_base is not built)."""
-    if name not in STACKS:
-        raise DynabarnError(f"unknown stack {name!r}: use one of {', '.join(STACKS)}")
+    STACKS.get_item(name)  # one line for an unknown name, with the nearest
     workspace = (workspace or default_workspace()).expanduser()
     if built(workspace) is None:
         raise NotInstalledHere(

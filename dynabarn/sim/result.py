@@ -35,7 +35,7 @@ def _min_clearance(episode: Episode, traj: np.ndarray, step: int) -> float:
 
 
 def episode_result(episode: Episode, start: EpisodeStart) -> EpisodeResult:
-    """The metrics of an ended episode (DESIGN.md "Episode, protocols and metrics")."""
+    """The metrics of an ended episode (docs/concepts/protocols.md)."""
     sim = episode.sim
     cfg = sim.config
     protocol = start.protocol

@@ -9,7 +9,7 @@ import numpy as np
 from dynabarn.worlds.schedule import SchedulePlayer
 from dynabarn.worlds.spec import Interpolation, Obstacle, WorldSpec
 
-# Spawn points of the two protocols (DESIGN.md); drawn for orientation only.
+# Spawn points of the two protocols (docs/concepts/protocols.md); drawn for orientation only.
 _SPAWNS = {"barn": (11.0, 0.0), "paper2022": (12.0, 0.0)}
 
 

@@ -16,7 +16,8 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from dynabarn.errors import WorldError, unknown_choice
+from dynabarn.errors import WorldError
+from dynabarn.registry import Registry, instances_of
 from dynabarn.worlds.generate import PAPER60
 from dynabarn.worlds.profile_file import GenerationProfile, read_profile_file
 
@@ -58,19 +59,23 @@ class Tier:
         return {int(i): int(k) for i, k in record.get("draws", {}).items()}
 
 
-TIERS: dict[str, Tier] = {
-    t.name: t
-    for t in (
-        Tier("tier-dense", "dense.toml", 4301),
-        Tier("tier-fast", "fast.toml", 4302),
-        Tier("tier-mixed", "mixed.toml", 4303),
-        Tier("tier-combined", "combined.toml", 4304),
-    )
-}
-"""The tiers by name, easiest first (the seeds: issue 43, tier 1 to 4)."""
+TIERS: Registry[Tier] = Registry(
+    "tier",
+    {
+        t.name: t
+        for t in (
+            Tier("tier-dense", "dense.toml", 4301),
+            Tier("tier-fast", "fast.toml", 4302),
+            Tier("tier-mixed", "mixed.toml", 4303),
+            Tier("tier-combined", "combined.toml", 4304),
+        )
+    },
+    error=WorldError,
+    check=instances_of(Tier),
+)
+"""The tiers by name, easiest first (the seeds: issue 43, tier 1 to 4); `TIERS.register(Tier(...))`
+adds one in this process (its profile and certificates beside the package's)."""
 
 
 def get_tier(name: str) -> Tier:
-    if name not in TIERS:
-        raise WorldError(unknown_choice("tier", name, list(TIERS)))
-    return TIERS[name]
+    return TIERS.get_item(name)

@@ -1,6 +1,6 @@
 """Alg. 1 of the paper: one obstacle's waypoint schedule.
 
-Steps (paper Sec. III-A, with the choices DESIGN.md fixes where the paper is loose):
+Steps (paper Sec. III-A, with the choices docs/concepts/worlds.md names where the paper is loose):
 
 1. order n ~ U{order_min, order_max};
 2. n + 1 points on the integer grid of [-10, 10]^2 with distinct x;
