@@ -26,7 +26,7 @@ import contextlib
 import json
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -77,8 +77,7 @@ class EpisodeSpec:
         sim: SimConfig = _DEFAULT_SIM,
         label: str = "",
     ) -> EpisodeSpec:
-        changed = {f.name: getattr(sim, f.name) for f in fields(SimConfig)}
-        changed = {k: v for k, v in changed.items() if v != getattr(_DEFAULT_SIM, k)}
+        changed = sim.changed()
         return cls(
             world=str(world),
             planner=planner,

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import Field, dataclass, field, fields
 
 import numpy as np
 
@@ -27,9 +27,16 @@ def trial_clock_offset(seed: int) -> float:
     return draw_clock_offset(episode_rng(seed))
 
 
+def _setting(default: float, low: float, high: float, unit: str, meaning: str, *, option: bool = False):
+    """A `SimConfig` field with its range, unit and meaning declared once: the check here,
+    the command-line options (`cli.common.add_sim_settings`: those with `option`) and the
+    spec and the golden cases (`SimConfig` itself) all read it."""
+    return field(default=default, metadata={"range": (low, high), "unit": unit, "meaning": meaning, "option": option})
+
+
 @dataclass(frozen=True, slots=True)
 class SimConfig:
-    """Settings of the episode loop.
+    """Settings of the episode loop, each declared once with its range (`setting_ranges`).
 
     Attributes:
         dt: physics step [s] (<= 0.01: at 0.05 s a 2 m/s obstacle passes through the robot).
@@ -41,26 +48,29 @@ class SimConfig:
         max_angular_accel: |dw/dt| limit on the command [rad/s^2] (angular.z.max_acceleration 25).
     """
 
-    dt: float = 0.005
-    control_rate: float = 10.0
-    pose_rate: float = 50.0
-    max_linear_accel: float = 20.0
-    max_angular_accel: float = 25.0
+    dt: float = _setting(0.005, 1e-4, 0.01, "s", "physics step", option=True)
+    control_rate: float = _setting(
+        10.0, 0.1, 1000.0, "Hz", "planner and laser rate; 1/rate must be a whole number of --dt steps", option=True
+    )
+    pose_rate: float = _setting(50.0, 0.1, 1000.0, "Hz", "rate of the robot poses handed to observers")
+    max_linear_accel: float = _setting(20.0, 1e-9, 1e4, "m/s^2", "|dv/dt| limit on the command")
+    max_angular_accel: float = _setting(25.0, 1e-9, 1e4, "rad/s^2", "|dw/dt| limit on the command")
 
     def __post_init__(self) -> None:
-        if not 1e-4 <= self.dt <= 0.01:  # also False for NaN
-            raise DynabarnError(f"physics step dt must be in [0.0001, 0.01] s, got {self.dt}")
-        for name in ("control_rate", "pose_rate"):
-            if not 0.1 <= getattr(self, name) <= 1000.0:
-                raise DynabarnError(f"{name} must be in [0.1, 1000] Hz, got {getattr(self, name)}")
-        for name in ("max_linear_accel", "max_angular_accel"):
-            if not 0 < getattr(self, name) <= 1e4:
-                raise DynabarnError(f"{name} must be in (0, 10000], got {getattr(self, name)}")
+        for f in fields(self):
+            low, high = f.metadata["range"]
+            value = getattr(self, f.name)
+            if not low <= value <= high:  # also False for NaN
+                raise DynabarnError(f"{f.name} must be in [{low:g}, {high:g}] {f.metadata['unit']}, got {value}")
         k = 1.0 / (self.control_rate * self.dt)
         if abs(k - round(k)) > 1e-6 or round(k) < 1:
             raise DynabarnError(
                 f"the control period 1/{self.control_rate} s must be a whole number of physics steps of {self.dt} s"
             )
+
+    def changed(self) -> dict[str, float]:
+        """The settings that differ from the defaults (what a spec and a golden case carry)."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) != f.default}
 
     @property
     def steps_per_tick(self) -> int:
@@ -73,3 +83,9 @@ class SimConfig:
     @property
     def pose_every(self) -> int:
         return max(1, round(1.0 / (self.pose_rate * self.dt)))
+
+
+def sim_options() -> tuple[Field, ...]:
+    """The settings a command takes as options (`--dt`, `--control-rate`), each a `SimConfig`
+    field with its default, range, unit and meaning in `metadata`."""
+    return tuple(f for f in fields(SimConfig) if f.metadata["option"])

@@ -202,7 +202,7 @@ def test_the_tracker_a_planner_uses_is_chosen_by_its_configuration():
         assert len(updates) == result.n_ticks > 0
         with pytest.raises(DynabarnError, match="unknown tracker 'nope'"):
             get_planner("predictive", **{"tracker.kind": "nope"})
-        with pytest.raises(DynabarnError, match="has no for_episode"):
+        with pytest.raises(DynabarnError, match=r"not a subclass of dynabarn\.interfaces\.tracker\.Tracker"):
             TRACKERS.register(dict, name="not_a_tracker")
     finally:
         TRACKERS.pop("counting", None)

@@ -294,12 +294,12 @@ def certify_tier(
     from dynabarn.worlds.tiers import get_tier
     from dynabarn.worldset.tiers import generate_tier, tier_dir
 
-    tier = get_tier(name)
-    folder = tier_dir(name).with_name(f".{name}.certifying")  # kept: a stopped run resumes from it
+    tier = get_tier(name)  # resolved once, then handed on
+    folder = tier_dir(tier).with_name(f".{tier.name}.certifying")  # kept: a stopped run resumes from it
     draws: dict[int, int] = {}
     pending = list(tier.ids)
     while True:
-        generate_tier(name, folder, draws=draws)  # unchanged files keep their certificates
+        generate_tier(tier, folder, draws=draws)  # unchanged files keep their certificates
         index = certify_set(folder, protocol, trials=trials, ids=pending, jobs=jobs, budget=budget, progress=progress)
         entries = {e["id"]: e for e in index["worlds"]}
         failed = [i for i in pending if not entries[i]["certificates"][protocol.name]["certified"]]
@@ -311,7 +311,7 @@ def certify_tier(
             if draws[i] > MAX_DRAWS:
                 raise DynabarnError(f"{name}: world {i} was not certified in {MAX_DRAWS} draws; change the profile")
         pending = failed
-    return _write_tier_record(name, protocol, trials, draws, index)
+    return _write_tier_record(tier, protocol, trials, draws, index)
 
 
 def recertify_tier(
@@ -332,26 +332,24 @@ def recertify_tier(
     from dynabarn.worlds.tiers import get_tier
     from dynabarn.worldset.tiers import generate_tier, tier_dir
 
-    tier = get_tier(name)
+    tier = get_tier(name)  # resolved once, then handed on
     draws = tier.draws()
-    folder = tier_dir(name).with_name(f".{name}.recertifying")  # kept: a stopped run resumes from it
-    generate_tier(name, folder, draws=draws)  # unchanged files keep the certificates made so far
+    folder = tier_dir(tier).with_name(f".{tier.name}.recertifying")  # kept: a stopped run resumes from it
+    generate_tier(tier, folder, draws=draws)  # unchanged files keep the certificates made so far
     index = certify_set(
         folder, protocol, trials=trials, ids=list(tier.ids), jobs=jobs, budget=budget, config=config, progress=progress
     )
-    return _write_tier_record(name, protocol, trials, draws, index)
+    return _write_tier_record(tier, protocol, trials, draws, index)
 
 
-def _write_tier_record(name: str, protocol: EvalProtocol, trials: int, draws: dict[int, int], index: dict) -> dict:
-    """Write a tier's draws and certificates beside its profile (`Tier.certified_file`) and
+def _write_tier_record(tier, protocol: EvalProtocol, trials: int, draws: dict[int, int], index: dict) -> dict:
+    """Write `tier`'s draws and certificates beside its profile (`Tier.certified_file`) and
     regenerate its folder with them."""
-    from dynabarn.worlds.tiers import get_tier
     from dynabarn.worldset.tiers import generate_tier, tier_dir
 
-    tier = get_tier(name)
     wanted = set(tier.ids)
     record = {
-        "tier": name,
+        "tier": tier.name,
         "protocol": protocol.name,
         "trials": trials,
         "draws": {str(i): k for i, k in sorted(draws.items())},
@@ -364,5 +362,5 @@ def _write_tier_record(name: str, protocol: EvalProtocol, trials: int, draws: di
         raise DynabarnError(
             f"cannot write {tier.certified_file}: {exc.strerror or exc} (certify tiers in a checkout)"
         ) from None
-    generate_tier(name, tier_dir(name))
+    generate_tier(tier, tier_dir(tier))
     return record

@@ -55,19 +55,15 @@ class GoldenCase:
     seed: int = 0
     config: str = ""
     """A shipped preset name, or empty for the planner's defaults."""
-    dt: float = SimConfig().dt
-    control_rate: float = SimConfig().control_rate
-
-    @property
-    def sim(self) -> SimConfig:
-        return SimConfig(dt=self.dt, control_rate=self.control_rate)
+    sim: SimConfig = SimConfig()
+    """The simulation's settings (`--dt`, `--control-rate`): they travel with the episode."""
 
     @property
     def key(self) -> str:
         cfg = f"[{self.config}]" if self.config else ""
         key = f"{self.planner}{cfg} {self.source}/{self.world_id} {self.protocol} s{self.seed}"
-        if self.sim != SimConfig():
-            key += f" dt{self.dt:g} {self.control_rate:g}Hz"
+        if self.sim.changed():
+            key += f" dt{self.sim.dt:g} {self.sim.control_rate:g}Hz"
         return key
 
 
@@ -122,7 +118,7 @@ CASES: tuple[GoldenCase, ...] = (
     GoldenCase("dagger", "generated", 205),
     GoldenCase("dagger", "release", 30, seed=2),
     # The simulation's own settings travel with the episode (`--dt`, `--control-rate`).
-    GoldenCase("dwa", "generated", 137, seed=2, dt=0.0025, control_rate=20.0),
+    GoldenCase("dwa", "generated", 137, seed=2, sim=SimConfig(dt=0.0025, control_rate=20.0)),
 )
 
 

@@ -99,10 +99,10 @@ def privileged(planner: str) -> bool:
     """Whether a result row's planner (`NAME` or `NAME@PRESET`) reads the true obstacle
     states: marked in every table (a rung of the ladder, not a robot's planner)."""
     from dynabarn.errors import DynabarnError
-    from dynabarn.planners.registry import planner_factory
+    from dynabarn.planners.registry import privileged as declared_privileged
 
     try:
-        return bool(getattr(planner_factory(planner.split("@")[0]), "privileged", False))
+        return declared_privileged(planner.split("@")[0])
     except DynabarnError:  # a planner no longer installed: its rows still summarise
         return False
 

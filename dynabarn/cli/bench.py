@@ -23,6 +23,7 @@ from dynabarn.cli.common import (
     make_parser,
     ranged,
     run_command,
+    sim_settings,
 )
 from dynabarn.errors import DynabarnError
 from dynabarn.ros.stacks import STACKS
@@ -247,7 +248,6 @@ def _bench(args: argparse.Namespace) -> int:
     from dynabarn.bench.summary import FLOOR
     from dynabarn.planners import get_planner, planner_spec
     from dynabarn.protocol import get_protocol
-    from dynabarn.sim import SimConfig
 
     if args.trials < 1 or args.jobs < 1:
         raise DynabarnError("--trials and --jobs must be at least 1")
@@ -272,7 +272,7 @@ def _bench(args: argparse.Namespace) -> int:
         args.trials,
         record=args.record,
         recordings_dir=args.out / RECORDINGS,
-        sim=SimConfig(dt=args.dt, control_rate=args.control_rate),
+        sim=sim_settings(args),
     )
     if args.out.exists() and not args.out.is_dir():
         raise DynabarnError(f"--out {args.out}: exists and is not a folder")

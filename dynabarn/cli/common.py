@@ -218,14 +218,24 @@ def add_protocol(p: argparse.ArgumentParser) -> None:
 
 
 def add_sim_settings(p: argparse.ArgumentParser) -> None:
-    """The simulation's settings an episode carries (`EpisodeSpec.sim`)."""
-    p.add_argument("--dt", type=ranged(float, 1e-4, 0.01), default=0.005, help="physics step [s] (default: 0.005)")
-    p.add_argument(
-        "--control-rate",
-        type=ranged(float, 0.1, 1000.0),
-        default=10.0,
-        help="planner and laser rate [Hz] (default: 10); 1/rate must be a whole number of --dt steps",
-    )
+    """The simulation's settings an episode carries, as declared on `SimConfig` (`sim_options`)."""
+    from dynabarn.sim_config import sim_options
+
+    for f in sim_options():
+        low, high = f.metadata["range"]
+        p.add_argument(
+            f"--{f.name.replace('_', '-')}",
+            type=ranged(float, low, high),
+            default=f.default,
+            help=f"{f.metadata['meaning']} [{f.metadata['unit']}] (default: {f.default:g})",
+        )
+
+
+def sim_settings(args: argparse.Namespace):
+    """The `SimConfig` the options of `add_sim_settings` give."""
+    from dynabarn.sim_config import SimConfig, sim_options
+
+    return SimConfig(**{f.name: getattr(args, f.name) for f in sim_options()})
 
 
 def add_trial_seed(p: argparse.ArgumentParser) -> None:

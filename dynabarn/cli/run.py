@@ -17,6 +17,7 @@ from dynabarn.cli.common import (
     make_parser,
     planner_config,
     run_command,
+    sim_settings,
 )
 from dynabarn.cli.episode import exit_status, print_result
 from dynabarn.cli.live import LiveOutputs, add_live_options, exit_code
@@ -75,7 +76,6 @@ def _run_episode(args: argparse.Namespace) -> int:
     from dynabarn.planners import planner_spec
     from dynabarn.protocol import get_protocol
     from dynabarn.runner import EpisodeSpec, run_spec
-    from dynabarn.sim import SimConfig
     from dynabarn.worldset import resolve_world
 
     world_path = resolve_world(args.world, args.set)
@@ -84,7 +84,7 @@ def _run_episode(args: argparse.Namespace) -> int:
     config = preset | planner_config(args.planner_config)
     if args.policy is not None:
         config["policy"] = str(args.policy)
-    settings = SimConfig(dt=args.dt, control_rate=args.control_rate)
+    settings = sim_settings(args)
     spec = EpisodeSpec.make(world_path, name, protocol, config=config, seed=args.seed, sim=settings, label=args.planner)
     log_path = None
     video = video_settings(args, args.video) if args.video is not None else None

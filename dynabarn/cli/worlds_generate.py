@@ -251,9 +251,8 @@ def _generate_tiers(args: argparse.Namespace) -> int:
     names = list(TIERS) if args.tier == "all" else [args.tier]
     if args.out is not None and len(names) > 1:
         raise DynabarnError("--tier all writes each tier to its own folder: drop --out")
-    for name in names:
+    for tier in map(get_tier, names):  # resolved once, then handed on
         t0 = time.perf_counter()
-        tier = get_tier(name)
-        index = generate_tier(name, args.out, progress=progress_bar(f"generating {name}", len(tier.ids)))
-        print(f"wrote {len(tier.ids)} worlds of {name} and {index} in {time.perf_counter() - t0:.1f} s")
+        index = generate_tier(tier, args.out, progress=progress_bar(f"generating {tier.name}", len(tier.ids)))
+        print(f"wrote {len(tier.ids)} worlds of {tier.name} and {index} in {time.perf_counter() - t0:.1f} s")
     return 0

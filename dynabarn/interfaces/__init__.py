@@ -12,9 +12,11 @@ simulator (a test imports it in a fresh interpreter).
 from dynabarn.errors import EndEpisode
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
 from dynabarn.interfaces.observation import EpisodeInfo, Observation, ObstacleState
-from dynabarn.interfaces.planner import Planner, config_from_kwargs, nested_config
+from dynabarn.interfaces.planner import CheckedConfig, Planner, config_from_kwargs, nested_config
+from dynabarn.interfaces.tracker import Tracker
 
 __all__ = [
+    "CheckedConfig",
     "EndEpisode",
     "EpisodeInfo",
     "EpisodeObserver",
@@ -23,6 +25,7 @@ __all__ = [
     "ObstacleState",
     "Planner",
     "Tick",
+    "Tracker",
     "config_from_kwargs",
     "nested_config",
 ]

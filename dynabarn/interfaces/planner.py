@@ -22,22 +22,41 @@ from typing import ClassVar
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces.observation import EpisodeInfo, Observation
 
-__all__ = ["Planner", "check_planner", "check_planner_factory", "config_from_kwargs", "nested_config"]
+__all__ = ["CheckedConfig", "Planner", "check_planner", "check_planner_factory", "config_from_kwargs", "nested_config"]
 
 
-def config_from_kwargs(cls, kwargs: dict, what: str):
+class CheckedConfig:
+    """Base of a configuration dataclass that `config_from_kwargs` builds and checks: what it
+    declares of itself (ranges, ordered pairs, relations), each with a default that allows
+    anything, so that nothing is found by looking."""
+
+    LIMITS: ClassVar[dict[str, tuple[float, float]]] = {}
+    """{field: (low, high)}: a number (or each number of a tuple) outside is refused (so
+    `vx_samples=100000000` is refused instead of exhausting memory)."""
+    ORDERED: ClassVar[tuple[tuple[str, str], ...]] = ()
+    """(low, high) field pairs whose values must not cross (`min_vel_x` above `max_vel_x`)."""
+
+    def check(self, what: str) -> None:
+        """The fields' other relations (the memory a sample grid allocates): raise TypeError
+        with one line; `what` names the configuration in it."""
+
+
+def config_from_kwargs(cls: type[CheckedConfig], kwargs: dict, what: str):
     """Build the planner configuration dataclass `cls` from keyword values, checked before
     anything runs: unknown keys (naming the known ones), each value against its field's type
     (numbers finite, counts whole), and against the class's `LIMITS` {field: (low, high)}
-    where it declares them (so `vx_samples=100000000` is refused instead of exhausting memory).
+    (`CheckedConfig.LIMITS`: so `vx_samples=100000000` is refused instead of exhausting memory).
     Raises TypeError with one line (`get_planner` makes it a DynabarnError)."""
+    if not (isinstance(cls, type) and issubclass(cls, CheckedConfig)):
+        raise TypeError(f"{what}: {cls!r} is not a dataclass subclassing dynabarn.interfaces.CheckedConfig")
     known = {f.name for f in fields(cls)}
     unknown = set(kwargs) - known
     if unknown:
         raise TypeError(f"unknown {what} parameter(s) {sorted(unknown)}; known: {sorted(known)}")
     hints = typing.get_type_hints(cls)
-    limits: dict[str, tuple[float, float]] = getattr(cls, "LIMITS", {})
-    checked = {key: _checked(f"{what} {key}", value, hints.get(key), limits.get(key)) for key, value in kwargs.items()}
+    checked = {
+        key: _checked(f"{what} {key}", value, hints.get(key), cls.LIMITS.get(key)) for key, value in kwargs.items()
+    }
     config = cls(**checked)
     check_relations(config, what)
     return config
@@ -48,13 +67,11 @@ def check_relations(config, what: str) -> None:
     `ORDERED` pairs (low, high) whose values must not cross (`min_vel_x` above `max_vel_x`,
     a rollout step longer than the rollout), and a `check(what)` method for the rest (the
     memory a sample grid allocates). Raises TypeError with one line."""
-    for low, high in getattr(type(config), "ORDERED", ()):
+    for low, high in type(config).ORDERED:
         a, b = getattr(config, low), getattr(config, high)
         if a > b:
             raise TypeError(f"{what} {low}={a!r} is above {high}={b!r}; it must not be")
-    check = getattr(config, "check", None)
-    if check is not None:
-        check(what)
+    config.check(what)
 
 
 def nested_config(kwargs: dict, key: str, build: typing.Callable[[dict], object], what: str) -> dict:
@@ -155,6 +172,12 @@ class Planner(abc.ABC):
         """Versions of the libraries beyond the runner's that decide this planner's
         commands (e.g. PyTorch), recorded with every episode."""
         return {}
+
+    def command_set(self):
+        """The (n, 2) commands (v, w) this planner chooses among each tick, for a planner
+        that chooses from a finite set (the oracle's sample grid): a student taught by it
+        classifies among them (`dynabarn-train dagger --head classify`). None: it does not."""
+        return None
 
     def report(self) -> dict:
         """What the planner says of the episode once it has finished (plain JSON data, e.g.

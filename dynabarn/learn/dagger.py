@@ -164,12 +164,11 @@ def teacher_classes(cfg: DaggerConfig) -> np.ndarray | None:
     actions (None for the regression head)."""
     if cfg.head == "regress":
         return None
-    teacher = get_planner(cfg.teacher)
-    grid = getattr(teacher, "cfg", None)
-    if not (hasattr(grid, "v_samples") and hasattr(grid, "w_samples")):
+    commands = get_planner(cfg.teacher).command_set()  # declared: Planner.command_set
+    if commands is None:
         raise DynabarnError(f"head 'classify' needs a teacher choosing among (v, w) samples; {cfg.teacher} does not")
-    v, w = np.meshgrid(np.asarray(grid.v_samples, float), np.asarray(grid.w_samples, float), indexing="ij")
-    return command_to_action(v.ravel(), w.ravel())
+    commands = np.asarray(commands, dtype=float)
+    return command_to_action(commands[:, 0], commands[:, 1])
 
 
 def fit(actor, opt, x: np.ndarray, y: np.ndarray, cfg: DaggerConfig, seed: int, *, updates=None, decay=False):

@@ -29,11 +29,12 @@ import numpy as np
 
 from dynabarn.determinism import sincos
 from dynabarn.interfaces.observation import EpisodeInfo
+from dynabarn.interfaces.planner import CheckedConfig
 from dynabarn.perception.map_distance import BOUNDS, MapDistance
 
 
 @dataclass
-class DetectorConfig:
+class DetectorConfig(CheckedConfig):
     radius: float = 0.5
     """Obstacle radius the circles are fitted with [m] (the paper's cylinders: 0.5)."""
     map_margin: float = 0.15

@@ -28,6 +28,7 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import sincos
+from dynabarn.interfaces.planner import CheckedConfig
 
 COARSE_HEADINGS = 45
 """Headings tried over the quarter turn first (every 2 degrees)."""
@@ -211,7 +212,7 @@ def centre_from_spans(
 
 
 @dataclass
-class ShapeConfig:
+class ShapeConfig(CheckedConfig):
     """The `shaped` tracker's parameters for outlines (`tracker.shape.KEY=...`)."""
 
     prior_half: float = 0.4

@@ -139,6 +139,8 @@ class ShapeTracker(ObstacleTracker):
         detector: the episode's detector (its known map and laser).
     """
 
+    name = "shaped"
+
     PER_TRACK: ClassVar[tuple[str, ...]] = (
         *ObstacleTracker.PER_TRACK, "heading", "heading_known", "seen_half", "visible_half", "roundness",
     )  # fmt: skip

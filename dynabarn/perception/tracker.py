@@ -34,6 +34,8 @@ from scipy.optimize import linear_sum_assignment
 
 from dynabarn.determinism import STATE_RESOLUTION, snap_array
 from dynabarn.interfaces.observation import EpisodeInfo
+from dynabarn.interfaces.planner import CheckedConfig
+from dynabarn.interfaces.tracker import Tracker
 from dynabarn.perception.detect import Detections, DetectorConfig, ObstacleDetector
 from dynabarn.perception.shape_fit import ShapeConfig
 from dynabarn.perception.tracks import Tracks
@@ -43,7 +45,7 @@ NO_MATCH = 1e6
 
 
 @dataclass
-class TrackerConfig:
+class TrackerConfig(CheckedConfig):
     kind: str = "kalman"
     """Which tracker (`perception.trackers.TRACKERS`): `kalman`, this module's (circles of
     the known radius); `shaped` (`shaped_tracker`: outlines of boxes, capsules and
@@ -76,7 +78,7 @@ class TrackerConfig:
     }
 
 
-class ObstacleTracker:
+class ObstacleTracker(Tracker):
     """Tracks moving obstacles from scans and odometry (world frame).
 
     Args:
@@ -108,6 +110,16 @@ class ObstacleTracker:
         self.born = np.zeros(n)
         self.seen = np.zeros(n)
         self.unseen_in_view = np.zeros(n)
+
+    name = "kalman"
+
+    def obstacle_beams(self, n_beams: int) -> np.ndarray:
+        """The beams of the last scan that ended in a detection (not a rejected segment)."""
+        moving = np.zeros(n_beams, dtype=bool)
+        det = self.detections
+        if det is not None and len(det.beams):
+            moving[det.beams[det.segment_of_point >= 0]] = True
+        return moving
 
     @classmethod
     def for_episode(cls, cfg: TrackerConfig, info: EpisodeInfo) -> ObstacleTracker:

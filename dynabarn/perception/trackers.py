@@ -1,28 +1,24 @@
 """Trackers by name (`TRACKERS`): what `TrackerConfig.kind` chooses. Built in: `kalman`
 (`tracker.ObstacleTracker`: circles of the known radius) and `shaped`
 (`shaped_tracker.ShapeTracker`: outlines of boxes, capsules and cylinders); another
-package adds one under the entry-point group `dynabarn.trackers`: a class with
-`for_episode(cfg, info)` whose instances have `update(time, scan, pose) -> Tracks` and
-`detections` (what a planner reads of them)."""
+package adds one under the entry-point group `dynabarn.trackers`: a subclass of
+`dynabarn.interfaces.Tracker` (`for_episode(cfg, info)`, `update(time, scan, pose) ->
+Tracks`, and `obstacle_beams`, what a planner reads of it)."""
 
 from __future__ import annotations
 
-from dynabarn.interfaces import EpisodeInfo
+from dynabarn.interfaces import EpisodeInfo, Tracker
 from dynabarn.perception.shaped_tracker import ShapeTracker
 from dynabarn.perception.tracker import ObstacleTracker, TrackerConfig
-from dynabarn.registry import Registry
+from dynabarn.registry import Registry, subclasses_of
 
-
-def _check_tracker(item: object) -> None:
-    for method in ("for_episode", "update"):
-        if not callable(getattr(item, method, None)):
-            raise TypeError(f"{item!r} has no {method}(): a tracker class has for_episode(cfg, info) and update(...)")
-
-
-TRACKERS: Registry[type] = Registry(
-    "tracker", {"kalman": ObstacleTracker, "shaped": ShapeTracker}, group="dynabarn.trackers", check=_check_tracker
+TRACKERS: Registry[type[Tracker]] = Registry(
+    "tracker",
+    {"kalman": ObstacleTracker, "shaped": ShapeTracker},
+    group="dynabarn.trackers",
+    check=subclasses_of(Tracker),
 )
-"""Every tracker by name: built in, registered at run time (`TRACKERS.register(cls, name=...)`), installed."""
+"""Every tracker by name: built in, registered at run time (`TRACKERS.register(cls)`), installed."""
 
 
 def make_tracker(cfg: TrackerConfig, info: EpisodeInfo):

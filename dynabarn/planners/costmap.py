@@ -19,13 +19,14 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt
 
 from dynabarn.determinism import exp, hypot
+from dynabarn.interfaces.planner import CheckedConfig
 
 LETHAL = 254
 INSCRIBED = 253
 
 
 @dataclass
-class CostmapConfig:
+class CostmapConfig(CheckedConfig):
     size: float = 8.0
     """Window side [m]."""
     resolution: float = 0.1

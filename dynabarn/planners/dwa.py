@@ -31,7 +31,7 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import SCORE_RESOLUTION, hypot, sincos, snap_array
-from dynabarn.interfaces import EpisodeInfo, Observation, Planner, config_from_kwargs
+from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.perception import TrackerConfig, Tracks
 from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
@@ -40,7 +40,7 @@ from dynabarn.planners.tracking import recorded_config, track_moving, with_track
 
 
 @dataclass
-class DWAConfig:
+class DWAConfig(CheckedConfig):
     max_vel_x: float = 2.0
     """Top forward speed sampled [m/s] (the Jackal's)."""
     min_vel_x: float = 0.0

@@ -1,9 +1,8 @@
 """`oracle`: a privileged demonstrator that knows every obstacle's schedule.
 
 Synthetic demonstrations where no person is available. It plans against the obstacles'
-exact future positions (from their schedules and the trial's clock offset, through
-`Observation.obstacles.predict`), which no real robot knows: recordings and datasets mark
-its episodes as synthetic (`source: oracle`).
+exact future positions (their schedules and the trial's clock offset: `obstacles.predict`),
+which no real robot knows: recordings and datasets mark its episodes as synthetic.
 
 Per tick it searches two-segment controls: (v1, w1) for `t1` seconds, then (v2, w2) for
 `t2` seconds, on a grid of speeds and turn rates (all combinations, vectorised). Every
@@ -26,14 +25,14 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import SCORE_RESOLUTION, hypot, sincos, snap_array
-from dynabarn.interfaces import EpisodeInfo, Observation, ObstacleState, Planner, config_from_kwargs
+from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, ObstacleState, Planner, config_from_kwargs
 from dynabarn.perception.map_distance import MapDistance, grid_indices
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.tracking import recorded_config
 
 
 @dataclass
-class OracleConfig:
+class OracleConfig(CheckedConfig):
     v_samples: tuple = (-0.5, 0.0, 0.5, 1.0, 1.5, 2.0)
     """Forward speeds tried in each segment [m/s]."""
     w_samples: tuple = (-2.5, -1.2, -0.5, 0.0, 0.5, 1.2, 2.5)
@@ -203,6 +202,11 @@ class OraclePlanner(Planner):
         """Steps measured together: the shared first segment, then runs of the second (a
         run's candidates lie in a smaller box than all of them, so fewer obstacles are near)."""
         self._last: np.ndarray | None = None
+
+    def command_set(self) -> np.ndarray:
+        """Every (v, w) of the sample grid, v major (what a classifying student chooses among)."""
+        v, w = np.meshgrid(np.asarray(self.cfg.v_samples, float), np.asarray(self.cfg.w_samples, float), indexing="ij")
+        return np.stack([v.ravel(), w.ravel()], axis=1)
 
     def config(self) -> dict:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in recorded_config(self.cfg).items()}

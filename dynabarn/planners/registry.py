@@ -61,11 +61,23 @@ def planner_factory(name: str) -> Callable[..., Planner]:
     return PLANNERS.get_item(name)
 
 
+def declared(name: str, attribute: str, default):
+    """What planner `name` declares of itself before it is built: the class's attribute
+    (`Planner.privileged`, `external_options`), or, for a factory that is not a class, the
+    attribute of the same name it carries (`ros.bridge.ros_planner.external_options`)."""
+    return getattr(planner_factory(name), attribute, default)
+
+
+def privileged(name: str) -> bool:
+    """Whether planner `name` reads the true obstacle states (`Planner.privileged`)."""
+    return bool(declared(name, "privileged", False))
+
+
 def external_options(name: str) -> dict[str, str]:
     """The options of planner `name` whose values name something outside the results (a
     program, a file, an address), each with what it names (`Planner.external_options`)."""
-    declared = getattr(planner_factory(name), "external_options", None)
-    return {str(k): str(v) for k, v in declared.items()} if isinstance(declared, dict) else {}
+    options = declared(name, "external_options", None)
+    return {str(k): str(v) for k, v in options.items()} if isinstance(options, dict) else {}
 
 
 def registered_at_run_time(name: str) -> bool:

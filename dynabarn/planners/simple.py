@@ -6,11 +6,11 @@ import math
 from dataclasses import asdict, dataclass
 from typing import ClassVar
 
-from dynabarn.interfaces import EpisodeInfo, Observation, Planner, config_from_kwargs
+from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, Planner, config_from_kwargs
 
 
 @dataclass
-class StraightConfig:
+class StraightConfig(CheckedConfig):
     speed: float = 2.0
     """Cruise speed [m/s] (the Jackal's top speed)."""
     heading_gain: float = 2.0

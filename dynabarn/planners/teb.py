@@ -36,7 +36,7 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import STATE_RESOLUTION, exp, hypot, sincos, snap_array
-from dynabarn.interfaces import EpisodeInfo, Observation, Planner, config_from_kwargs
+from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, Planner, config_from_kwargs
 from dynabarn.perception import TrackerConfig, Tracks
 from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners.coloured_jacobian import Colouring, residuals_and_jacobian
@@ -47,7 +47,7 @@ from dynabarn.planners.tracking import recorded_config, track_moving, with_track
 
 
 @dataclass
-class TEBConfig:
+class TEBConfig(CheckedConfig):
     n_poses: int = 12
     """Poses in the band (including start and goal)."""
     lookahead: float = 3.0

@@ -11,8 +11,8 @@ from dataclasses import asdict
 import numpy as np
 
 from dynabarn.errors import DynabarnError
-from dynabarn.interfaces import Observation, config_from_kwargs, nested_config
-from dynabarn.perception import DetectorConfig, ObstacleTracker, TrackerConfig, Tracks
+from dynabarn.interfaces import Observation, Tracker, config_from_kwargs, nested_config
+from dynabarn.perception import DetectorConfig, TrackerConfig, Tracks
 from dynabarn.perception.shape_fit import ShapeConfig
 from dynabarn.perception.trackers import TRACKERS
 
@@ -48,13 +48,10 @@ def recorded_config(cfg) -> dict:
     return d
 
 
-def track_moving(tracker: ObstacleTracker, obs: Observation, range_max: float) -> tuple[Tracks, np.ndarray, np.ndarray]:
+def track_moving(tracker: Tracker, obs: Observation, range_max: float) -> tuple[Tracks, np.ndarray, np.ndarray]:
     """Update `tracker` with the observation's scan; (the tracks, which beams ended on a
     detected obstacle (n_beams,), the scan with those beams reading no return): the moving
     obstacles are the tracker's, the rest of the scan is what stands still."""
     tracks = tracker.update(obs.time, obs.scan, obs.pose)
-    moving = np.zeros(len(obs.scan), dtype=bool)
-    det = tracker.detections
-    if det is not None and len(det.beams):
-        moving[det.beams[det.segment_of_point >= 0]] = True
+    moving = tracker.obstacle_beams(len(obs.scan))  # declared: interfaces.Tracker
     return tracks, moving, np.where(moving, range_max, obs.scan)

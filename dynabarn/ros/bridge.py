@@ -27,7 +27,7 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.errors import NotInstalledHere
-from dynabarn.interfaces import EpisodeInfo, Observation, Planner
+from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, Planner
 from dynabarn.processes import die_with_parent
 from dynabarn.robot import JACKAL
 from dynabarn.ros import READY_WHEN
@@ -92,7 +92,7 @@ def remap_problem(remap: object) -> str | None:
 
 
 @dataclass
-class BridgeConfig:
+class BridgeConfig(CheckedConfig):
     """How the bridge meets the stack."""
 
     lockstep: bool = True

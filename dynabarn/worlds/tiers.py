@@ -77,5 +77,7 @@ TIERS: Registry[Tier] = Registry(
 adds one in this process (its profile and certificates beside the package's)."""
 
 
-def get_tier(name: str) -> Tier:
-    return TIERS.get_item(name)
+def get_tier(name: str | Tier) -> Tier:
+    """The tier `name` (one line for an unknown name); a `Tier` is itself: resolved once
+    where a command names it, then passed on."""
+    return name if isinstance(name, Tier) else TIERS.get_item(name)

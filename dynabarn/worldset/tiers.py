@@ -15,7 +15,7 @@ from pathlib import Path
 from dynabarn.errors import WorldError
 from dynabarn.files import write_atomically
 from dynabarn.provenance import work_root
-from dynabarn.worlds.tiers import get_tier
+from dynabarn.worlds.tiers import Tier, get_tier
 from dynabarn.worldset import INDEX_NAME, generate_profile_worlds, index_locked, read_index
 
 TIERS_FOLDER = "generated_tiers"
@@ -23,7 +23,7 @@ TIERS_FOLDER = "generated_tiers"
 
 
 def generate_tier(
-    name: str,
+    name: str | Tier,
     out_dir: Path | None = None,
     *,
     draws: Mapping[int, int] | None = None,
@@ -33,14 +33,14 @@ def generate_tier(
     work root), each world in the draw its committed certificates chose (`draws` instead:
     those, without certificates); returns the index path. The same bytes on every run and
     machine."""
-    tier = get_tier(name)
+    tier = get_tier(name)  # resolved once: what follows is handed the tier
     profile = tier.profile()
     record = tier.certified()
-    out = Path(out_dir) if out_dir is not None else tier_dir(name)
+    out = Path(out_dir) if out_dir is not None else tier_dir(tier)
     # In the tiers' own folder (and its staging siblings) the robot is the work root's, as
     # in the checkout: the same bytes in a checkout and in an installed package's cache, so
     # the committed certificates' digests hold in both.
-    home = tier_dir(name).parent
+    home = tier_dir(tier).parent
     inside = out.resolve().parent == home.resolve()
     with index_locked(out):  # the worlds and their certificates as one write
         index = generate_profile_worlds(
@@ -48,7 +48,7 @@ def generate_tier(
             out,
             base_seed=tier.base_seed,
             world_ids=tier.ids,
-            profile_source=tier_source(name),
+            profile_source=tier_source(tier),
             draws=tier.draws() if draws is None else draws,
             asset_root=home.parent if inside else None,
             progress=progress,
@@ -76,7 +76,7 @@ def _attach_certificates(index_dir: Path, record: dict) -> None:
     write_atomically(Path(index_dir) / INDEX_NAME, json.dumps(index, indent=1, sort_keys=True) + "\n")
 
 
-def tier_source(name: str) -> dict:
+def tier_source(name: str | Tier) -> dict:
     """What a tier's folder was made from, as its index records it: the tier, its profile
     file (name, sha256) and the sha256 of its committed certificates (None before): a folder
     made from anything else is stale (`tier_worlds`)."""
@@ -85,33 +85,34 @@ def tier_source(name: str) -> dict:
         certified = hashlib.sha256(tier.certified_file.read_bytes()).hexdigest()
     except FileNotFoundError:
         certified = None
-    return {"tier": name, **tier.profile().source, "certified": certified}
+    return {"tier": tier.name, **tier.profile().source, "certified": certified}
 
 
-def tier_dir(name: str) -> Path:
+def tier_dir(name: str | Tier) -> Path:
     return work_root() / TIERS_FOLDER / get_tier(name).name
 
 
-def tier_worlds(name: str) -> Path:
+def tier_worlds(name: str | Tier) -> Path:
     """Tier NAME's folder, its worlds generated there first when absent or made from an
     older definition or older certificates (a few seconds):
     into a folder of this process's own, renamed into place whole, so that workers starting
     together never read a half-written tier (the first rename wins; the others' copies,
     the same bytes, are removed)."""
-    folder = tier_dir(name)
-    if _current(folder, name):
+    tier = get_tier(name)
+    folder = tier_dir(tier)
+    if _current(folder, tier):
         return folder
     token = f"{os.getpid()}.{secrets.token_hex(4)}"
     staging, stale = folder.with_name(f".{folder.name}.{token}"), folder.with_name(f".{folder.name}.stale.{token}")
     try:
-        generate_tier(name, staging)
-        if folder.exists() and not _current(folder, name):  # made from an older definition
+        generate_tier(tier, staging)
+        if folder.exists() and not _current(folder, tier):  # made from an older definition
             with contextlib.suppress(OSError):  # another process moved it first
                 folder.rename(stale)
         try:
             staging.rename(folder)
         except OSError:
-            if not _current(folder, name):
+            if not _current(folder, tier):
                 raise
     finally:
         shutil.rmtree(staging, ignore_errors=True)
@@ -119,9 +120,9 @@ def tier_worlds(name: str) -> Path:
     return folder
 
 
-def _current(folder: Path, name: str) -> bool:
-    """Whether `folder` holds tier NAME as its definition and certificates make it now."""
+def _current(folder: Path, tier: Tier) -> bool:
+    """Whether `folder` holds `tier` as its definition and certificates make it now."""
     try:
-        return read_index(folder).get("profile_source") == tier_source(name)
+        return read_index(folder).get("profile_source") == tier_source(tier)
     except WorldError:
         return False

@@ -31,7 +31,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.interfaces import EpisodeInfo, Observation, config_from_kwargs
+from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, config_from_kwargs
 from dynabarn.perception import MapScan, ObstacleTracker, TrackerConfig
 from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners.global_planner import GlobalPlanner
@@ -47,7 +47,7 @@ _TURNED_LOW = np.array([-1.0, -1.0, -2.0, -2.0])
 
 
 @dataclass
-class FeatureConfig:
+class FeatureConfig(CheckedConfig):
     history: int = 0
     """Earlier scans given beside the current one (0: the paper's single scan)."""
     history_every: int = 2
