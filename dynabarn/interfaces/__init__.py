@@ -10,7 +10,7 @@ simulator (a test imports it in a fresh interpreter).
 """
 
 from dynabarn.errors import EndEpisode
-from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
+from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Period, Tick
 from dynabarn.interfaces.observation import EpisodeInfo, Observation, ObstacleState
 from dynabarn.interfaces.planner import CheckedConfig, Planner, config_from_kwargs, nested_config
 from dynabarn.interfaces.tracker import Tracker
@@ -23,6 +23,7 @@ __all__ = [
     "EpisodeStart",
     "Observation",
     "ObstacleState",
+    "Period",
     "Planner",
     "Tick",
     "Tracker",

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, ClassVar, Protocol
 
 import numpy as np
 
@@ -60,16 +60,36 @@ class Tick:
     tracks: object | None = None  # the planner's `Tracks` (dynabarn.perception), if it tracks obstacles
 
 
+class Period(Protocol):
+    """One control period as the loop hands it to `on_tick_period` and `on_poses_period`
+    (`sim.period_record.PeriodRecord` is it): its Tick and its poses, each made on first
+    request, and what a writer in another process makes them from."""
+
+    @property
+    def tick(self) -> Tick:
+        """The period's Tick (scan, command, obstacles, the planner's debug and tracks)."""
+
+    @property
+    def poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """(times (n,), poses (n, 3)) at the pose rate since the last period."""
+
+    def pose_span(self) -> tuple[int, int, bool]:
+        """(first step, last step, ended): what the period's pose steps are made of."""
+
+    def numbers(self) -> tuple:
+        """The period's own numbers a Tick is made of (`recording.tick_rows.tick_from`)."""
+
+
 class EpisodeObserver:
     """Receives an episode as it happens; override the hooks you need (each does nothing
     here). The loop calls `on_start`, then per control tick `on_tick` and `on_poses` (the
     robot's poses at the pose rate since the last tick), then `on_end` with the result.
     Raising `dynabarn.errors.EndEpisode` from `on_tick` ends the episode.
 
-    Two more hooks take a control period's own record (`dynabarn.sim.period_record.
-    PeriodRecord`) instead: `on_tick_period` hands `on_tick` the period's Tick and
-    `on_poses_period` hands `on_poses` its poses, unless an observer overrides them (the
-    recorder's writer process does: it makes the Tick elsewhere). The loop makes a period's
+    Two more hooks take a control period's own record (`Period`) instead: `on_tick_period`
+    hands `on_tick` the period's Tick and `on_poses_period` hands `on_poses` its poses,
+    unless an observer overrides them (the recorder's writer process does: it makes the
+    Tick elsewhere). The loop makes a period's
     Tick only for observers that override `on_tick` or `on_tick_period` (`listens`).
 
     An observer is an instance of this class; every hook is named in `HOOKS`, and the loop
@@ -93,11 +113,11 @@ class EpisodeObserver:
     def on_end(self, result: EpisodeResult) -> None:
         """The episode's result."""
 
-    def on_tick_period(self, period) -> None:
+    def on_tick_period(self, period: Period) -> None:
         """One control period's record: by default its Tick, made now, to `on_tick`."""
         self.on_tick(period.tick)
 
-    def on_poses_period(self, period) -> None:
+    def on_poses_period(self, period: Period) -> None:
         """One control period's record: by default its poses, when there are any, to `on_poses`."""
         times, poses = period.poses
         if len(times):

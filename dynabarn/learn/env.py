@@ -43,8 +43,7 @@ always truncates first and Gymnasium's `TimeLimit` is only a safety net.
 ## Rendering
 `render_mode="rgb_array"`: `render()` returns an (height, width, 3) uint8 frame from MuJoCo's renderer (without a
 display and MUJOCO_GL, on EGL, chosen itself), so `gymnasium.wrappers.RecordVideo` and `check_env` work.
-`render_mode="human"`: MuJoCo's viewer window, paced to real time (needs a display). `camera`: `top` (the arena) or
-`follow`.
+`render_mode="human"`: MuJoCo's viewer window, paced to real time (needs a display). `camera`: `top` or `follow`.
 
 ## Arguments
 | parameter | type | default | description |
@@ -60,20 +59,18 @@ display and MUJOCO_GL, on EGL, chosen itself), so `gymnasium.wrappers.RecordVide
 | render_mode | str or None | None | None, "rgb_array" or "human" |
 | camera | str | "top" | top or follow (rendering) |
 | width, height | int | 640, 480 | frame size [px] (rendering) |
+| observers | callable or None | None | `f(info)`: each episode's observers, e.g. a recorder (`learn.observed`) |
 
-`worlds` picks ids from the whole folder of `world_set` (with `paper60`, any of the 300).
-Registered as `dynabarn/DynaBARN-v0` (and `DynaBARN-v0`) when `dynabarn.learn` is
-imported, or by `import dynabarn` once gymnasium is imported; from a fresh interpreter
-`gymnasium.make("dynabarn.learn:dynabarn/DynaBARN-v0")` imports it.
+`worlds` picks ids from the whole folder of `world_set` (with `paper60`, any of the 300). Registered as
+`dynabarn/DynaBARN-v0` (and `DynaBARN-v0`) by importing `dynabarn.learn` (or `dynabarn` once gymnasium is).
 
 `split` draws worlds from Alg. 1 and 2 (`dynabarn.learn.split`), never a shipped one, in
 place of `world_set`. With it, `reset(options={"world_index": k})` picks the split's world k (any
 k >= 0) and `info["fingerprint"]` names the world (a trainer records what it met).
 
 ## Version history
-- v0: first version (rendering, `is_success`, the time-limit spec, the `privileged`
-  reset option and the procedural `split` added without changing dynamics, observations
-  or rewards).
+- v0: first version (rendering, `is_success`, the time-limit spec, `privileged`, `split` and `observers` added
+  without changing dynamics, observations or rewards).
 """
 
 from __future__ import annotations
@@ -92,6 +89,7 @@ from gymnasium import spaces
 
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces.observation import Observation
+from dynabarn.learn.observed import ObservedEpisodes, ObserverFactory
 from dynabarn.learn.shared_worlds import forget_world, shared_world
 from dynabarn.learn.split import DEFAULT_PROFILE_SETS, ProceduralWorlds, reserved_fingerprints
 from dynabarn.metrics import Outcome
@@ -101,7 +99,7 @@ from dynabarn.protocol import get_protocol
 from dynabarn.provenance import has_display
 from dynabarn.render import CAMERAS, offscreen_renderer, place_camera
 from dynabarn.robot import JACKAL
-from dynabarn.sim import Episode, EpisodeLoop, SimConfig, Simulation
+from dynabarn.sim import Episode, SimConfig, Simulation
 from dynabarn.worlds.profiles import Difficulty
 from dynabarn.worldset import world_set as resolve_world_set
 
@@ -147,8 +145,10 @@ class DynaBARNEnv(gymnasium.Env):
         camera: str = "top",
         width: int = 640,
         height: int = 480,
+        observers: ObserverFactory | None = None,
     ) -> None:
         self._closed = False
+        self._observed = ObservedEpisodes(observers)
         if render_mode == "human" and not has_display():
             raise ValueError("render_mode 'human' needs a display (DISPLAY is not set); use 'rgb_array'")
         if render_mode not in (None, *self.metadata["render_modes"]):
@@ -262,7 +262,6 @@ class DynaBARNEnv(gymnasium.Env):
         self.global_planner = self._planners[file]
         # Privileged: a demonstrator sees the obstacles' true states (the policy's observation is the same).
         self.episode = Episode(sim, self.protocol, seed=trial, privileged=bool(options.get("privileged", False)))
-        self.loop = EpisodeLoop(self.episode, None)  # the loop step run_episode takes, without observers
         self._info = {
             "world": sim.world.name,
             "world_id": wid,
@@ -270,6 +269,7 @@ class DynaBARNEnv(gymnasium.Env):
             "trial_seed": trial,
             "fingerprint": sim.world_fingerprint,
         }
+        self.loop = self._observed.loop(self.episode, self.protocol, self._info)  # the step run_episode takes
 
     def started(self, observation: np.ndarray) -> tuple[np.ndarray, dict]:
         """`reset`'s values once the episode's first observation is known."""
@@ -312,6 +312,8 @@ class DynaBARNEnv(gymnasium.Env):
             "time": self.episode.time,
             "is_success": outcome is Outcome.SUCCESS,
         }
+        if outcome is not None:
+            self._observed.ended()
         if self.render_mode == "human":
             self._show()
         return observation, float(sum(terms.values())), terminated, truncated, info
@@ -378,6 +380,7 @@ class DynaBARNEnv(gymnasium.Env):
 
     def close(self) -> None:
         self._closed = True
+        self._observed.leave()
         self._sims, self._planners = {}, {}  # megabytes a world, whoever still holds the closed environment
         self.episode = self.loop = self._observation = None
         for renderer in self._renderers.values():

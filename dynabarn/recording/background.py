@@ -36,11 +36,10 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.files import SyncAhead, claim_staging, release
-from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Tick
+from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Period, Tick
 from dynabarn.metrics import EpisodeResult
 from dynabarn.recording.tick_rows import TickRows
 from dynabarn.recording.writer import McapRecorder, staging_path
-from dynabarn.sim.period_record import PeriodRecord
 
 _NO_STEPS = np.zeros(0, dtype=np.int64)
 _WRITER_DIED = "the recording's writer process ended; the recording ends there (what it wrote is in NAME.mcap.part)"
@@ -180,7 +179,7 @@ class BackgroundRecorder(EpisodeObserver):
         self._count = 0
         self._extras: dict[int, tuple] = {}
         self._spans: dict[int, tuple[int, int, bool]] = {}
-        """Row -> its period's `PeriodRecord.pose_span` (the poses are taken at the flush)."""
+        """Row -> its period's `Period.pose_span` (the poses are taken at the flush)."""
         self._episode = None
         self._facts_sent = False
         try:
@@ -207,7 +206,7 @@ class BackgroundRecorder(EpisodeObserver):
             self._extras[self._count] = (tick.debug, tick.tracks)
         self._count += 1
 
-    def on_tick_period(self, period: PeriodRecord) -> None:
+    def on_tick_period(self, period: Period) -> None:
         """The period's own numbers, not its Tick: the writer makes the Tick (the same bits),
         so the episode's process never does."""
         if self._writer is None:
@@ -224,7 +223,7 @@ class BackgroundRecorder(EpisodeObserver):
             self._extras[self._count] = (period.debug, period.tracks)
         self._count += 1
 
-    def on_poses_period(self, period: PeriodRecord) -> None:
+    def on_poses_period(self, period: Period) -> None:
         """The period's poses, taken from the episode's pose buffer with the batch's others
         when it is sent (the same rows `period.poses` would copy now)."""
         if self._writer is None or not self._count or (self._count - 1) in self._spans:
