@@ -27,8 +27,8 @@ After the TD3 navigation work of the paper's group (progress, collision and succ
 Each term is in `info`.
 
 ## Starting state
-World drawn uniformly from the chosen set (and difficulty); trial seed drawn from the environment's generator (sets
-the obstacles' clock offset and the laser noise); robot at the protocol's spawn ((11, 0, yaw pi) for `barn`).
+World drawn uniformly from the chosen set (and difficulty); trial seed from the environment's generator (the
+obstacles' clock offset, the laser noise); robot at the protocol's spawn ((11, 0, yaw pi) for `barn`).
 `reset(options=...)`: `world_index` (an index into the chosen worlds), `trial_seed`, and `privileged=True` (the
 obstacles' true states in `env.unwrapped.observation`, for a demonstrator such as the oracle; the policy's
 observation is unchanged).
@@ -64,9 +64,8 @@ display and MUJOCO_GL, on EGL, chosen itself), so `gymnasium.wrappers.RecordVide
 `worlds` picks ids from the whole folder of `world_set` (with `paper60`, any of the 300). Registered as
 `dynabarn/DynaBARN-v0` (and `DynaBARN-v0`) by importing `dynabarn.learn` (or `dynabarn` once gymnasium is).
 
-`split` draws worlds from Alg. 1 and 2 (`dynabarn.learn.split`), never a shipped one, in
-place of `world_set`. With it, `reset(options={"world_index": k})` picks the split's world k (any
-k >= 0) and `info["fingerprint"]` names the world (a trainer records what it met).
+`split` draws worlds from Alg. 1 and 2 (`dynabarn.learn.split`), never a shipped one, in place of `world_set`.
+With it, `reset(options={"world_index": k})` picks the split's world k (any k >= 0); `info["fingerprint"]` names it.
 
 ## Version history
 - v0: first version (rendering, `is_success`, the time-limit spec, `privileged`, `split` and `observers` added
@@ -149,6 +148,7 @@ class DynaBARNEnv(gymnasium.Env):
     ) -> None:
         self._closed = False
         self._observed = ObservedEpisodes(observers)
+        self.batched = False  # True in a `vector_env` batch, which observes its worlds together
         if render_mode == "human" and not has_display():
             raise ValueError("render_mode 'human' needs a display (DISPLAY is not set); use 'rgb_array'")
         if render_mode not in (None, *self.metadata["render_modes"]):
@@ -223,9 +223,9 @@ class DynaBARNEnv(gymnasium.Env):
         after `reset(options={"privileged": True})`), for an expert acting in the loop."""
         return self._observation
 
-    def _observe(self) -> np.ndarray:
-        """The policy's observation now (the scan cast here)."""
-        obs = self.seen(self.episode.observe())
+    def _observe(self, observation: Observation) -> np.ndarray:
+        """The policy's observation of the loop's (`EpisodeLoop.first`, or a period's last act)."""
+        obs = self.seen(observation)
         return policy_input(obs.scan, self.global_planner.local_goal_in_robot(obs.pose, self.lookahead), np.float32)
 
     def seen(self, obs: Observation) -> Observation:
@@ -235,7 +235,7 @@ class DynaBARNEnv(gymnasium.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         self.begin(seed, options)
-        return self.started(self._observe())
+        return self.started(self._observe(self.loop.first()))
 
     def begin(self, seed: int | None, options: dict[str, Any] | None) -> None:
         """`reset` up to its observation: the world and the trial drawn, the episode started
@@ -269,7 +269,7 @@ class DynaBARNEnv(gymnasium.Env):
             "trial_seed": trial,
             "fingerprint": sim.world_fingerprint,
         }
-        self.loop = self._observed.loop(self.episode, self.protocol, self._info)  # the step run_episode takes
+        self.loop = self._observed.loop(self.episode, self.protocol, self._info, observes=not self.batched)
 
     def started(self, observation: np.ndarray) -> tuple[np.ndarray, dict]:
         """`reset`'s values once the episode's first observation is known."""
@@ -280,7 +280,7 @@ class DynaBARNEnv(gymnasium.Env):
 
     def step(self, action):
         outcome = self._apply(action)
-        observation = self._observe() if outcome is None else self.final_observation()
+        observation = self._observe(self.loop.observation) if outcome is None else self.final_observation()
         return self.conclude(outcome, observation)
 
     def _apply(self, action) -> Outcome | None:

@@ -36,15 +36,15 @@ class ObservedEpisodes:
         self.factory = factory
         self._open: EpisodeLoop | None = None
 
-    def loop(self, episode: Episode, protocol: EvalProtocol, info: dict) -> EpisodeLoop:
+    def loop(self, episode: Episode, protocol: EvalProtocol, info: dict, *, observes: bool = True) -> EpisodeLoop:
         """The episode's loop step, with its observers started (ending the last episode's
-        first, if it has not ended)."""
+        first, if it has not ended); `observes`: as `EpisodeLoop`'s."""
         self.leave()
         observers = list(self.factory(dict(info))) if self.factory is not None else []
         if not observers:
-            return EpisodeLoop(episode, None)
+            return EpisodeLoop(episode, None, observes=observes)
         start = episode_start(episode, protocol, planner=DRIVER, planner_config={}, versions=versions())
-        self._open = EpisodeLoop(episode, start, observers)
+        self._open = EpisodeLoop(episode, start, observers, observes=observes)
         return self._open
 
     def ended(self) -> None:

@@ -49,6 +49,8 @@ class WorldBatch:
 
     def __init__(self, n: int, env_kwargs: dict, obs: np.ndarray | None = None) -> None:
         self.envs = [DynaBARNEnv(**env_kwargs) for _ in range(n)]
+        for env in self.envs:
+            env.batched = True  # their loops leave the observation to `_observe`, all worlds at once
         # Every step writes every row (a new episode's first observation, a running one's
         # next, an ended one's last), here or into the parent's shared buffer.
         self.obs = np.zeros((n, *self.envs[0].observation_space.shape), np.float32) if obs is None else obs

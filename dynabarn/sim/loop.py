@@ -24,6 +24,7 @@ from pathlib import Path
 
 from dynabarn.errors import EndEpisode
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, check_hooks
+from dynabarn.interfaces.observation import Observation
 from dynabarn.interfaces.planner import Planner, check_planner
 from dynabarn.metrics import (
     INTERRUPTED,
@@ -69,8 +70,8 @@ def run_episode(
     loop = EpisodeLoop(episode, start, observers)
     try:
         planner.reset(episode.info)
+        observation = loop.first()
         while episode.outcome is None:
-            observation = episode.observe()
             c0 = time.perf_counter()
             try:
                 raw = planner.act(observation)
@@ -87,6 +88,7 @@ def run_episode(
             tracks = episode.score_tracks(planner.tracks())
             if loop.period(raw_v, raw_w, planner_ms=planning_ms, debug=planner.debug, tracks=tracks) is Outcome.ERROR:
                 break
+            observation = loop.observation  # the period ended with it
     except KeyboardInterrupt:
         _end_interrupted(loop, planner)
         raise
@@ -127,20 +129,40 @@ class EpisodeLoop:
         observers: its observers (`on_start` is called here).
     """
 
-    def __init__(self, episode: Episode, start: EpisodeStart | None, observers: Sequence[EpisodeObserver] = ()) -> None:
+    def __init__(
+        self,
+        episode: Episode,
+        start: EpisodeStart | None,
+        observers: Sequence[EpisodeObserver] = (),
+        *,
+        observes: bool = True,
+    ) -> None:
         if observers and start is None:
             raise ValueError("observers need the episode's start")
         self.episode, self.start, self.observers = episode, start, tuple(observers)
+        self.observes = observes
+        """Whether a period ends with the next observation (False: a batch of worlds casts
+        its scans together, `learn.vector_env`)."""
+        self.observation: Observation | None = None
+        """The last observation made: the first (`first`), then each period's last act."""
         for observer in self.observers:
             check_hooks(observer)
         for observer in self.observers:
             observer.on_start(start)
         self._tick_hooks, self._pose_hooks = observer_hooks(self.observers)
 
+    def first(self) -> Observation:
+        """The episode's first observation: what the first command answers."""
+        self.observation = self.episode.observe()
+        return self.observation
+
     def period(self, raw_v: float, raw_w: float, *, planner_ms: float = 0.0, debug=None, tracks=None) -> Outcome | None:
         """Drive (raw_v, raw_w) for one control period (`Episode.apply`: limited, stepped,
-        judged) and hand the period to the observers, with the planner's time, its `debug()`
-        (called only when an observer listens) and its scored tracks; the outcome if it ended."""
+        judged), hand the period to the observers, with the planner's time, its `debug()`
+        (called only when an observer listens) and its scored tracks, and, while the episode
+        goes on, end with the next observation (`observation`); the outcome if it ended.
+        Every driver steps an episode so: `run_episode` with a planner, the Gymnasium
+        environments with their actions."""
         episode = self.episode
         episode.planner_ms[episode.n_ticks] = planner_ms
         first = episode.step
@@ -157,6 +179,8 @@ class EpisodeLoop:
                     episode.end(Outcome.ERROR, str(exc) or "ended by an observer")
             for on_poses in self._pose_hooks:
                 on_poses(period)
+        if episode.outcome is None and self.observes:
+            self.observation = episode.observe()
         return episode.outcome
 
     def result(self) -> EpisodeResult:
