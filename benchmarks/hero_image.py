@@ -29,16 +29,13 @@ def _free_port() -> int:
 
 def main() -> int:
     sys.path.insert(0, str(ROOT))
-    from dynabarn import get_planner, get_protocol, resolve_world, run_episode
+    from dynabarn import EpisodeSpec, get_protocol, resolve_world, run_spec
     from dynabarn.files import write_atomically
-    from dynabarn.recording import McapRecorder
     from tests.browser import Browser
 
     with tempfile.TemporaryDirectory() as tmp:
         recording = Path(tmp) / "world_137_dwa.mcap"
-        run_episode(
-            resolve_world(137), get_planner("dwa"), get_protocol("barn"), seed=0, observers=[McapRecorder(recording)]
-        )
+        run_spec(EpisodeSpec.make(resolve_world(137), "dwa", get_protocol("barn"), seed=0), record_to=recording)
         port, grpc = _free_port(), _free_port()
         command = [sys.executable, "-m", "dynabarn", "replay", str(recording), "--web", "--port", str(port)]
         proc = subprocess.Popen([*command, "--grpc-port", str(grpc)], stdout=subprocess.PIPE, text=True)

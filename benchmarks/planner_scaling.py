@@ -23,6 +23,7 @@ import numpy as np
 from dynabarn.interfaces import EpisodeObserver
 from dynabarn.planners import get_planner, planner_spec
 from dynabarn.protocol import get_protocol
+from dynabarn.runner import EpisodeSpec, run_spec
 from dynabarn.sim import run_episode
 from dynabarn.worldset import PAPER60, resolve_world
 
@@ -50,7 +51,7 @@ def planner_compute(planner: str, worlds=WORLDS, **extra) -> tuple[float, float,
 def _episode(item: tuple[str, int]) -> tuple[float, float]:
     planner, world = item
     name, config, _ = planner_spec(planner)
-    result = run_episode(resolve_world(world), get_planner(name, **config), get_protocol("barn"), seed=0)
+    result = run_spec(EpisodeSpec.make(resolve_world(world), name, get_protocol("barn"), config=config, seed=0)).result
     return result.sim_time, result.wall_time
 
 

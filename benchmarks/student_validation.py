@@ -27,18 +27,17 @@ from pathlib import Path
 from dynabarn.bench.summary import wilson_interval
 from dynabarn.files import write_atomically
 from dynabarn.learn.split import ProceduralWorlds, training_profile
-from dynabarn.planners import get_planner
 from dynabarn.processes import map_in_workers, usable_cores
 from dynabarn.protocol import get_protocol
-from dynabarn.sim import run_episode
+from dynabarn.runner import EpisodeSpec, run_spec
 
 
 def _episode(item: tuple[str, str, str, tuple[str, ...], int]) -> tuple[str, str, bool]:
     """(entry, difficulty, success) of one entry in validation world k."""
     name, what, folder, profile_sets, k = item
     world = ProceduralWorlds(Path(folder) / f"w{k}", split="validation", profile_sets=profile_sets).world(k)
-    planner = get_planner("dagger", policy=what) if what.endswith(".pt") else get_planner(what)
-    result = run_episode(world.path, planner, get_protocol("barn"), seed=k)
+    planner, config = ("dagger", {"policy": what}) if what.endswith(".pt") else (what, {})
+    result = run_spec(EpisodeSpec.make(world.path, planner, get_protocol("barn"), config=config, seed=k)).result
     return name, world.difficulty, result.outcome.value == "success"
 
 
