@@ -14,15 +14,24 @@ to every factory registered and to what a factory builds, the loop to what it is
 from __future__ import annotations
 
 import abc
+import copy
 import math
 import typing
-from dataclasses import fields
+from dataclasses import fields, is_dataclass
 from typing import ClassVar
 
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces.observation import EpisodeInfo, Observation
 
-__all__ = ["CheckedConfig", "Planner", "check_planner", "check_planner_factory", "config_from_kwargs", "nested_config"]
+__all__ = [
+    "CheckedConfig",
+    "Planner",
+    "check_planner",
+    "check_planner_factory",
+    "config_from_kwargs",
+    "nested_config",
+    "recorded_config",
+]
 
 
 class CheckedConfig:
@@ -36,9 +45,30 @@ class CheckedConfig:
     ORDERED: ClassVar[tuple[tuple[str, str], ...]] = ()
     """(low, high) field pairs whose values must not cross (`min_vel_x` above `max_vel_x`)."""
 
+    RECORDED_WHEN_SET: ClassVar[dict[str, tuple[str, ...]]] = {}
+    """{switch: fields}: fields recorded (`recorded_config`) only when the switch is not at
+    its default, so that adding an option leaves every earlier result's configuration (and
+    the golden set's bytes) as they were (`scan_guard`, a tracker's `kind`)."""
+
     def check(self, what: str) -> None:
         """The fields' other relations (the memory a sample grid allocates): raise TypeError
         with one line; `what` names the configuration in it."""
+
+
+def recorded_config(config) -> dict:
+    """A configuration dataclass as results and recordings keep it: `dataclasses.asdict`,
+    nested configurations too, less the fields each declares recorded only when set
+    (`CheckedConfig.RECORDED_WHEN_SET`)."""
+    out = {}
+    for f in fields(config):
+        value = getattr(config, f.name)
+        out[f.name] = recorded_config(value) if is_dataclass(value) else copy.deepcopy(value)
+    for switch, keys in getattr(type(config), "RECORDED_WHEN_SET", {}).items():
+        default = next(f.default for f in fields(config) if f.name == switch)
+        if getattr(config, switch) == default:
+            for key in keys:
+                out.pop(key, None)
+    return out
 
 
 def config_from_kwargs(cls: type[CheckedConfig], kwargs: dict, what: str):

@@ -50,7 +50,7 @@ class TrackerConfig(CheckedConfig):
     """Which tracker (`perception.trackers.TRACKERS`): `kalman`, this module's (circles of
     the known radius); `shaped` (`shaped_tracker`: outlines of boxes, capsules and
     cylinders); or one registered or installed under `dynabarn.trackers`. Recorded with a
-    planner's configuration only where it is not `kalman` (`planners.tracking.recorded_config`)."""
+    planner's configuration only where it is not `kalman` (`RECORDED_WHEN_SET`)."""
     accel_std: float = 2.0
     """White-noise acceleration of the motion model [m/s^2] (the paper's obstacles change
     speed and turn along polynomial paths)."""
@@ -68,6 +68,7 @@ class TrackerConfig(CheckedConfig):
     shape: ShapeConfig = field(default_factory=ShapeConfig)
     """Outlines (the `shaped` tracker's; `kalman` fits circles and leaves these unused)."""
 
+    RECORDED_WHEN_SET: ClassVar[dict[str, tuple[str, ...]]] = {"kind": ("kind", "shape")}  # `shape`: `shaped`'s
     LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
         "accel_std": (0.0, 100.0),
         "measurement_std": (1e-4, 5.0),

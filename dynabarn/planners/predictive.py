@@ -48,6 +48,8 @@ class PredictiveConfig(OracleConfig):
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     """The tracker's parameters (`tracker.KEY=...`, `tracker.detector.KEY=...`)."""
 
+    # Every result before the guard keeps its configuration as recorded.
+    RECORDED_WHEN_SET: ClassVar[dict[str, tuple[str, ...]]] = {"scan_guard": ("scan_guard", "scan_guard_radius")}
     LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
         **OracleConfig.LIMITS,
         "uncertainty_sigmas": (0.0, 10.0),
@@ -82,12 +84,6 @@ class PredictivePlanner(OraclePlanner):
 
     def tracks(self) -> Tracks:
         return self._tracks
-
-    def config(self) -> dict:
-        d = super().config()
-        if not self.cfg.scan_guard:  # every result before the guard keeps its configuration as recorded
-            del d["scan_guard"], d["scan_guard_radius"]
-        return d
 
     def obstacle_future(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
         self._tracks = self.tracker.update(obs.time, obs.scan, obs.pose)

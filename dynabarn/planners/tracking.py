@@ -6,12 +6,11 @@ the kind its configuration names (`tracker.kind`)."""
 
 from __future__ import annotations
 
-from dataclasses import asdict
-
 import numpy as np
 
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces import Observation, Tracker, config_from_kwargs, nested_config
+from dynabarn.interfaces.planner import recorded_config  # noqa: F401 - where the planners found it
 from dynabarn.perception import DetectorConfig, TrackerConfig, Tracks
 from dynabarn.perception.shape_fit import ShapeConfig
 from dynabarn.perception.trackers import TRACKERS
@@ -34,18 +33,6 @@ def with_tracker(kwargs: dict, what: str) -> dict:
         return cfg
 
     return nested_config(kwargs, "tracker", build, what)
-
-
-def recorded_config(cfg) -> dict:
-    """A planner's configuration as results and recordings keep it (`asdict`), without the
-    tracker's `kind` and `shape` where it is the default `kalman`: every result before the
-    choice existed used it and keeps its configuration (and the golden set its bytes)."""
-    d = asdict(cfg)
-    tracker = d.get("tracker")
-    if isinstance(tracker, dict) and tracker.get("kind") == TrackerConfig.kind:
-        del tracker["kind"]
-        del tracker["shape"]  # the `shaped` tracker's outlines: unused by `kalman`
-    return d
 
 
 def track_moving(tracker: Tracker, obs: Observation, range_max: float) -> tuple[Tracks, np.ndarray, np.ndarray]:
