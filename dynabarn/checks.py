@@ -263,7 +263,10 @@ def check_tracker(
         tracker: a tracker kind (`TrackerConfig.kind`: registered or installed), or a
             tracker class (`for_episode(cfg, info)`, `update(time, scan, pose) -> Tracks`).
         config: `TrackerConfig` fields besides `kind` (default: its defaults).
-        world, seconds, raise_on_problem: as `check_planner`'s.
+        world: the world to drive in (an id, a name or a file; default: world 137).
+        seconds: simulated seconds per checking episode.
+        raise_on_problem: raise `CheckFailed` listing every problem (default), else return
+            the report with them.
     """
     from dynabarn.interfaces.planner import config_from_kwargs
     from dynabarn.perception import TrackerConfig
