@@ -76,8 +76,16 @@ class Registry(dict[str, T], Generic[T]):
         """Make `item` available in this process under its own name (`item.name`) or `name`
         (other processes and machines: install it under the entry-point group), after the
         registry's check; returns it, so it also decorates a class. The older shape,
-        `register(name, item)`, still works."""
+        `register(name, item)`, works for one more release, with a DeprecationWarning."""
         if legacy is not None and isinstance(item, str):
+            import warnings
+
+            warnings.warn(
+                f"{self.kind} registration as register({item!r}, item) is the older shape: "
+                f"use register(item, name={item!r}) (one way for every kind)",
+                DeprecationWarning,
+                stacklevel=3,
+            )
             name, item = item, legacy
         if name is None:
             name = getattr(item, "name", None)

@@ -86,7 +86,7 @@ class Explodes(Planner):
 
 
 def test_error_episodes_are_recorded_and_the_sweep_goes_on(tmp_path):
-    register_planner("explodes", Explodes)
+    register_planner(Explodes, name="explodes")
     jobs = bench.make_jobs([("explodes", {}), ("straight", {})], worldset.world_set("dynabarn300", [0]), BARN, 1)
     report = bench.run_sweep(jobs, tmp_path, n_workers=1)
     rows = {r["planner"]: r for r in report.rows}

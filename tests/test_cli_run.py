@@ -97,7 +97,7 @@ class CtrlC(Planner):
 
 
 def test_planner_error_exits_nonzero_and_keeps_recording(tmp_path, capsys):
-    register_planner("boom", Boom)
+    register_planner(Boom, name="boom")
     log = tmp_path / "b.mcap"
     assert run_main(["--world", "0", "--planner", "boom", "--log", str(log)]) == 1
     captured = capsys.readouterr()
@@ -106,7 +106,7 @@ def test_planner_error_exits_nonzero_and_keeps_recording(tmp_path, capsys):
 
 
 def test_ctrl_c_exits_130_with_complete_recording(tmp_path, capsys):
-    register_planner("ctrl_c", CtrlC)
+    register_planner(CtrlC, name="ctrl_c")
     log = tmp_path / "c.mcap"
     assert run_main(["--world", "0", "--planner", "ctrl_c", "--log", str(log)]) == 130
     assert "recording kept" in capsys.readouterr().err

@@ -71,13 +71,22 @@ def test_unknown_names_are_one_line_listing_what_exists(installed):
 
 
 def test_registering_at_run_time_is_seen_by_the_registry_only_here():
-    PROFILE_SETS.register("run_time_set", get_profile_set("table1"))
+    PROFILE_SETS.register(get_profile_set("table1"), name="run_time_set")
     try:
         assert get_profile_set("run_time_set") is get_profile_set("table1")
         assert PROFILE_SETS.registered_at_run_time("run_time_set")
         assert not PROFILE_SETS.registered_at_run_time("table1")
     finally:
         del PROFILE_SETS["run_time_set"]
+
+
+def test_the_older_registration_shape_still_works_and_says_the_one_way():
+    with pytest.warns(DeprecationWarning, match=r"use register\(item, name='older_set'\)"):
+        PROFILE_SETS.register("older_set", get_profile_set("table1"))
+    try:
+        assert get_profile_set("older_set") is get_profile_set("table1")
+    finally:
+        del PROFILE_SETS["older_set"]
 
 
 def test_an_installed_package_adds_a_recording_topic_and_a_command(installed, tmp_path, capsys, monkeypatch):

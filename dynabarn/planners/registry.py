@@ -48,7 +48,7 @@ PLANNERS: Registry[Callable[..., Planner]] = Registry(
 def register_planner(factory, legacy=None, *, name: str | None = None):
     """Register a planner at run time: a `Planner` subclass under its `name`
     (`register_planner(MyPlanner)`), or any factory with `name=` (the older shape,
-    `register_planner(name, factory)`, still works). Checked: `check_planner_factory`."""
+    `register_planner(name, factory)`, warns: `Registry.register`). Checked: `check_planner_factory`."""
     return PLANNERS.register(factory, legacy, name=name)
 
 
