@@ -191,6 +191,7 @@ def run_spec(
             the episode starts; returns observers that need them, which run after the others.
     """
     from dynabarn.planners import get_planner
+    from dynabarn.sim.loop import finish_planner
 
     # The configuration is checked here, once, before anything starts: one line.
     planner = get_planner(spec.planner, **dict(spec.planner_config))
@@ -198,7 +199,7 @@ def run_spec(
         with live if live is not None else contextlib.nullcontext():
             return _run_built(spec, planner, record_to, record_in, live, observers, on_built)
     except Exception:
-        _finished(planner, "error")  # what broke outside the loop (an observer, the recorder): its processes end too
+        finish_planner(planner, "error")  # what broke outside the loop (an observer, the recorder)
         raise
 
 
@@ -267,10 +268,3 @@ def _recorder(record_to: Path | None, planner: Planner, live: LiveView | None):
     if live is not None:
         live.attach(recorder)
     return recorder
-
-
-def _finished(planner: Planner, outcome: str) -> None:
-    """The planner's `finish` once more where the episode did not end through the loop
-    (which calls it): a planner's finish is safe to call twice, releasing nothing twice."""
-    with contextlib.suppress(Exception):
-        planner.finish(outcome)

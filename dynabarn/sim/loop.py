@@ -92,7 +92,7 @@ def run_episode(
     except KeyboardInterrupt:
         _end_interrupted(loop, planner)
         raise
-    _finish(planner, episode.outcome.value if episode.outcome else "error")
+    finish_planner(planner, episode.outcome.value if episode.outcome else "error")
     return loop.result()
 
 
@@ -197,7 +197,7 @@ def _end_interrupted(loop: EpisodeLoop, planner: Planner) -> None:
     with no_interrupts():
         loop.episode.end(Outcome.ERROR, INTERRUPTED)
         loop.result()
-        _finish(planner, INTERRUPTED)
+        finish_planner(planner, INTERRUPTED)
 
 
 def _planning_ms(planner: Planner, since: float) -> float:
@@ -206,7 +206,8 @@ def _planning_ms(planner: Planner, since: float) -> float:
     return (time.perf_counter() - since) * 1e3 - planner.waited_ms
 
 
-def _finish(planner: Planner, outcome: str) -> None:
-    """The planner's end-of-episode hook."""
+def finish_planner(planner: Planner, outcome: str) -> None:
+    """The planner's end-of-episode hook (the loop's, and the runner's where something
+    outside the loop broke); a planner's `finish` is safe to call twice."""
     with contextlib.suppress(Exception):  # releasing resources must not turn a judged episode into a crash
         planner.finish(outcome)
