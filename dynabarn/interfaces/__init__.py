@@ -12,7 +12,7 @@ simulator (a test imports it in a fresh interpreter).
 from dynabarn.errors import EndEpisode
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Period, Tick
 from dynabarn.interfaces.observation import EpisodeInfo, Observation, ObstacleState
-from dynabarn.interfaces.planner import CheckedConfig, Planner, config_from_kwargs, nested_config
+from dynabarn.interfaces.planner import CheckedConfig, Planner, config_from_kwargs, nested_config, recorded_config
 from dynabarn.interfaces.tracker import Tracker
 
 __all__ = [
@@ -29,4 +29,5 @@ __all__ = [
     "Tracker",
     "config_from_kwargs",
     "nested_config",
+    "recorded_config",
 ]

@@ -63,7 +63,8 @@ def recorded_config(config) -> dict:
     for f in fields(config):
         value = getattr(config, f.name)
         out[f.name] = recorded_config(value) if is_dataclass(value) else copy.deepcopy(value)
-    for switch, keys in getattr(type(config), "RECORDED_WHEN_SET", {}).items():
+    declared = type(config).RECORDED_WHEN_SET if isinstance(config, CheckedConfig) else {}
+    for switch, keys in declared.items():
         default = next(f.default for f in fields(config) if f.name == switch)
         if getattr(config, switch) == default:
             for key in keys:

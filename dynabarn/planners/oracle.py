@@ -26,9 +26,9 @@ import numpy as np
 
 from dynabarn.determinism import SCORE_RESOLUTION, hypot, sincos, snap_array
 from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, ObstacleState, Planner, config_from_kwargs
+from dynabarn.interfaces.planner import recorded_config
 from dynabarn.perception.map_distance import MapDistance, grid_indices
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.planners.tracking import recorded_config
 
 
 @dataclass

@@ -36,14 +36,14 @@ from typing import ClassVar
 import numpy as np
 
 from dynabarn.determinism import STATE_RESOLUTION, exp, hypot, sincos, snap_array
-from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, Planner, config_from_kwargs
+from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, Planner, config_from_kwargs, recorded_config
 from dynabarn.perception import TrackerConfig, Tracks
 from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners.coloured_jacobian import Colouring, residuals_and_jacobian
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.levenberg_marquardt import Evaluation, minimise
-from dynabarn.planners.tracking import recorded_config, track_moving, with_tracker
+from dynabarn.planners.tracking import track_moving, with_tracker
 
 
 @dataclass

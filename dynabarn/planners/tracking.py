@@ -10,7 +10,6 @@ import numpy as np
 
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces import Observation, Tracker, config_from_kwargs, nested_config
-from dynabarn.interfaces.planner import recorded_config  # noqa: F401 - where the planners found it
 from dynabarn.perception import DetectorConfig, TrackerConfig, Tracks
 from dynabarn.perception.shape_fit import ShapeConfig
 from dynabarn.perception.trackers import TRACKERS

@@ -31,11 +31,11 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, config_from_kwargs
+from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, config_from_kwargs, recorded_config
 from dynabarn.perception import MapScan, ObstacleTracker, TrackerConfig
 from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.planners.tracking import recorded_config, with_tracker
+from dynabarn.planners.tracking import with_tracker
 from dynabarn.robot import JACKAL
 
 TRACK_FIELDS = 6
