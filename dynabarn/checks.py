@@ -107,21 +107,24 @@ class _Probe(Planner):
         return self.inner.debug()
 
 
-def _episode(planner: Planner, world: Path, seed: int, seconds: float) -> tuple[_Probe, object]:
-    """Drive `planner` for `seconds` of trial `seed` in `world`: the probe and the result."""
+def _episode(planner: Planner, sim, seed: int, seconds: float) -> tuple[_Probe, object]:
+    """Drive `planner` for `seconds` of trial `seed` in the compiled world `sim`: the probe
+    and the result."""
     from dynabarn.protocol import get_protocol
     from dynabarn.sim import run_episode
 
     protocol = replace(get_protocol("barn"), time_limit=seconds)
     probe = _Probe(planner)
-    result = run_episode(world, probe, protocol, seed=seed, planner_name=planner.name)
+    result = run_episode(sim, probe, protocol, seed=seed, planner_name=planner.name)
     return probe, result
 
 
-def _world(world: Path | str | int | None) -> Path:
+def _world(world: Path | str | int | None):
+    """The world to drive in, compiled once for every episode of a check."""
+    from dynabarn.sim import Simulation
     from dynabarn.worldset import resolve_world
 
-    return Path(resolve_world(CHECK_WORLD if world is None else world))
+    return Simulation(resolve_world(CHECK_WORLD if world is None else world))
 
 
 def _timing(ms: list[float]) -> tuple[int, float, float]:
@@ -165,9 +168,9 @@ def check_planner(
         first = get_planner(name, **config)
     else:
         name, first = None, check_planner_type(planner)
-    world_path = _world(world)
+    sim = _world(world)
     problems: list[str] = []
-    runs = [_episode(first, world_path, seed, seconds) for seed in (*CHECK_SEEDS, CHECK_SEEDS[0])]
+    runs = [_episode(first, sim, seed, seconds) for seed in (*CHECK_SEEDS, CHECK_SEEDS[0])]
     for probe, result in runs:
         problems += _result_problems(result)
         problems += _command_problems(probe)
@@ -179,7 +182,7 @@ def check_planner(
         )
     problems += _config_problems(first, name)
     if name is not None:
-        fresh, _ = _episode(get_planner(name, **config), world_path, CHECK_SEEDS[0], seconds)
+        fresh, _ = _episode(get_planner(name, **config), sim, CHECK_SEEDS[0], seconds)
         if fresh.commands != runs[0][0].commands:
             problems.append(
                 f"two planners built alike give other commands on the same seed (first at tick "
@@ -286,8 +289,8 @@ def check_tracker(
     except TypeError as exc:
         raise DynabarnError(str(exc)) from None
     cfg = replace(cfg, kind=kind)
-    world_path = _world(world)
-    scans = [_episode(get_planner("dwa"), world_path, seed, seconds)[0] for seed in CHECK_SEEDS]
+    sim = _world(world)
+    scans = [_episode(get_planner("dwa"), sim, seed, seconds)[0] for seed in CHECK_SEEDS]
     problems: list[str] = []
     ms: list[float] = []
     first = _track(cls, cfg, scans[0], ms, problems)
@@ -299,7 +302,7 @@ def check_tracker(
             "state is kept outside the tracker made by for_episode (a class attribute, a module global)"
         )
     if not any(len(t) for t in first):
-        problems.append(f"no track in {len(first)} scans of world {world_path.stem} with moving obstacles in view")
+        problems.append(f"no track in {len(first)} scans of world {sim.world.name} with moving obstacles in view")
     calls, median, p95 = _timing(ms)
     report = CheckReport(str(kind), tuple(dict.fromkeys(problems)), calls, median, p95)
     return _finish(report, raise_on_problem)

@@ -115,10 +115,11 @@ def run_job(job: Job) -> dict:
                 "retry": True,
             }
         )
-        target = getattr(exc, "target", None)
-        if target is not None:  # what the recorder had written, in the sweep's own folder
+        if (
+            isinstance(exc, RecordingFailed) and exc.target is not None
+        ):  # what the recorder wrote, in the sweep's folder
             with contextlib.suppress(OSError):
-                staging_path(target).unlink(missing_ok=True)
+                staging_path(exc.target).unlink(missing_ok=True)
     except Exception as exc:  # foreign planner code, a broken world...: record and go on
         row.update(
             {
