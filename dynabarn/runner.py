@@ -172,6 +172,8 @@ def run_spec(
     live: LiveView | None = None,
     observers: Sequence[EpisodeObserver] = (),
     on_built: Callable[[Simulation, Planner], Sequence[EpisodeObserver] | None] | None = None,
+    planner: Planner | None = None,
+    sim: Simulation | None = None,
 ) -> EpisodeRun:
     """Build what `spec` describes (the planner with its configuration, the simulation with
     its settings, the recorder), run the episode and hand back what became of it
@@ -189,26 +191,36 @@ def run_spec(
         observers: further observers, after the recorder and the live view's.
         on_built: for viewers: called with the compiled simulation and the planner before
             the episode starts; returns observers that need them, which run after the others.
+        planner: a planner built in code rather than named in the registry (a certificate's
+            witness follower, a benchmark's probe); `spec.planner` then only names it in the
+            result, and `spec.planner_config` must be empty (the planner carries its own).
+        sim: the spec's world already compiled with the spec's settings, for a caller that
+            runs one world many times and times the episodes, not the compiles.
     """
     from dynabarn.planners import get_planner
     from dynabarn.sim.loop import finish_planner
 
+    if planner is not None and spec.planner_config:
+        raise DynabarnError(f"{spec.planner}: a planner given built takes no configuration from the spec")
+    if sim is not None and (Path(sim.world_path) != Path(spec.world) or sim.config != spec.sim_config):
+        raise DynabarnError(f"the simulation given is not the spec's ({sim.world_path}, {spec.world})")
     # The configuration is checked here, once, before anything starts: one line.
-    planner = get_planner(spec.planner, **dict(spec.planner_config))
+    planner = planner if planner is not None else get_planner(spec.planner, **dict(spec.planner_config))
     try:
         with live if live is not None else contextlib.nullcontext():
-            return _run_built(spec, planner, record_to, record_in, live, observers, on_built)
+            return _run_built(spec, planner, sim, record_to, record_in, live, observers, on_built)
     except Exception:
         finish_planner(planner, "error")  # what broke outside the loop (an observer, the recorder)
         raise
 
 
-def _run_built(spec, planner, record_to, record_in, live, observers, on_built) -> EpisodeRun:
+def _run_built(spec, planner, sim, record_to, record_in, live, observers, on_built) -> EpisodeRun:
     """`run_spec` once the planner is built and the live view open."""
     from dynabarn.recording import default_run_path
     from dynabarn.sim import run_episode
 
-    sim = Simulation(spec.world, config=spec.sim_config)
+    if sim is None:
+        sim = Simulation(spec.world, config=spec.sim_config)
     if live is not None:
         observers = [*live.observers, *observers, *live.watch(sim, planner)]
     observers = [*observers, *((on_built(sim, planner) or ()) if on_built is not None else ())]

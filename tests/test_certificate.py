@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from helpers import crafted_world, obstacle
 
+from dynabarn.bench.certify import replay_witness
 from dynabarn.mjcf import read_world
 from dynabarn.protocol import get_protocol
 from dynabarn.sim import Episode, Simulation
 from dynabarn.sim.certificate import ROBOT_RADIUS, certify
-from dynabarn.sim.witness import replay_witness
 from dynabarn.sim_config import trial_clock_offset
 from dynabarn.worldset import resolve_world
 

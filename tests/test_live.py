@@ -122,7 +122,8 @@ def test_foxglove_live_streams_the_episode_with_foxglove_schemas(tmp_path):
     tf = _decoder(by_topic["/tf"])(got["/tf"][-1][2])
     assert [t.child_frame_id for t in tf.transforms] == ["odom", "base_link", "laser"]
     # The world, sent once at the start, reached a client that subscribed after it.
-    assert len(got["/world/static"]) >= 1 and len(got["/world/metadata"]) >= 1
+    assert {"/world/static", "/world/metadata"} <= set(by_topic), sorted(by_topic)
+    assert {"/world/static", "/world/metadata"} <= set(got), sorted(got)
     result = json.loads(got["/episode/result"][-1][2])
     assert result["outcome"] == rec.result["outcome"]
     # Paced: the scans arrived spread over the episode's time divided by the rate.

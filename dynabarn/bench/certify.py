@@ -2,7 +2,7 @@
 
 For each world and each trial seed 0..trials-1 (the seeds a sweep's trials use, so each
 certificate holds for the clock offset that trial runs), `sim.certificate.certify`
-searches and `sim.witness.replay_witness` drives the witness in MuJoCo; a trial is
+searches and `replay_witness` drives the witness in MuJoCo; a trial is
 certified if both succeed. Where they do not, the exact oracle's episode of the trial is
 run: if it reaches the goal without contact, it is the witness (`by`). Each world's index entry gets, under
 `certificates.<protocol>`, the trials' answers, `certified` (every trial certified),
@@ -22,12 +22,14 @@ import statistics
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
+from dynabarn.metrics import EpisodeResult
 from dynabarn.processes import map_in_workers
 from dynabarn.protocol import EvalProtocol
-from dynabarn.sim.certificate import CertificateConfig, certify
+from dynabarn.sim.certificate import CertificateConfig, Witness, certify
 from dynabarn.sim_config import trial_clock_offset
 from dynabarn.worlds.spec import Layout, WorldSpec
 from dynabarn.worldset import (
@@ -38,6 +40,9 @@ from dynabarn.worldset import (
     own_certificates,
     read_index,
 )
+
+if TYPE_CHECKING:
+    from dynabarn.sim import Simulation
 
 ORACLE = "oracle"
 """The planner whose successful episode certifies a trial the search could not: the exact
@@ -66,11 +71,26 @@ def unobstructed_arrival(protocol: EvalProtocol, config: CertificateConfig | Non
     return cert.arrival
 
 
+def replay_witness(
+    world: Path | str | Simulation, witness: Witness, protocol: EvalProtocol, *, seed: int
+) -> tuple[EpisodeResult, float]:
+    """The episode of the witness in `world` with trial `seed`, run as every episode is
+    (`runner.run_spec`, the follower given built), and its largest tracking error [m]."""
+    from dynabarn.runner import EpisodeSpec, run_spec
+    from dynabarn.sim import Simulation
+    from dynabarn.sim.witness import WitnessFollower
+
+    sim = world if isinstance(world, Simulation) else Simulation(world)
+    follower = WitnessFollower(witness)
+    spec = EpisodeSpec.make(sim.world_path, follower.name, protocol, seed=seed, sim=sim.config)
+    result = run_spec(spec, planner=follower, sim=sim).result
+    return result, follower.largest_error
+
+
 def certify_world(job: Job) -> tuple[str, list[dict]]:
     """Every trial of one world: the search, then the witness's replay in MuJoCo."""
     from dynabarn.mjcf import read_world
     from dynabarn.sim import Simulation
-    from dynabarn.sim.witness import replay_witness
 
     protocol = EvalProtocol.from_dict(job.protocol)
     world = read_world(job.path)

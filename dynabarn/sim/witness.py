@@ -3,23 +3,18 @@ the Jackal can take.
 
 `WitnessFollower` sends the witness's command of every tick, corrected by a tracking law
 (Kanayama et al. 1990: the error to the witness's pose, in the robot's frame) for what the
-search's model leaves out. `replay_witness` runs it as an episode of the world, with the
-trial's seed (so the obstacles' clock offset is the one certified): a certificate stands
-only if that episode reaches the goal without contact.
+search's model leaves out. `bench.certify.replay_witness` runs it through the runner as an
+episode of the world, with the trial's seed (so the obstacles' clock offset is the one
+certified): a certificate stands only if that episode reaches the goal without contact.
 """
 
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 from dynabarn.interfaces.observation import EpisodeInfo, Observation
 from dynabarn.interfaces.planner import Planner
-from dynabarn.metrics import EpisodeResult
-from dynabarn.protocol import EvalProtocol
 from dynabarn.sim.certificate import Witness
-from dynabarn.sim.loop import run_episode
-from dynabarn.sim.simulation import Simulation
 
 ALONG_GAIN = 3.0
 """[1/s] Speed correction per metre of error along the heading."""
@@ -61,12 +56,3 @@ class WitnessFollower(Planner):
 
     def config(self) -> dict:
         return {"ticks": len(self.witness.commands), "arrival": self.witness.arrival}
-
-
-def replay_witness(
-    world: Path | str | Simulation, witness: Witness, protocol: EvalProtocol, *, seed: int
-) -> tuple[EpisodeResult, float]:
-    """The episode of the witness in `world` with trial `seed`, and its largest tracking error [m]."""
-    follower = WitnessFollower(witness)
-    result = run_episode(world, follower, protocol, seed=seed, planner_name="witness")
-    return result, follower.largest_error
