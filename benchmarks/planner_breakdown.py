@@ -16,9 +16,9 @@ import cProfile
 import pstats
 import sys
 
-from dynabarn.planners import get_planner, planner_spec
+from dynabarn.planners import planner_spec
 from dynabarn.protocol import get_protocol
-from dynabarn.sim import run_episode
+from dynabarn.runner import EpisodeSpec, run_spec
 from dynabarn.worldset import resolve_world
 
 WORLDS = (15, 155, 215)
@@ -39,8 +39,8 @@ def breakdown(planner: str, worlds: tuple[int, ...] = WORLDS) -> tuple[int, list
     name, config, _ = planner_spec(planner)
     profile = cProfile.Profile()
     for world in worlds:
-        p = get_planner(name, **config)
-        profile.runcall(run_episode, resolve_world(world), p, get_protocol("barn"), seed=0)
+        spec = EpisodeSpec.make(resolve_world(world), name, get_protocol("barn"), config=config, seed=0)
+        profile.runcall(run_spec, spec)
     stats = pstats.Stats(profile).stats
     acts = [f for f in stats if f[2] == "act" and "/dynabarn/planners/" in f[0]]
     calls = sum(stats[f][1] for f in acts if not any(c in acts for c in stats[f][4]))  # the outermost act

@@ -21,10 +21,9 @@ import time
 import numpy as np
 
 from dynabarn.interfaces import EpisodeObserver
-from dynabarn.planners import get_planner, planner_spec
+from dynabarn.planners import planner_spec
 from dynabarn.protocol import get_protocol
 from dynabarn.runner import EpisodeSpec, run_spec
-from dynabarn.sim import run_episode
 from dynabarn.worldset import PAPER60, resolve_world
 
 WORLDS = (0, 15, 105, 155, 205, 215)
@@ -42,8 +41,8 @@ def planner_compute(planner: str, worlds=WORLDS, **extra) -> tuple[float, float,
 
     name, config, _ = planner_spec(planner)
     for w in worlds:
-        planner_ = get_planner(name, **config, **extra)
-        run_episode(resolve_world(w), planner_, get_protocol("barn"), seed=0, observers=[Timer()])
+        spec = EpisodeSpec.make(resolve_world(w), name, get_protocol("barn"), config={**config, **extra}, seed=0)
+        run_spec(spec, observers=[Timer()])
     arr = np.array(times)
     return float(arr.mean()), float(np.percentile(arr, 95)), len(arr)
 

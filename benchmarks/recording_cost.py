@@ -16,11 +16,11 @@ from pathlib import Path
 
 from dynabarn.errors import EndEpisode
 from dynabarn.interfaces import EpisodeObserver, Planner
-from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder
 from dynabarn.recording.background import BackgroundRecorder
-from dynabarn.sim import Simulation, run_episode
+from dynabarn.runner import EpisodeSpec, run_spec
+from dynabarn.sim import Simulation
 from dynabarn.worldset import resolve_world
 
 HOOKS = ("on_start", "on_tick", "on_tick_period", "on_poses", "on_poses_period", "on_end")
@@ -49,8 +49,9 @@ def _timed(base: type) -> type:
 
 def _episode(world_id: int, observer: EpisodeObserver | None) -> float:
     sim = Simulation(resolve_world(world_id))
+    spec = EpisodeSpec.make(sim.world_path, "stop", get_protocol("barn"), seed=0)
     t0 = time.perf_counter()
-    run_episode(sim, get_planner("stop"), get_protocol("barn"), seed=0, observers=[observer] if observer else [])
+    run_spec(spec, sim=sim, observers=[observer] if observer else [])
     return time.perf_counter() - t0
 
 
@@ -97,6 +98,7 @@ def fixed_costs(world_id: int, repeat: int = 20) -> dict[str, float]:
     """Milliseconds an episode's recording costs whatever its length (one that ends at its
     first tick): none, the writer process (the default; started once before), in this process."""
     sim = Simulation(resolve_world(world_id))
+    spec = EpisodeSpec.make(sim.world_path, _EndsAtOnce.name, get_protocol("barn"), seed=0)
 
     def once(make) -> float:
         best = float("inf")
@@ -104,7 +106,7 @@ def fixed_costs(world_id: int, repeat: int = 20) -> dict[str, float]:
             for i in range(repeat):
                 t0 = time.perf_counter()
                 observers = [make(Path(tmp) / f"{i}.mcap")] if make else []
-                run_episode(sim, _EndsAtOnce(), get_protocol("barn"), seed=0, observers=observers)
+                run_spec(spec, planner=_EndsAtOnce(), sim=sim, observers=observers)
                 best = min(best, time.perf_counter() - t0)
         return 1000.0 * best
 

@@ -45,7 +45,7 @@ from dynabarn.planners.learned.policy import SHIPPED as SHIPPED_POLICIES
 from dynabarn.protocol import get_protocol
 from dynabarn.recording import McapRecorder, read_recording
 from dynabarn.runner import EpisodeSpec, run_spec
-from dynabarn.sim import Laser, Simulation, run_episode
+from dynabarn.sim import Laser, Simulation
 from dynabarn.worlds.schedule import SchedulePlayer
 from dynabarn.worldset import resolve_world
 
@@ -116,7 +116,9 @@ def tracker_cost(world_id: int = HARD_WORLD, n_scans: int = 300) -> tuple[float,
     gather = Gather()
     seed = 0
     while len(scans) < n_scans:
-        run_episode(resolve_world(world_id), gather, get_protocol("barn"), seed=seed)
+        run_spec(
+            EpisodeSpec.make(resolve_world(world_id), gather.name, get_protocol("barn"), seed=seed), planner=gather
+        )
         seed += 1
     tracker = ObstacleTracker.for_episode(TrackerConfig(), gather.info)
     times = []
@@ -132,9 +134,7 @@ def recovery_speed() -> float:
     """MB/s at which a recording is read back (100 s, ~1000 scans)."""
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "r.mcap"
-        run_episode(
-            resolve_world(HARD_WORLD), get_planner("stop"), get_protocol("barn"), observers=[McapRecorder(path)]
-        )
+        run_spec(EpisodeSpec.make(resolve_world(HARD_WORLD), "stop", get_protocol("barn")), record_to=path)
         t0 = time.perf_counter()
         read_recording(path)
         return path.stat().st_size / 1e6 / (time.perf_counter() - t0)
@@ -147,12 +147,8 @@ def replay_conversion() -> tuple[float, float]:
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "r.mcap"
-        result = run_episode(
-            resolve_world(HARD_WORLD),
-            get_planner("stop"),
-            EvalProtocol("sixty", time_limit=60.0),
-            observers=[McapRecorder(path)],
-        )
+        spec = EpisodeSpec.make(resolve_world(HARD_WORLD), "stop", EvalProtocol("sixty", time_limit=60.0))
+        result = run_spec(spec, record_to=path).result
         t0 = time.perf_counter()
         save_rrd([read_recording(path)], Path(tmp) / "r.rrd")
         return time.perf_counter() - t0, result.sim_time
@@ -166,12 +162,7 @@ def video_speed(quality: str, seconds: float = 10.0) -> tuple[float, float]:
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "r.mcap"
-        run_episode(
-            resolve_world(137),
-            get_planner("dwa"),
-            EvalProtocol("cut", time_limit=seconds),
-            observers=[McapRecorder(path)],
-        )
+        run_spec(EpisodeSpec.make(resolve_world(137), "dwa", EvalProtocol("cut", time_limit=seconds)), record_to=path)
         rec = read_recording(path)
         w0, c0 = time.perf_counter(), time.process_time()
         info = render_recording(rec, Path(tmp) / "v.mp4", quality=quality)
@@ -297,7 +288,6 @@ def ros_lockstep(world_id: int = 137, stack: str | None = None) -> tuple[float, 
     from dynabarn.protocol import get_protocol
     from dynabarn.ros.bridge import bridge_overhead
     from dynabarn.ros.nav_build import built, default_workspace
-    from dynabarn.sim import run_episode
     from dynabarn.worldset import resolve_world
 
     test_stack = Path(__file__).resolve().parent.parent / "tests" / "ros_stack.py"
@@ -309,7 +299,7 @@ def ros_lockstep(world_id: int = 137, stack: str | None = None) -> tuple[float, 
         )
     except Exception:
         return None
-    result = run_episode(resolve_world(world_id), planner, get_protocol("barn"), planner_name="ros")
+    result = run_spec(EpisodeSpec.make(resolve_world(world_id), "ros", get_protocol("barn")), planner=planner).result
     if planner.steady_since is None:
         return None
     # From the first control period after the boot: simulated over wall time, in lockstep.

@@ -33,7 +33,7 @@ from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners import get_planner
 from dynabarn.planners.tracking import with_tracker
 from dynabarn.protocol import get_protocol
-from dynabarn.sim import run_episode
+from dynabarn.runner import EpisodeSpec, run_spec
 from dynabarn.worlds.tiers import PROFILES_DIR, TIERS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -119,7 +119,9 @@ def measure(folder: Path, kind: str, n_worlds: int, pairs: list) -> dict:
     for world_id in range(200, 200 + n_worlds):
         errors = PairErrors()
         world = folder / f"world_{world_id:03d}.xml"
-        result = run_episode(world, Watching(kind), get_protocol("barn"), seed=0, observers=[errors])
+        watching = Watching(kind)
+        spec = EpisodeSpec.make(world, watching.name, get_protocol("barn"), seed=0)
+        result = run_spec(spec, planner=watching, observers=[errors]).result
         rows.append(result.tracking)
         pairs += errors.pairs
     medians = {key: float(np.median([r[key] for r in rows if r.get(key) is not None])) for key in FIELDS}

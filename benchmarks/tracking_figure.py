@@ -14,10 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from dynabarn.interfaces import EpisodeObserver
-from dynabarn.planners import get_planner
 from dynabarn.protocol import get_protocol
 from dynabarn.provenance import SHIPPED_WORLDS
-from dynabarn.sim import run_episode
+from dynabarn.runner import EpisodeSpec, run_spec
 
 ROOT = Path(__file__).resolve().parents[1]
 FIGURE = ROOT / "docs" / "assets" / "tracking.png"
@@ -54,7 +53,7 @@ def draw(path: Path = FIGURE) -> Path:
 
     snap = _Snapshot(AT)
     world = SHIPPED_WORLDS / f"world_{WORLD:03d}.xml"
-    run_episode(world, get_planner("predictive"), get_protocol("barn"), seed=SEED, observers=[snap])
+    run_spec(EpisodeSpec.make(world, "predictive", get_protocol("barn"), seed=SEED), observers=[snap])
     tick, info = snap.tick, snap.start.info
     fig = Figure(figsize=(7.2, 6.4), dpi=110)
     ax = fig.subplots()

@@ -111,12 +111,12 @@ def _episode(planner: Planner, sim, seed: int, seconds: float) -> tuple[_Probe, 
     """Drive `planner` for `seconds` of trial `seed` in the compiled world `sim`: the probe
     and the result."""
     from dynabarn.protocol import get_protocol
-    from dynabarn.sim import run_episode
+    from dynabarn.runner import EpisodeSpec, run_spec
 
     protocol = replace(get_protocol("barn"), time_limit=seconds)
     probe = _Probe(planner)
-    result = run_episode(sim, probe, protocol, seed=seed, planner_name=planner.name)
-    return probe, result
+    spec = EpisodeSpec.make(sim.world_path, planner.name, protocol, seed=seed, sim=sim.config)
+    return probe, run_spec(spec, planner=probe, sim=sim).result
 
 
 def _world(world: Path | str | int | None):

@@ -197,3 +197,39 @@ def test_the_live_view_opens_after_the_configuration_is_checked_and_always_close
     assert events == []  # a bad configuration is one line before anything opens
     run_spec(EpisodeSpec.make(resolve_world(5), "stop", BARN), live=_Live(events))
     assert events == ["open", ("watch", "world_005"), "close"]  # nothing recorded: no recorder attached
+
+
+def test_parts_given_built_run_as_the_spec_names_them():
+    """A planner made in code and a simulation compiled once go through the runner like
+    any spec: the same result as the registry's planner in a fresh simulation."""
+    from dynabarn.sim import Simulation
+
+    world = resolve_world(0)
+    spec = EpisodeSpec.make(world, "dwa", get_protocol("barn"), seed=2)
+    sim = Simulation(world)
+    given = run_spec(spec, planner=get_planner("dwa"), sim=sim).result
+    built = run_spec(spec).result
+    clocks = {k: 0 for k in MACHINE_FIELDS}  # wall-clock figures differ run to run
+    assert given.to_dict() | clocks == built.to_dict() | clocks
+    # What is given must be what the spec says: no silent second source of settings.
+    with pytest.raises(DynabarnError, match="not the spec's"):
+        run_spec(EpisodeSpec.make(resolve_world(1), "dwa", get_protocol("barn")), sim=sim)
+    with pytest.raises(DynabarnError, match="takes no configuration"):
+        configured = EpisodeSpec.make(world, "dwa", get_protocol("barn"), config={"max_speed": 1.0})
+        run_spec(configured, planner=get_planner("dwa"))
+
+
+def test_only_the_runner_drives_the_loop():
+    """Commands, certificates, the checker and the benchmark scripts run episodes through
+    `run_spec`; `sim.run_episode` is the runner's loop (and the tests')."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    callers = sorted(
+        str(f.relative_to(root))
+        for folder in ("dynabarn", "benchmarks", "examples")
+        for f in (root / folder).rglob("*.py")
+        if re.search(r"(?<!\w)run_episode\(", f.read_text())  # not _run_episode(
+    )
+    assert callers == ["dynabarn/runner.py", "dynabarn/sim/loop.py"], callers
