@@ -179,6 +179,7 @@ def _bridge_config(args: argparse.Namespace, workspace: Path | None, stack_log: 
         "nav_workspace": str(workspace) if workspace else None,
         "stack_log": str(stack_log) if stack_log else None,
         "master": args.master,
+        "announce": True,
     }
 
 
@@ -222,19 +223,11 @@ def _ros_episode(args: argparse.Namespace) -> int:
         stack_log.parent.mkdir(parents=True, exist_ok=True)
     config = _bridge_config(args, workspace, stack_log)
 
-    def announce(sim, planner) -> None:
-        """The bridge is built (its master up): say where, before the stack starts."""
-        mode = "lockstep" if planner.cfg.lockstep else f"paced at {planner.cfg.rate:g}x"
-        print(
-            f"ROS master {planner.master.uri}; {mode}" + (f"; stack output: {stack_log}" if stack_log else ""),
-            file=sys.stderr,
-        )
-
     # The `ros` planner of the registry (`ros.bridge.ros_planner`): a bad setting (an
     # unbalanced quote in --launch) is one line before a master starts. The runner ends the
     # stack, the node and the master (the planner's `finish`) whatever happens.
     spec = EpisodeSpec.make(world_path, "ros", protocol, config=config, seed=args.seed)
-    run = run_spec(spec, record_to=log_path, on_built=announce)
+    run = run_spec(spec, record_to=log_path)
     result, report = run.result, run.planner_report
     overhead, held = report["bridge_ms_per_tick"], report["held_periods"]
     extra = {**report, "stack_log": str(stack_log) if stack_log else None}

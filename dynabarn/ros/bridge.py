@@ -125,6 +125,9 @@ class BridgeConfig(CheckedConfig):
     ~/.cache/dynabarn/ros_nav)."""
     stack_log: str | None = None
     """File for the stack's output (default: this process's stderr; never its stdout)."""
+    announce: bool = False
+    """Say on stderr, as the episode starts, where the master is and where the stack's
+    output goes (`dynabarn-ros`: a user who wants to `rostopic echo` the run needs it)."""
 
     def __post_init__(self) -> None:
         if self.ready not in READY_WHEN:
@@ -222,6 +225,10 @@ class RosPlanner(Planner):
             launch = stack_command(c.stack, Path(c.nav_workspace) if c.nav_workspace else None)
             rate = rate or STACKS[c.stack].control_rate
         cmd += ["--stack-rate", repr(float(rate))]
+        if c.announce:  # the master is up; the stack is about to start
+            mode = "lockstep" if c.lockstep else f"paced at {c.rate:g}x"
+            where = f"; stack output: {c.stack_log}" if c.stack_log and launch else ""
+            print(f"ROS master {self.master.uri}; {mode}{where}", file=sys.stderr, flush=True)
         self.node = subprocess.Popen(
             cmd,
             env=env,

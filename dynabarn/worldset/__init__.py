@@ -359,10 +359,10 @@ def set_folder(name: str) -> tuple[Path, list[int] | None]:
     p = Path(name)
     index_dir = p.parent if p.name == INDEX_NAME else p
     if not (index_dir / INDEX_NAME).is_file():
-        raise WorldError(
-            f"unknown world set {name!r}: use paper60, dynabarn300, a tier ({', '.join(TIERS)}), "
-            "or a folder with index.json"
-        )
+        from dynabarn.errors import unknown_choice
+
+        named = ["paper60", "dynabarn300", *TIERS]
+        raise WorldError(f"{unknown_choice('world set', name, named)}, or a folder with {INDEX_NAME}")
     return index_dir, None
 
 
