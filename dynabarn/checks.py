@@ -263,16 +263,16 @@ def check_tracker(
     a new episode remembering nothing of the last, with the time per `update`.
 
     Args:
-        tracker: a tracker kind (`TrackerConfig.kind`: registered or installed), or a
-            tracker class (`for_episode(cfg, info)`, `update(time, scan, pose) -> Tracks`).
-        config: `TrackerConfig` fields besides `kind` (default: its defaults).
+        tracker: a tracker kind (`tracker.kind`: registered or installed), or a tracker
+            class (`for_episode(cfg, info)`, `update(time, scan, pose) -> Tracks`).
+        config: fields of the tracker's own `Config` besides `kind` (default: its defaults).
         world: the world to drive in (an id, a name or a file; default: world 137).
         seconds: simulated seconds per checking episode.
         raise_on_problem: raise `CheckFailed` listing every problem (default), else return
             the report with them.
     """
     from dynabarn.interfaces.planner import config_from_kwargs
-    from dynabarn.perception import TrackerConfig
+    from dynabarn.interfaces.tracker import DEFAULT_TRACKER
     from dynabarn.perception.trackers import TRACKERS
     from dynabarn.planners import get_planner
 
@@ -284,8 +284,8 @@ def check_tracker(
             TRACKERS.check(cls)  # the registry's contract, as registering it would apply
         except TypeError as exc:
             raise CheckFailed(f"{kind}: {exc}") from None
-    try:
-        cfg = config_from_kwargs(TrackerConfig, {**(config or {}), "kind": "kalman"}, "tracker")
+    try:  # the tracker's own configuration (`Tracker.Config`), its kind the name it is checked as
+        cfg = config_from_kwargs(cls.Config, {**(config or {}), "kind": DEFAULT_TRACKER}, "tracker")
     except TypeError as exc:
         raise DynabarnError(str(exc)) from None
     cfg = replace(cfg, kind=kind)

@@ -64,7 +64,7 @@ class Scene:
         return np.round(np.minimum(ranges, 30.0), 3)
 
     def tracker(self, kind: type = ShapeTracker) -> ObstacleTracker:
-        cfg = TrackerConfig(kind="shaped")
+        cfg = kind.Config(kind=kind.name)  # each tracker's own configuration
         detector = ObstacleDetector(
             cfg.detector,
             walls=np.zeros((0, 4)),
@@ -90,6 +90,27 @@ def _heading_error(estimate: float, truth: float) -> float:
 def test_the_shaped_tracker_is_registered_and_the_circle_tracker_stays_the_default():
     assert TRACKERS.get_item("shaped") is ShapeTracker
     assert TrackerConfig().kind == "kalman"
+
+
+def test_each_tracker_takes_its_own_settings_and_records_them_as_before():
+    """`tracker.*` keys are checked against the `Config` of the kind they name: the
+    outlines' settings are the shaped tracker's, refused for the circle tracker; what is
+    recorded is what was recorded before the split (the golden set's bytes)."""
+    from dynabarn.interfaces import recorded_config
+    from dynabarn.perception.shaped_tracker import ShapeTrackerConfig
+    from dynabarn.planners.tracking import with_tracker
+
+    shaped = with_tracker({"tracker.kind": "shaped", "tracker.shape.extent_sigmas": 2.0}, "p")["tracker"]
+    assert type(shaped) is ShapeTrackerConfig and shaped.shape.extent_sigmas == 2.0
+    with pytest.raises(TypeError, match=r"unknown p tracker parameter.*shape"):
+        with_tracker({"tracker.shape.extent_sigmas": 2.0}, "p")
+    kalman = with_tracker({"tracker.gate": 0.5}, "p")["tracker"]
+    assert type(kalman) is TrackerConfig
+    assert list(recorded_config(kalman)) == [
+        "accel_std", "measurement_std", "birth_speed_std", "gate", "max_coast", "max_unseen_in_view", "detector",
+    ]  # fmt: skip
+    keys = list(recorded_config(shaped))
+    assert keys[0] == "kind" and keys[-1] == "shape"
 
 
 def test_a_box_seen_at_a_corner_gives_its_centre_extent_and_heading():

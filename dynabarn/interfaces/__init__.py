@@ -13,9 +13,10 @@ from dynabarn.errors import EndEpisode
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Period, Tick
 from dynabarn.interfaces.observation import EpisodeInfo, Observation, ObstacleState
 from dynabarn.interfaces.planner import CheckedConfig, Planner, config_from_kwargs, nested_config, recorded_config
-from dynabarn.interfaces.tracker import Tracker
+from dynabarn.interfaces.tracker import BaseTrackerConfig, Tracker
 
 __all__ = [
+    "BaseTrackerConfig",
     "CheckedConfig",
     "EndEpisode",
     "EpisodeInfo",

@@ -33,7 +33,7 @@ on `STATE_RESOLUTION`'s grid, so the same scans give the same tracks on every CP
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -131,6 +131,16 @@ class _Segments:
                    det.centres, det.residuals, det.sizes, det.n_points)  # fmt: skip
 
 
+@dataclass
+class ShapeTrackerConfig(TrackerConfig):
+    """The `shaped` tracker's configuration: the Kalman tracker's, and the outlines' (`shape`)."""
+
+    shape: ShapeConfig = field(default_factory=ShapeConfig)
+    """Outlines: how boxes, capsules and cylinders are fitted and kept."""
+
+    RECORDED_WHEN_SET: ClassVar[dict[str, tuple[str, ...]]] = {"kind": ("kind", "shape")}
+
+
 class ShapeTracker(ObstacleTracker):
     """Tracks boxes, capsules and cylinders from scans and odometry (world frame).
 
@@ -140,12 +150,13 @@ class ShapeTracker(ObstacleTracker):
     """
 
     name = "shaped"
+    Config = ShapeTrackerConfig
 
     PER_TRACK: ClassVar[tuple[str, ...]] = (
         *ObstacleTracker.PER_TRACK, "heading", "heading_known", "seen_half", "visible_half", "roundness",
     )  # fmt: skip
 
-    def __init__(self, cfg: TrackerConfig, detector: ObstacleDetector) -> None:
+    def __init__(self, cfg: ShapeTrackerConfig, detector: ObstacleDetector) -> None:
         super().__init__(cfg, detector)
         self.heading = np.zeros(0)
         self.heading_known = np.zeros(0, dtype=bool)
@@ -347,11 +358,12 @@ class ShapeTracker(ObstacleTracker):
             **{
                 name: getattr(base, name)
                 for name in Tracks.__slots__
-                if name not in ("headings", "half_sizes", "half_size_std")
+                if name not in ("headings", "half_sizes", "half_size_std", "extent_sigmas")
             },
             headings=self.heading.copy(),
             half_sizes=self.half_sizes(),
             half_size_std=self.half_size_std(),
+            extent_sigmas=self.cfg.shape.extent_sigmas,
         )
 
     def half_size_std(self) -> np.ndarray:

@@ -34,10 +34,8 @@ from scipy.optimize import linear_sum_assignment
 
 from dynabarn.determinism import STATE_RESOLUTION, snap_array
 from dynabarn.interfaces.observation import EpisodeInfo
-from dynabarn.interfaces.planner import CheckedConfig
-from dynabarn.interfaces.tracker import Tracker
+from dynabarn.interfaces.tracker import BaseTrackerConfig, Tracker
 from dynabarn.perception.detect import Detections, DetectorConfig, ObstacleDetector
-from dynabarn.perception.shape_fit import ShapeConfig
 from dynabarn.perception.tracks import Tracks
 
 NO_MATCH = 1e6
@@ -45,12 +43,13 @@ NO_MATCH = 1e6
 
 
 @dataclass
-class TrackerConfig(CheckedConfig):
-    kind: str = "kalman"
-    """Which tracker (`perception.trackers.TRACKERS`): `kalman`, this module's (circles of
-    the known radius); `shaped` (`shaped_tracker`: outlines of boxes, capsules and
-    cylinders); or one registered or installed under `dynabarn.trackers`. Recorded with a
-    planner's configuration only where it is not `kalman` (`RECORDED_WHEN_SET`)."""
+class TrackerConfig(BaseTrackerConfig):
+    """The `kalman` tracker's configuration (`ObstacleTracker`), after `kind` (which tracker:
+    `kalman`, this module's circles of the known radius; `shaped`, `shaped_tracker`'s
+    outlines, whose `ShapeTrackerConfig` adds `shape`; or one registered or installed under
+    `dynabarn.trackers`; recorded with a planner's configuration only where it is not
+    `kalman`)."""
+
     accel_std: float = 2.0
     """White-noise acceleration of the motion model [m/s^2] (the paper's obstacles change
     speed and turn along polynomial paths)."""
@@ -65,10 +64,7 @@ class TrackerConfig(CheckedConfig):
     max_unseen_in_view: float = 0.3
     """Seconds a track is kept while the laser sees through its place."""
     detector: DetectorConfig = field(default_factory=DetectorConfig)
-    shape: ShapeConfig = field(default_factory=ShapeConfig)
-    """Outlines (the `shaped` tracker's; `kalman` fits circles and leaves these unused)."""
 
-    RECORDED_WHEN_SET: ClassVar[dict[str, tuple[str, ...]]] = {"kind": ("kind", "shape")}  # `shape`: `shaped`'s
     LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
         "accel_std": (0.0, 100.0),
         "measurement_std": (1e-4, 5.0),
@@ -86,6 +82,8 @@ class ObstacleTracker(Tracker):
         cfg: the tracker's parameters (its detector's parameters are `detector.cfg`).
         detector: the episode's detector (its known map and laser).
     """
+
+    Config = TrackerConfig
 
     PER_TRACK: ClassVar[tuple[str, ...]] = (
         "ids", "x", "v", "p_xx", "p_xv", "p_vv", "size", "born", "seen", "unseen_in_view",

@@ -47,6 +47,10 @@ class Tracks:
     headings: np.ndarray | None = None
     half_sizes: np.ndarray | None = None
     half_size_std: np.ndarray | None = None
+    extent_sigmas: float = 1.0
+    """Standard deviations of its half sizes each outline is grown by when a planner covers
+    it with circles (`covering_circles`): the tracker's setting (`shape.extent_sigmas`), so
+    that a planner reads no tracker's configuration."""
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -80,10 +84,11 @@ class Tracks:
         var = self.position_var + 2.0 * dt * self.position_velocity_cov + dt * dt * self.velocity_var
         return np.sqrt(np.maximum(var, 0.0)).max(axis=-1)
 
-    def covering_circles(self, extent_sigmas: float = 1.0) -> Tracks:
+    def covering_circles(self, extent_sigmas: float | None = None) -> Tracks:
         """These tracks with every outline replaced by circles that cover it (each circle a
         track of its own: the same identity, velocity and uncertainty, its centre offset
         along the outline's long axis); tracks without outlines unchanged (this object).
+        `extent_sigmas`: the tracker's (`self.extent_sigmas`) unless given.
 
         An outline of half sizes L >= S (grown by `extent_sigmas` standard deviations of
         each) gets c = 1 + ceil(2 (L - S) / (1.5 S)) circles of radius sqrt(S^2 + (d/2)^2),
@@ -93,6 +98,7 @@ class Tracks:
         """
         if self.half_sizes is None or not len(self):
             return self
+        extent_sigmas = self.extent_sigmas if extent_sigmas is None else extent_sigmas
         half = self.half_sizes + extent_sigmas * (0.0 if self.half_size_std is None else self.half_size_std)
         along = half[:, 0] >= half[:, 1]
         long_, short = np.where(along, half[:, 0], half[:, 1]), np.maximum(np.minimum(half[:, 0], half[:, 1]), 1e-3)

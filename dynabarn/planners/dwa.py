@@ -276,7 +276,7 @@ class DWAPlanner(Planner):
     def _moving_clearance(self, xy: np.ndarray, now: float, times: np.ndarray) -> np.ndarray:
         """Smallest distance (N,) of each rollout (N, K, 2) from the tracks' surfaces, each
         track at constant velocity at the rollout point's time (`times` from now)."""
-        tracks = self._tracks.covering_circles(self.cfg.tracker.shape.extent_sigmas)  # outlines as circles
+        tracks = self._tracks.covering_circles()  # outlines as circles
         future = tracks.predict(now + times)  # (K, n, 2)
         ex = xy[:, :, None, 0] - future[None, :, :, 0]
         ey = xy[:, :, None, 1] - future[None, :, :, 1]

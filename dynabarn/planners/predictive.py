@@ -88,7 +88,7 @@ class PredictivePlanner(OraclePlanner):
     def obstacle_future(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
         self._tracks = self.tracker.update(obs.time, obs.scan, obs.pose)
         c = self.cfg
-        tracks = self._tracks.covering_circles(c.tracker.shape.extent_sigmas)  # outlines as circles
+        tracks = self._tracks.covering_circles()  # outlines as circles
         times = obs.time + self._steps
         padding = np.minimum(c.max_padding, c.uncertainty_sigmas * tracks.position_std(times))  # (K, n)
         future, radii = tracks.predict(times), tracks.sizes[None, :] + padding

@@ -344,7 +344,7 @@ class TEBPlanner(Planner):
             # The moving obstacles are the tracker's: the costmap (and with it the replanning
             # around blocked stretches of the plan) sees only what stands still.
             self._tracks, moving_beams, scan = track_moving(self.tracker, obs, info.laser_range[1])
-            moving = self._tracks.covering_circles(cfg.tracker.shape.extent_sigmas)  # outlines as circles
+            moving = self._tracks.covering_circles()  # outlines as circles
         self.costmap.update(start, scan, info.laser_angles, info.laser_offset, info.laser_range[1])
         path = self.global_planner.plan_around(start[0], start[1], self.costmap, block_radius=cfg.min_obstacle_dist)
         rerouted = len(path) != len(self.global_planner.plan(start[0], start[1]))
