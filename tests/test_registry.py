@@ -213,6 +213,12 @@ def test_the_tracker_a_planner_uses_is_chosen_by_its_configuration():
             get_planner("predictive", **{"tracker.kind": "nope"})
         with pytest.raises(DynabarnError, match=r"not a subclass of dynabarn\.interfaces\.tracker\.Tracker"):
             TRACKERS.register(dict, name="not_a_tracker")
+
+        class Unconfigured(ObstacleTracker):
+            Config = dict  # not a tracker configuration
+
+        with pytest.raises(DynabarnError, match="is not a dataclass subclassing BaseTrackerConfig"):
+            TRACKERS.register(Unconfigured, name="unconfigured")
     finally:
         TRACKERS.pop("counting", None)
 
