@@ -71,6 +71,7 @@ GROUPS = {
     "dynabarn.commands": "hello = dynabarn_ext:hello_main",
     "dynabarn.importers": "ext-json = dynabarn_ext:IMPORTER",
     "dynabarn.trackers": "ext_tracker = dynabarn_ext:QuietTracker",
+    "dynabarn.presets": "ext_preset = dynabarn_ext:PRESET",
 }
 """The entry points of the package `install_extension` installs: one of each kind."""
 
@@ -78,7 +79,8 @@ GROUPS = {
 def install_extension(folder: Path) -> Path:
     """A real distribution, `dynabarn-ext`, outside this package in `folder` (put it on
     sys.path, or PYTHONPATH for a child process): one planner, behaviour, protocol, profile
-    set, recording topic, command and world import format under their entry-point groups."""
+    set, recording topic, command, world import format, tracker and planner preset under
+    their entry-point groups."""
     tmp_path = folder
     folder.mkdir(parents=True, exist_ok=True)
     (tmp_path / "dynabarn_ext.py").write_text(
@@ -133,9 +135,14 @@ def install_extension(folder: Path) -> Path:
                 def update(self, time, scan, pose):
                     QuietTracker.scans += 1
                     return super().update(time, scan, pose)
+
+            from pathlib import Path
+            from dynabarn.planners.presets import Preset
+            PRESET = Preset("ext_preset", Path(__file__).with_name("ext_preset.json"))
             """
         )
     )
+    (tmp_path / "ext_preset.json").write_text('{"_source": "a package of its own", "max_vel_x": 0.7}')
     dist = tmp_path / "dynabarn_ext-0.1.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: dynabarn-ext\nVersion: 0.1\n")

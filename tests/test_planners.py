@@ -121,7 +121,7 @@ def test_authors_presets_carry_a_source_for_every_parameter():
     """The authors' configurations: every value translated with where it comes from, and a
     preset may extend another (one place for each published value)."""
     from dynabarn.planners import read_planner_config
-    from dynabarn.planners.registry import PRESETS_DIR
+    from dynabarn.planners.presets import PRESETS_DIR
 
     teb = json.loads((PRESETS_DIR / "teb_ros_defaults.json").read_text())
     params = {k for k in teb if not k.startswith("_")}
@@ -149,7 +149,7 @@ def test_preset_extension_is_checked(tmp_path):
 
     bad = tmp_path / "bad.json"
     bad.write_text('{"_extends": "no_such_preset", "max_vel_x": 1.0}')
-    with pytest.raises(DynabarnError, match="_extends must name a shipped preset"):
+    with pytest.raises(DynabarnError, match="_extends must name a preset"):
         read_planner_config(str(bad))
 
 

@@ -8,7 +8,7 @@ import sys
 import pytest
 
 from dynabarn.errors import DynabarnError, ProfileError, WorldError
-from dynabarn.planners.registry import PLANNERS, available_planners, get_planner
+from dynabarn.planners.registry import PLANNERS, available_planners, get_planner, planner_spec
 from dynabarn.protocol import PROTOCOLS, get_protocol
 from dynabarn.registry import Registry
 from dynabarn.sim.behaviors import BEHAVIORS, get_behavior
@@ -29,8 +29,10 @@ def test_every_named_kind_is_one_registry():
     for registry in (PLANNERS, BEHAVIORS, PROTOCOLS, PROFILE_SETS, SHAPE_MIXES, STATIC_FIELDS, IMPORTERS):
         assert isinstance(registry, Registry) and registry.builtin <= set(registry.names())
     from dynabarn.perception.trackers import TRACKERS
+    from dynabarn.planners.presets import PRESETS
 
     groups = {PLANNERS.group, BEHAVIORS.group, PROTOCOLS.group, PROFILE_SETS.group, IMPORTERS.group, TRACKERS.group}
+    groups |= {PRESETS.group}
     assert groups | {
         "dynabarn.topics",
         "dynabarn.commands",
@@ -45,6 +47,26 @@ def test_an_installed_package_adds_one_of_each_kind(installed):
     assert get_profile_set("ext_profiles").name == "ext_profiles"
     with pytest.raises(ProfileError, match=r"'broken' failed to load from dynabarn_ext_missing:NOTHING"):
         get_profile_set("broken")
+    name, config, label = planner_spec("dwa@ext_preset")  # a preset of another package, by name
+    assert (name, config, label) == ("dwa", {"max_vel_x": 0.7}, "dwa@ext_preset")
+
+
+def test_a_preset_registered_at_run_time_is_used_by_name_and_a_bad_one_refused(tmp_path):
+    from dynabarn.planners.presets import PRESETS, Preset
+
+    path = tmp_path / "slow.json"
+    path.write_text('{"_extends": "dwa_dynabarn_authors", "max_vel_x": 0.5}')
+    PRESETS.register(Preset("slow_authors", path))
+    try:
+        name, config, _ = planner_spec("dwa@slow_authors")
+        assert config["max_vel_x"] == 0.5 and config["vth_samples"] == 40  # the rest from what it extends
+        assert get_planner(name, **config).config()["max_vel_x"] == 0.5
+        with pytest.raises(DynabarnError, match=r"is not a \.json file"):
+            PRESETS.register(Preset("missing", tmp_path / "missing.json"))
+        with pytest.raises(DynabarnError, match=r"unknown planner preset 'slow_author'; did you mean 'slow_authors'"):
+            planner_spec("dwa@slow_author")
+    finally:
+        PRESETS.pop("slow_authors", None)
 
 
 def test_an_installed_import_format_is_offered_and_imports(installed, tmp_path, capsys):

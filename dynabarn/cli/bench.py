@@ -45,7 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--planner",
         default="dwa",
-        help="planner(s), comma separated, e.g. dwa,teb; NAME@PRESET runs a shipped preset as its own row "
+        help="planner(s), comma separated, e.g. dwa,teb; NAME@PRESET runs a named preset as its own row "
         "(dwa@dwa_dynabarn_authors, teb@teb_ros_defaults); MODULE:CLASS or FILE.py:CLASS runs a planner from its "
         "code, unpackaged (rows record the module, or the file's name and sha256); with --verify, the planners from "
         "code that the rows name (--verify never loads code a row names)",
@@ -59,7 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--planner-config",
         default=None,
-        help="parameters for every planner: key=value[,...], a .json file, or a shipped preset "
+        help="parameters for every planner: key=value[,...], a .json file, or a named preset "
         + f"({', '.join(planner_presets())}; each file in dynabarn/planners/presets/ says its source); with "
         "--verify, KEY=VALUE for the other options a row may not supply (e.g. nav_workspace, stack_log, master)",
     )

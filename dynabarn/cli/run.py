@@ -39,13 +39,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--planner",
         default="straight",
-        help="planner name, NAME@PRESET for a shipped preset, or a planner from its code, unpackaged: MODULE:CLASS "
+        help="planner name, NAME@PRESET for a named preset (shipped or installed), or a planner from its "
+        "code, unpackaged: MODULE:CLASS "
         f"(the current folder is searched too) or FILE.py:CLASS; available: {', '.join(available_planners())}",
     )
     parser.add_argument(
         "--planner-config",
         default=None,
-        help="planner parameters: key=value[,key=value], a .json file, or a shipped preset "
+        help="planner parameters: key=value[,key=value], a .json file, or a named preset "
         + f"({', '.join(planner_presets())}; each file in dynabarn/planners/presets/ says its source)",
     )
     parser.add_argument(

@@ -7,13 +7,8 @@ point (docs/tutorials/planner.md)."""
 from dynabarn.errors import EndEpisode
 from dynabarn.interfaces import EpisodeInfo, Observation, ObstacleState, Planner
 from dynabarn.planners.from_code import planner_spec
-from dynabarn.planners.registry import (
-    available_planners,
-    get_planner,
-    planner_presets,
-    read_planner_config,
-    register_planner,
-)
+from dynabarn.planners.presets import planner_presets, read_planner_config
+from dynabarn.planners.registry import available_planners, get_planner, register_planner
 
 __all__ = [
     "EndEpisode",

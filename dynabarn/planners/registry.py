@@ -9,7 +9,6 @@ own package without touching this one:
 from __future__ import annotations
 
 from collections.abc import Callable
-from pathlib import Path
 
 from dynabarn.errors import DynabarnError, unknown_choice
 from dynabarn.interfaces import Planner
@@ -18,6 +17,7 @@ from dynabarn.planners.dwa import DWAPlanner
 from dynabarn.planners.learned import BCPlanner, DaggerPlanner, TD3Planner
 from dynabarn.planners.oracle import OraclePlanner, PresentStateOraclePlanner
 from dynabarn.planners.predictive import PredictivePlanner
+from dynabarn.planners.presets import planner_presets, read_planner_config
 from dynabarn.planners.simple import StopPlanner, StraightPlanner
 from dynabarn.planners.teb import TEBPlanner
 from dynabarn.planners.trajectory_planner import TrajectoryPlanner
@@ -99,44 +99,8 @@ def get_planner(name: str, /, factory: Callable[..., Planner] | None = None, **c
     return check_planner(planner, f"what planner {name!r}'s factory built")
 
 
-PRESETS_DIR = Path(__file__).resolve().parent / "presets"
-"""Named planner configurations shipped with the package (`--planner-config NAME`)."""
-
-
-def planner_presets() -> list[str]:
-    """Names of the shipped planner configurations, e.g. `dwa_barn_challenge`."""
-    return sorted(p.stem for p in PRESETS_DIR.glob("*.json"))
-
-
-def read_planner_config(text: str, _seen: tuple[str, ...] = ()) -> dict:
-    """A shipped preset by name, or a planner configuration .json file: the parameters.
-    Keys starting with "_" are notes and left out ("_source": where the values come from,
-    "_sources": one source per parameter), except "_extends": the name of a shipped preset
-    whose parameters this one starts from (one place for each published value)."""
-    import json
-
-    path = PRESETS_DIR / f"{text}.json" if text in planner_presets() else Path(text)
-    if not path.is_file():
-        raise DynabarnError(f"planner config file not found: {path}")
-    try:
-        cfg = json.loads(path.read_text())
-    except (ValueError, RecursionError) as exc:  # JSON and UTF-8 errors, numbers of thousands of digits
-        raise DynabarnError(f"{path}: planner config is not valid JSON ({exc})") from None
-    if not isinstance(cfg, dict):
-        raise DynabarnError(f"{path}: planner config must be a JSON object")
-    base: dict = {}
-    parent = cfg.get("_extends")
-    if parent is not None:
-        if not isinstance(parent, str) or parent not in planner_presets():
-            raise DynabarnError(f"{path}: _extends must name a shipped preset ({', '.join(planner_presets())})")
-        if parent in _seen:
-            raise DynabarnError(f"{path}: presets extend each other in a circle ({' -> '.join((*_seen, parent))})")
-        base = read_planner_config(parent, (*_seen, parent))
-    return base | {k: v for k, v in cfg.items() if not k.startswith("_")}
-
-
 def planner_spec(spec: str) -> tuple[str, dict, str]:
-    """`NAME` or `NAME@PRESET` (a shipped preset, e.g. `dwa@dwa_dynabarn_authors`) ->
+    """`NAME` or `NAME@PRESET` (a named preset, `planners.presets.PRESETS`, e.g. `dwa@dwa_dynabarn_authors`) ->
     (registry name, the preset's parameters, the label results carry). A planner named by its
     code is loaded first: `from_code.planner_spec`, what the commands call."""
     name, sep, preset = spec.strip().partition("@")
