@@ -179,3 +179,9 @@ def assert_urls_stay_inside(page: str) -> None:
     for recording in report_data(page)["recordings"]:
         assert recording["href"].startswith("./") and ":" not in recording["href"].split("/", 1)[0], recording
         assert recording["still"] is None or recording["still"].startswith("data:image/png;base64,")
+
+
+def goal_distance_message(tick) -> dict:
+    """A topic's `per_tick` registered at run time by the tests: at a module's top level, so
+    the recording's writer process imports it (`recording.topic_registry`)."""
+    return {"distance": round(float(tick.distance_to_goal), 6)}

@@ -185,13 +185,38 @@ def test_every_kind_registers_the_same_way_and_keeps_its_contract():
             registry.pop(name, None)
 
 
-def test_a_topic_is_added_by_installing_it_not_at_run_time():
-    from dynabarn.recording.topics import TOPIC_REGISTRY, Topic
+def test_a_topic_registered_at_run_time_is_recorded_by_the_writer_process_too(tmp_path):
+    """`TOPIC_REGISTRY.register(topic)` as every kind registers: recorded by the default
+    recorder (its writer process is handed the topic by reference) and by one in this
+    process, the same bytes; a per_tick the writer could not import is refused in one line."""
+    from dynabarn.recording import McapRecorder, message_digest, read_recording
+    from dynabarn.recording.topic_registry import TOPIC_REGISTRY
+    from dynabarn.recording.topics import Topic, recorded_topics
+    from dynabarn.runner import EpisodeSpec, run_spec
+    from dynabarn.worldset import resolve_world
+    from tests.helpers import goal_distance_message
 
-    topic = Topic("/robot/odd", "x.Odd", "10 Hz", "odd", json_schema={}, per_tick=lambda tick: {})
-    with pytest.raises(DynabarnError, match=r"installing it under the entry-point group dynabarn.topics"):
-        TOPIC_REGISTRY.register(topic)
-    assert TOPIC_REGISTRY.group == "dynabarn.topics" and "/robot/odd" not in TOPIC_REGISTRY
+    schema = {"type": "object", "properties": {"distance": {"type": "number"}}}
+    topic = Topic("/robot/goal_distance", "x.GoalDistance", "10 Hz", "distance to the goal [m]",
+                  json_schema=schema, per_tick=goal_distance_message, plots=("distance",))  # fmt: skip
+    TOPIC_REGISTRY.register(topic)
+    try:
+        assert recorded_topics()[-1] is topic and TOPIC_REGISTRY.registered_at_run_time(topic.name)
+        spec = EpisodeSpec.make(resolve_world(5), "straight", get_protocol("barn"))
+        run_spec(spec, record_to=tmp_path / "writer.mcap")  # the default: a writer process
+        run_spec(spec, observers=[McapRecorder(tmp_path / "here.mcap")])  # this process
+        distances = read_recording(tmp_path / "writer.mcap").topic(topic.name)
+        assert len(distances) > 10 and distances[0][1]["distance"] > distances[-1][1]["distance"]
+        assert message_digest(tmp_path / "writer.mcap") == message_digest(tmp_path / "here.mcap")
+        with pytest.raises(DynabarnError, match="is already recorded"):
+            TOPIC_REGISTRY.register(topic)
+        odd = Topic("/robot/odd", "x.Odd", "10 Hz", "odd", json_schema={}, per_tick=lambda tick: {})
+        with pytest.raises(DynabarnError, match=r"/robot/odd: its per_tick cannot be handed to the recording's writer"):
+            TOPIC_REGISTRY.register(odd)
+        assert "/robot/odd" not in TOPIC_REGISTRY and TOPIC_REGISTRY.group == "dynabarn.topics"
+    finally:
+        TOPIC_REGISTRY.pop(topic.name, None)
+    assert topic not in recorded_topics()
 
 
 def test_the_loop_refuses_what_is_not_a_planner():

@@ -39,6 +39,7 @@ from dynabarn.files import SyncAhead, claim_staging, release
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, Period, Tick
 from dynabarn.metrics import EpisodeResult
 from dynabarn.recording.tick_rows import TickRows
+from dynabarn.recording.topic_registry import run_time_topics
 from dynabarn.recording.writer import McapRecorder, staging_path
 
 _NO_STEPS = np.zeros(0, dtype=np.int64)
@@ -187,6 +188,9 @@ class BackgroundRecorder(EpisodeObserver):
             # This process's sys.path now: the topics installed by packages added since the
             # writer started are recorded too (the table is read per sys.path).
             options = dict(self._options, claim=False)  # this process holds the claim
+            # The topics registered in this process, by reference, where this process would
+            # write them: after the installed ones, before any the planner adds.
+            options["extra_channels"] = (*run_time_topics(), *options.get("extra_channels", ()))
             self._writer.send(("start", str(self.path), options, start, list(sys.path)))
         except OSError:  # no writer process here (an interpreter that cannot start one): this one records
             self._writer, self._inline = None, self._check

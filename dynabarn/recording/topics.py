@@ -10,7 +10,6 @@ function (return None to skip a tick); docs/architecture.md, "Extending", walks 
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -30,7 +29,6 @@ from dynabarn.recording.schemas import (
     obj,
     result_schema,
 )
-from dynabarn.registry import Registry
 
 DEBUG_RESOLUTION = 1e-4
 """[m] Planner debug geometry is recorded on this grid: DWA's and the oracle's rollouts use
@@ -320,59 +318,12 @@ def tick_messages(topics: Sequence[Topic], tick: Tick) -> tuple[list[tuple[Topic
     return messages, None
 
 
-TOPICS_GROUP = "dynabarn.topics"
-"""Entry-point group under which other packages add JSON per-tick topics (name = "module:TOPIC")."""
-
-
-def _check_topic(topic: object) -> None:
-    """What may be added to the table: a JSON topic made each tick under a new name."""
-    if not isinstance(topic, Topic) or topic.json_schema is None or topic.per_tick is None:
-        raise TypeError("an added topic is a Topic with a json_schema and a per_tick function")
-    if topic.name in {t.name for t in TOPICS}:
-        raise ValueError(f"topic {topic.name} is already recorded")
-
-
-class _InstalledTopics(Registry[Topic]):
-    """Topics are added by installing them: the recording's writer process (`background`)
-    finds what is installed, not what one process registered."""
-
-    def register(self, item, legacy=None, *, name=None):
-        raise self.error(
-            "a recording topic is added by installing it under the entry-point group "
-            f"{TOPICS_GROUP} (the recording's writer process finds it there), not at run time"
-        )
-
-
-TOPIC_REGISTRY: Registry[Topic] = _InstalledTopics("recording topic", {}, group=TOPICS_GROUP, check=_check_topic)
-"""The topics beyond the table: installed by other packages under `TOPICS_GROUP`, each
-checked (`_check_topic`) when loaded."""
-
-
 def recorded_topics() -> tuple[Topic, ...]:
-    """The table, then the topics installed by other packages (by name): what the recorder
-    writes and the replay plots. An installed topic that cannot load, is not a JSON topic
-    made each tick, or reuses a name is named in one warning and left out."""
-    import sys
+    """The table, then the topics other packages installed, then those registered in this
+    process (`topic_registry`): what the recorder writes and the replay plots."""
+    from dynabarn.recording.topic_registry import installed_topics, run_time_topics
 
-    return (*TOPICS, *_installed(tuple(sys.path)))
-
-
-@functools.lru_cache(maxsize=4)
-def _installed(path: tuple[str, ...]) -> tuple[Topic, ...]:
-    """The installed topics for one sys.path (scanning the installed packages costs ~2 ms:
-    once per process, again only when the path changes), each checked by the registry."""
-    from dynabarn.errors import DynabarnError
-
-    extra: list[Topic] = []
-    # One that cannot load or breaks the contract is named in one warning and left out: the
-    # table's topics are recorded whatever another package installs.
-    for name, topic in sorted(TOPIC_REGISTRY.loaded().items()):
-        if topic.name in {t.name for t in extra}:
-            twice = DynabarnError(f"recording topic {name!r}: topic {topic.name} is already recorded")
-            TOPIC_REGISTRY.warn(name, twice)
-            continue
-        extra.append(topic)
-    return tuple(extra)
+    return (*TOPICS, *installed_topics(), *run_time_topics())
 
 
 def markdown_table() -> str:
