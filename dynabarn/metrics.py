@@ -50,9 +50,10 @@ OUTCOME_MESSAGES = {
 }
 
 
-TRACKED_ONLY = ("tracking",)
-"""`EpisodeResult` fields only planners that track obstacles have (`Planner.tracks`): left
-out of `to_dict` (and the JSON of a run, a results row, a recording) for the rest."""
+OPTIONAL_FIELDS = ("tracking", "added_metrics")
+"""`EpisodeResult` fields only some episodes have (a planner that tracks obstacles,
+`Planner.tracks`; metrics added beyond the table, `metric_registry`): left out of `to_dict`
+(and the JSON of a run, a results row, a recording) for the rest."""
 
 
 def _json_number(v):
@@ -106,6 +107,9 @@ class EpisodeResult:
     """How well the planner's tracker saw the obstacles (planners with `Planner.tracks`; left
     out of `to_dict` for the rest): recall, precision, position and velocity errors (median,
     95th percentile) [m, m/s], identity switches, ticks scored (`sim.track_scoring`)."""
+    added_metrics: dict | None = None
+    """The metrics added beyond the table (`metric_registry.METRIC_REGISTRY`: registered or
+    installed), {name: value}; None (left out of `to_dict`) when none is."""
 
     @property
     def success(self) -> bool:
@@ -114,7 +118,7 @@ class EpisodeResult:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["outcome"] = self.outcome.value
-        for name in TRACKED_ONLY:  # planners without a tracker: the row as it always was
+        for name in OPTIONAL_FIELDS:  # without a tracker or added metrics: the row as it always was
             if d[name] is None:
                 del d[name]
             else:

@@ -49,7 +49,7 @@ from dynabarn.recording import (
     returns_in_world,
     scan_lasers,
 )
-from dynabarn.recording.topics import plotted
+from dynabarn.recording.topic_registry import plotted
 from dynabarn.rerun_scene import (
     TIMELINE,
     log_obstacles,

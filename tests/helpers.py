@@ -72,6 +72,7 @@ GROUPS = {
     "dynabarn.importers": "ext-json = dynabarn_ext:IMPORTER",
     "dynabarn.trackers": "ext_tracker = dynabarn_ext:QuietTracker",
     "dynabarn.presets": "ext_preset = dynabarn_ext:PRESET",
+    "dynabarn.metrics": "ext_turning = dynabarn_ext:TURNING",
 }
 """The entry points of the package `install_extension` installs: one of each kind."""
 
@@ -79,8 +80,8 @@ GROUPS = {
 def install_extension(folder: Path) -> Path:
     """A real distribution, `dynabarn-ext`, outside this package in `folder` (put it on
     sys.path, or PYTHONPATH for a child process): one planner, behaviour, protocol, profile
-    set, recording topic, command, world import format, tracker and planner preset under
-    their entry-point groups."""
+    set, recording topic, command, world import format, tracker, planner preset and metric
+    under their entry-point groups."""
     tmp_path = folder
     folder.mkdir(parents=True, exist_ok=True)
     (tmp_path / "dynabarn_ext.py").write_text(
@@ -139,6 +140,12 @@ def install_extension(folder: Path) -> Path:
             from pathlib import Path
             from dynabarn.planners.presets import Preset
             PRESET = Preset("ext_preset", Path(__file__).with_name("ext_preset.json"))
+
+            from dynabarn.metrics import Metric
+            TURNING = Metric(
+                "ext_turning", "rad/s", "mean |commanded yaw rate|",
+                lambda f: float(np.abs(f.tick_w_cmd).mean()) if len(f.tick_w_cmd) else 0.0, "mean",
+            )
             """
         )
     )

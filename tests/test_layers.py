@@ -29,6 +29,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "protocol",
         "sim_config",
         "metrics",
+        "metric_registry",
     ),
     ("interfaces",),  # what planners and observers are written against: no MuJoCo, no simulator
     ("worlds",),

@@ -32,7 +32,9 @@ def test_every_named_kind_is_one_registry():
     from dynabarn.planners.presets import PRESETS
 
     groups = {PLANNERS.group, BEHAVIORS.group, PROTOCOLS.group, PROFILE_SETS.group, IMPORTERS.group, TRACKERS.group}
-    groups |= {PRESETS.group}
+    from dynabarn.metric_registry import METRIC_REGISTRY
+
+    groups |= {PRESETS.group, METRIC_REGISTRY.group}
     assert groups | {
         "dynabarn.topics",
         "dynabarn.commands",
@@ -114,7 +116,7 @@ def test_the_older_registration_shape_still_works_and_says_the_one_way():
 def test_an_installed_package_adds_a_recording_topic_and_a_command(installed, tmp_path, capsys, monkeypatch):
     from dynabarn.cli.dispatch import main
     from dynabarn.recording import read_recording
-    from dynabarn.recording.topics import plotted
+    from dynabarn.recording.topic_registry import plotted
     from dynabarn.runner import EpisodeSpec, run_spec
     from dynabarn.worldset import resolve_world
 
@@ -190,8 +192,8 @@ def test_a_topic_registered_at_run_time_is_recorded_by_the_writer_process_too(tm
     recorder (its writer process is handed the topic by reference) and by one in this
     process, the same bytes; a per_tick the writer could not import is refused in one line."""
     from dynabarn.recording import McapRecorder, message_digest, read_recording
-    from dynabarn.recording.topic_registry import TOPIC_REGISTRY
-    from dynabarn.recording.topics import Topic, recorded_topics
+    from dynabarn.recording.topic_registry import TOPIC_REGISTRY, recorded_topics
+    from dynabarn.recording.topics import Topic
     from dynabarn.runner import EpisodeSpec, run_spec
     from dynabarn.worldset import resolve_world
     from tests.helpers import goal_distance_message
@@ -290,6 +292,9 @@ def test_what_a_package_installs_is_in_help_a_sweep_and_a_generated_set(installe
     assert bench_main([*argv, "--trials", "1", "--no-floor"]) == 0
     rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     assert [(r["planner"], r["protocol"]) for r in rows] == [("ext_planner", "ext_protocol")]
+    # Its metric, computed in the episode and aggregated by the summary.
+    assert rows[0]["added_metrics"]["ext_turning"] >= 0.0
+    assert "ext_turning" in (out / "summary.csv").read_text().splitlines()[0].split(",")
     # Its tracker, chosen by a planner's configuration, tracks in a sweep's episode.
     tracked = tmp_path / "tracked"
     argv = ["--planner", "predictive", "--planner-config", "tracker.kind=ext_tracker", "--worlds", "3"]
@@ -310,3 +315,25 @@ class _nothing:
 
     def __exit__(self, *exc):
         return False
+
+
+def test_a_metric_registered_at_run_time_is_in_the_result_and_a_clash_refused():
+    from dynabarn.metric_registry import METRIC_REGISTRY
+    from dynabarn.metrics import Metric
+    from dynabarn.runner import EpisodeSpec, run_spec
+    from dynabarn.worldset import resolve_world
+
+    ticks = Metric("ticks_per_second", "1/s", "control periods per simulated second",
+                   lambda f: len(f.tick_v) / f.sim_time if f.sim_time else 0.0, "mean")  # fmt: skip
+    METRIC_REGISTRY.register(ticks)
+    try:
+        result = run_spec(EpisodeSpec.make(resolve_world(0), "straight", get_protocol("barn"))).result
+        assert result.to_dict()["added_metrics"] == {"ticks_per_second": pytest.approx(10.0, abs=0.2)}
+        with pytest.raises(DynabarnError, match="metric 'score': metric score is already a field of every result"):
+            METRIC_REGISTRY.register(Metric("score", "", "again", lambda f: 0.0))
+        with pytest.raises(DynabarnError, match="summary 'median'"):
+            METRIC_REGISTRY.register(Metric("odd", "", "odd", lambda f: 0.0, "median"))
+    finally:
+        METRIC_REGISTRY.pop("ticks_per_second", None)
+    plain = run_spec(EpisodeSpec.make(resolve_world(0), "straight", get_protocol("barn"))).result
+    assert "added_metrics" not in plain.to_dict()  # without added metrics: the row as it always was

@@ -16,6 +16,7 @@ import csv
 import io
 import math
 from collections import defaultdict
+from functools import partial
 from pathlib import Path
 
 from dynabarn.bench.stats import (
@@ -28,6 +29,7 @@ from dynabarn.bench.stats import (
     wilson_interval,
 )
 from dynabarn.files import save_atomically, write_atomically
+from dynabarn.metric_registry import added_metrics
 from dynabarn.metrics import METRICS
 from dynabarn.worlds.profiles import Difficulty
 
@@ -55,7 +57,24 @@ def summarised_metrics(rows: list[dict], successes: list[dict]) -> dict:
             out[m.name] = mean_finite([r.get(m.name, m.when_missing) for r in rows])
         elif m.summary == "successes":
             out[f"{m.name}_success"] = mean_finite([r.get(m.name) for r in successes])
+    # Metrics added beyond the table (`metric_registry`): every group has the column (a
+    # table's rows share their keys), from the rows that have a value.
+    for m in added_metrics():
+        value = partial(_added, m)
+        if m.summary == "mean":
+            out[m.name] = mean_finite([value(r) for r in rows])
+        elif m.summary == "successes":
+            out[f"{m.name}_success"] = mean_finite([value(r) for r in successes])
     return out
+
+
+def _added(metric, row: dict):
+    """A row's value of a metric added beyond the table (its `when_missing` where it has none)."""
+    added = row.get("added_metrics")
+    value = added.get(metric.name) if isinstance(added, dict) else None
+    if isinstance(value, bool) or not isinstance(value, int | float):  # a row is untrusted input
+        value = None
+    return metric.when_missing if value is None else value
 
 
 PAPER_PROTOCOLS = ("barn", "paper2022")

@@ -247,20 +247,19 @@ def add_trial_seed(p: argparse.ArgumentParser) -> None:
 def result_keys(extra: tuple[str, ...] = (), *, tracked: bool = False) -> list[str]:
     """The keys of `--json`'s result, read off `EpisodeResult` (so `--help` and the
     documentation list exactly what is printed); `tracked`: also those of a planner that
-    tracks obstacles."""
+    tracks obstacles (`tracking`)."""
     from dataclasses import fields
 
-    from dynabarn.metrics import TRACKED_ONLY, EpisodeResult
+    from dynabarn.metrics import OPTIONAL_FIELDS, EpisodeResult
 
-    names = [f.name for f in fields(EpisodeResult) if tracked or f.name not in TRACKED_ONLY]
+    chosen = {"tracking"} if tracked else set()
+    names = [f.name for f in fields(EpisodeResult) if f.name not in OPTIONAL_FIELDS or f.name in chosen]
     return [*names, "recording", *extra]
 
 
 def add_recording(p: argparse.ArgumentParser, planner: str = "<planner>", extra_keys: tuple[str, ...] = ()) -> None:
     """--log / --no-log / --runs-dir / --json: where one episode is recorded and how it is printed."""
     from pathlib import Path
-
-    from dynabarn.metrics import TRACKED_ONLY
 
     log = p.add_mutually_exclusive_group()
     log.add_argument(
@@ -276,8 +275,8 @@ def add_recording(p: argparse.ArgumentParser, planner: str = "<planner>", extra_
         action="store_true",
         help="print the full result as JSON instead of one line; its keys: "
         + ", ".join(result_keys(extra_keys))
-        + "; and, for planners that track obstacles, "
-        + ", ".join(TRACKED_ONLY),
+        + "; and, for planners that track obstacles, tracking; with metrics added beyond the table "
+        + "(registered or installed), added_metrics",
     )
 
 

@@ -18,7 +18,7 @@ import rerun as rr
 from dynabarn.errors import EndEpisode
 from dynabarn.interfaces.events import EpisodeObserver
 from dynabarn.recording import returns_in_world
-from dynabarn.recording.topics import plotted
+from dynabarn.recording.topic_registry import plotted
 from dynabarn.rerun_replay import APP_ID, COLORS, PATH_VERTICES, blueprint
 from dynabarn.rerun_scene import (
     TIMELINE,

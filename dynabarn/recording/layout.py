@@ -18,7 +18,8 @@ from pathlib import Path
 
 import foxglove.layouts as fl
 
-from dynabarn.recording.topics import FRAMES, RESULT, TOPICS, plotted
+from dynabarn.recording.topic_registry import plotted
+from dynabarn.recording.topics import FRAMES, RESULT, TOPICS
 
 LAYOUT_FILE = Path(__file__).resolve().parents[2] / "assets" / "foxglove" / "dynabarn.json"
 """The shipped copy, in a checkout of the repository."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from dynabarn.metrics import TRACKED_ONLY, EpisodeResult, Outcome
+from dynabarn.metrics import OPTIONAL_FIELDS, EpisodeResult, Outcome
 
 DIALECT = "https://json-schema.org/draft/2020-12/schema"
 
@@ -75,7 +75,7 @@ def result_schema() -> dict:
         else:
             properties[f.name] = {"type": _JSON_TYPES[kind]}
     required = [f.name for f in dataclasses.fields(EpisodeResult) if f.name in properties]
-    required = [name for name in required if name not in TRACKED_ONLY]
+    required = [name for name in required if name not in OPTIONAL_FIELDS]
     return obj("the episode's outcome and metrics (dynabarn.metrics.EpisodeResult)", properties, tuple(required))
 
 

@@ -84,3 +84,14 @@ def _installed(path: tuple[str, ...]) -> tuple[Topic, ...]:
             continue
         extra.append(topic)
     return tuple(extra)
+
+
+def recorded_topics() -> tuple[Topic, ...]:
+    """The table, then the topics other packages installed, then those registered in this
+    process: what the recorder writes and the replay plots."""
+    return (*TOPICS, *installed_topics(), *run_time_topics())
+
+
+def plotted() -> list[tuple[Topic, str]]:
+    """(topic, field) of every time series the replay draws, in table order."""
+    return [(t, f) for t in recorded_topics() for f in t.plots]

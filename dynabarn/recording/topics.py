@@ -318,14 +318,6 @@ def tick_messages(topics: Sequence[Topic], tick: Tick) -> tuple[list[tuple[Topic
     return messages, None
 
 
-def recorded_topics() -> tuple[Topic, ...]:
-    """The table, then the topics other packages installed, then those registered in this
-    process (`topic_registry`): what the recorder writes and the replay plots."""
-    from dynabarn.recording.topic_registry import installed_topics, run_time_topics
-
-    return (*TOPICS, *installed_topics(), *run_time_topics())
-
-
 def markdown_table() -> str:
     """The topic table of docs/concepts/recordings.md."""
     rows = ["| topic | schema | rate |", "|---|---|---|"]
@@ -333,8 +325,3 @@ def markdown_table() -> str:
         kind = "JSON " if t.encoding == "json" else ""
         rows.append(f"| `{t.name}` | {kind}`{t.schema}`: {t.doc} | {t.rate} |")
     return "\n".join(rows)
-
-
-def plotted() -> list[tuple[Topic, str]]:
-    """(topic, field) of every time series the replay draws, in table order."""
-    return [(t, f) for t in recorded_topics() for f in t.plots]

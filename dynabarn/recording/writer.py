@@ -28,6 +28,7 @@ from dynabarn.metrics import EpisodeResult, is_interrupted
 from dynabarn.provenance import portable_path
 from dynabarn.recording import scene, wire
 from dynabarn.recording.schemas import MACHINE_FIELDS
+from dynabarn.recording.topic_registry import recorded_topics
 from dynabarn.recording.topics import (
     DEBUG,
     GOAL,
@@ -43,7 +44,6 @@ from dynabarn.recording.topics import (
     TRACK_SCENE,
     TRACKS,
     Topic,
-    recorded_topics,
     tick_messages,
 )
 from dynabarn.robot import JACKAL
@@ -221,7 +221,7 @@ class McapRecorder(EpisodeObserver):
 
         # Every topic of the table, in its order: protobuf ones with their foxglove schema.
         channels = {}
-        topics = (*recorded_topics(), *self.extra_channels)  # the table and any installed ones
+        topics = (*recorded_topics(), *self.extra_channels)  # the table, installed and registered ones
         self._per_tick = [t for t in topics if t.per_tick is not None]
         for t in topics:
             if t.message_type is not None:

@@ -7,6 +7,7 @@ import time
 import numpy as np
 
 from dynabarn.interfaces.events import EpisodeStart
+from dynabarn.metric_registry import computed
 from dynabarn.metrics import METRICS, EpisodeFacts, EpisodeResult, Outcome, path_length
 from dynabarn.protocol import EvalProtocol
 from dynabarn.provenance import machine, portable_path
@@ -83,4 +84,5 @@ def episode_result(episode: Episode, start: EpisodeStart) -> EpisodeResult:
         planner_config=start.planner_config,
         protocol_version=protocol.version,
         tracking=episode.track_scorer.summary() if episode.track_scorer is not None else None,
+        added_metrics=computed(facts),  # those registered or installed beyond the table
     )
