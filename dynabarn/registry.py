@@ -1,5 +1,7 @@
-"""Named things of one kind, found one way: planners, obstacle behaviours, protocols,
-profile sets, shape mixes and static fields are each a `Registry`.
+"""Named things of one kind, found one way: planners, planner presets, trackers, obstacle
+behaviours, protocols, profile sets, shape mixes, static fields, tiers, world import
+formats, recording topics, metrics, commands and ROS stacks are each a `Registry`
+(docs/architecture.md's table, one row per kind, names where each lives).
 
 A registry is a dict of what is built in and what was registered in this process
 (`register`), plus what other packages install under its entry-point group, e.g.

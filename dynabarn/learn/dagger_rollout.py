@@ -14,10 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from dynabarn.learn.expert import EXPERT_ACTION, ExpertLabels
 from dynabarn.planners.learned.features import Features
-from dynabarn.planners.learned.spaces import command_to_action
 from dynabarn.planners.learned.student import StudentActor, student_for
-from dynabarn.planners.registry import get_planner
 
 JOB_EPISODES = 4
 """Episodes per job: small enough to balance two workers, large enough to keep them busy."""
@@ -64,24 +63,23 @@ atexit.register(_close_env)
 
 
 def episode(cfg, split: str, k: int, beta: float, actor: StudentActor | None, label: bool) -> EpisodeData:
-    """One episode of world k of `split`: who drives is drawn per step (teacher with probability beta)."""
+    """One episode of world k of `split`: who drives is drawn per step (teacher with
+    probability beta). The teacher acts through the environment's step (`ExpertLabels`):
+    the student's and the teacher's episodes differ only in the action passed to it."""
     env = _env(cfg, split)
+    labelled = ExpertLabels(env, cfg.teacher) if label else env
     rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, k, 0 if split == "train" else 1]))
     trial = int(rng.integers(2**31))
-    _, info = env.reset(options={"world_index": k, "trial_seed": trial, "privileged": label})
-    ep_info = env.episode.info
+    _, info = labelled.reset(options={"world_index": k, "trial_seed": trial, "privileged": label})
     features = Features(cfg.features())
-    features.reset(ep_info)
-    teacher = get_planner(cfg.teacher) if label else None
-    if teacher is not None:
-        teacher.reset(ep_info)
-    xs, ys, teacher_steps = [], [], 0
+    features.reset(env.episode.info)
+    xs, ys, teacher_steps, steps = [], [], 0, 0
     outcome = "error"
+    step_info = info
     while True:
-        obs = env.observation
-        x = features(obs)
-        a_teacher = command_to_action(*teacher.act(obs)) if teacher is not None else None
-        if actor is None or (teacher is not None and rng.random() < beta):
+        x = features(env.observation)
+        a_teacher = step_info.get(EXPERT_ACTION)
+        if actor is None or (a_teacher is not None and rng.random() < beta):
             action, teacher_steps = a_teacher, teacher_steps + 1
         else:
             with torch.no_grad():
@@ -89,12 +87,14 @@ def episode(cfg, split: str, k: int, beta: float, actor: StudentActor | None, la
         if label:
             xs.append(x.astype(np.float16))
             ys.append(a_teacher)
-        _, _, terminated, truncated, step_info = env.step(action)
+        _, _, terminated, truncated, step_info = labelled.step(action)
+        steps += 1
         if terminated or truncated:
             outcome = step_info["outcome"] or "error"
             break
         if label and len(xs) >= cfg.max_steps:
             outcome = "cut"
+            labelled.stop(outcome)
             break
     n = len(xs)
     return EpisodeData(
@@ -102,8 +102,8 @@ def episode(cfg, split: str, k: int, beta: float, actor: StudentActor | None, la
         difficulty=info["difficulty"],
         fingerprint=info["fingerprint"],
         outcome=outcome,
-        steps=env.episode.n_ticks,
-        teacher_share=teacher_steps / max(1, env.episode.n_ticks),
+        steps=steps,
+        teacher_share=teacher_steps / max(1, steps),
         features=np.stack(xs) if n else np.zeros((0, cfg.features().size()), np.float16),
         labels=np.stack(ys).astype(np.float32) if n else np.zeros((0, 2), np.float32),
     )
