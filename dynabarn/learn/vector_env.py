@@ -7,16 +7,15 @@ while the others (spawned) step theirs. Inside a process the worlds advance
 together (`WorldBatch`):
 
 1. each world's physics period: MuJoCo's C step, 20 per control period;
-2. the obstacles of every world placed for the new period;
-3. every world's 720 rays in one vectorised closed-form pass (`sim.ray_batch`) for worlds
-   of the paper's kind (walls and standing cylinders); others cast with `mj_multiRay`;
-4. each world's laser noise from its own generator, then the 1 mm grid, the local goal
-   and the reward, as the single environment does.
+2. every world's observation at once (`sim.batch_observe`: the obstacles placed, the 720
+   rays in one vectorised closed-form pass for worlds of the paper's kind, each world's
+   laser noise from its own generator);
+3. the local goals of all worlds at once, then each world's reward, as the single
+   environment does.
 
-The scan agrees with the single environment's to the laser's 1 mm grid (the closed form
-and `mj_multiRay` differ by rounding, 1e-12 m, which can move a range across a grid line
-only when it lands within that of one). Autoreset is Gymnasium's default (`NEXT_STEP`):
-the step after an episode ends resets that world and returns its first observation.
+The scan agrees with the single environment's to the laser's 1 mm grid (`sim.batch_observe`).
+Autoreset is Gymnasium's default (`NEXT_STEP`): the step after an episode ends resets that
+world and returns its first observation.
 Workers are started with `spawn`, write their observations into a buffer shared with this
 process and send the rest over pipes, and end with the environment (or with their parent:
 they exit when the pipe closes). A fixed set's worlds are compiled in every process when
@@ -40,8 +39,7 @@ from dynabarn.learn.shared_worlds import SHARED_WORLDS, shared_world
 from dynabarn.planners.learned.spaces import action_to_command, checked_actions
 from dynabarn.planners.local_goal_batch import LocalGoalBatch
 from dynabarn.processes import safe_path_for_children, usable_cores, worker_start
-from dynabarn.sim.ray_batch import BatchCaster, supports
-from dynabarn.worlds.schedule_batch import ScheduleBatch, batchable
+from dynabarn.sim.batch_observe import BatchObserver
 
 
 class WorldBatch:
@@ -55,10 +53,7 @@ class WorldBatch:
         # next, an ended one's last), here or into the parent's shared buffer.
         self.obs = np.zeros((n, *self.envs[0].observation_space.shape), np.float32) if obs is None else obs
         self.needs_reset = np.ones(n, dtype=bool)
-        self._caster: BatchCaster | None = None
-        self._caster_sims: list | None = None
-        self._schedule: ScheduleBatch | None = None
-        self._players: list | None = None
+        self._observer = BatchObserver()
         self._local_goals = LocalGoalBatch(capacity=2 * n + 4)  # a world that comes back keeps its plan
         # A fixed set's worlds compiled and planned here, now (paper60: 0.3 s): otherwise
         # each is compiled in the step that first meets it, a 5 ms stall of the whole batch
@@ -110,58 +105,13 @@ class WorldBatch:
 
     def _observe(self, running: list[int], obs: np.ndarray) -> None:
         """The observations of the worlds `running` (stepped or just started) into obs's rows:
-        obstacles placed, rays cast, noise drawn (each world from its own generator) and local
-        goals found, all at once."""
+        the episodes observed together (`sim.batch_observe`), then the local goals, all at once."""
         envs = [self.envs[i] for i in running]
-        episodes = [env.episode for env in envs]
-        schedules = self._schedules(running)
-        for i, ep in zip(running, episodes, strict=True):
-            ep.place_obstacles(schedules.get(i))
-        laser = episodes[0].sim.laser
-        scans = laser.noisy(self._cast(running), [ep.rng for ep in episodes])
-        poses = np.empty((len(running), 3))
-        for k, (env, ep) in enumerate(zip(envs, episodes, strict=True)):
-            poses[k] = env.seen(ep.observe_scan(scans[k])).pose
+        observations = self._observer.observe([env.episode for env in envs])
+        poses = np.array([env.seen(o).pose for env, o in zip(envs, observations, strict=True)])
         goals = self._local_goals.local_goals_in_robot([env.global_planner for env in envs], poses, envs[0].lookahead)
-        obs[running, : scans.shape[1]] = scans
-        obs[running, scans.shape[1] :] = goals
-
-    def _schedules(self, running: list[int]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-        """This period's obstacle positions and velocities of every scripted running world,
-        in one pass (`ScheduleBatch`: the bits of each world's own player)."""
-        scripted = [i for i in running if self.envs[i].episode.reactive is None]
-        eps = [self.envs[i].episode for i in scripted]
-        players = [ep.player for ep in eps]
-        if not players or not batchable(players):
-            return {}
-        if self._players != players:
-            self._schedule, self._players = ScheduleBatch(players), players
-        # Each world's `period_times()` (time = step x dt, + the steps' offsets), all at once:
-        # every world here has the one simulation configuration of DynaBARN-v0's worlds.
-        steps = np.array([ep.step for ep in eps], dtype=np.float64)
-        times = (steps * eps[0].dt)[None, :] + eps[0].step_offsets[:, None]
-        pos, vel = self._schedule.positions_at(times)
-        return {i: (p, v) for i, p, v in zip(scripted, pos, vel, strict=True)}
-
-    def _cast(self, running: list[int]) -> np.ndarray:
-        """(len(running), beams) noise-free ranges of the running worlds: in closed form, all
-        at once, where the world allows it; by `mj_multiRay` otherwise."""
-        sims = [self.envs[i].episode.sim for i in running]
-        out = np.empty((len(sims), sims[0].laser.n))
-        closed_form = [supports(s) for s in sims]
-        batched = [k for k, ok in enumerate(closed_form) if ok]
-        if batched:
-            bsims = [sims[k] for k in batched]
-            if self._caster_sims != bsims:
-                self._caster, self._caster_sims = BatchCaster(bsims), bsims
-            origins = np.array([s.data.site_xpos[s.laser.site] for s in bsims])
-            yaws = np.array([s.data.qpos[2] for s in bsims])
-            centres = np.concatenate([self.envs[running[k]].episode.obstacle_centres for k in batched])
-            out[batched] = self._caster.cast(origins, yaws, centres)
-        for k, s in enumerate(sims):
-            if not closed_form[k]:
-                out[k] = s.laser.cast(s.model, s.data, float(s.data.qpos[2]))
-        return out
+        obs[running, : len(observations[0].scan)] = [o.scan for o in observations]
+        obs[running, len(observations[0].scan) :] = goals
 
     def close(self) -> None:
         for env in self.envs:
