@@ -195,10 +195,12 @@ def check_planner(
 
 
 def _result_problems(result) -> list[str]:
+    from dynabarn.metrics import NON_FINITE_COMMAND, PLANNER_RAISED
+
     reason = result.reason or ""
-    if result.outcome.value == "error" and reason.startswith("planner raised"):
+    if result.outcome.value == "error" and reason.startswith(PLANNER_RAISED):
         return [f"the episode of seed {result.seed} ended in error: {reason}"]
-    if result.outcome.value == "error" and "non-finite" in reason:
+    if result.outcome.value == "error" and reason.startswith(NON_FINITE_COMMAND):
         return [f"seed {result.seed}: {reason}"]
     return []
 

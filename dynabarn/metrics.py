@@ -28,6 +28,10 @@ OUTCOMES = frozenset(o.value for o in Outcome)
 
 INTERRUPTED = "interrupted"
 """The reason of an episode ended by Ctrl-C or SIGTERM (outcome `error`)."""
+PLANNER_RAISED = "planner raised"
+"""How the reason of an episode whose planner raised begins (outcome `error`)."""
+NON_FINITE_COMMAND = "planner returned a non-finite command"
+"""How the reason of an episode whose planner returned NaN or infinity begins (outcome `error`)."""
 
 
 def is_interrupted(result) -> bool:

@@ -49,6 +49,11 @@ class RecordingFailed(DynabarnError):
         self.target = Path(target) if target is not None else None
         """The file the recording was asked for (its `NAME.part` may hold what was written)."""
 
+    @classmethod
+    def because(cls, target: Path | str | None, exc: OSError) -> RecordingFailed:
+        """The one line for a recording the machine could not start or write (`exc`)."""
+        return cls(f"cannot record to {target}: {exc.strerror or exc}", target=target)
+
 
 @dataclass(frozen=True)
 class EpisodeSpec:
@@ -242,7 +247,7 @@ def _run_built(spec, planner, sim, record_to, record_in, live, observers, on_bui
             raise type(exc)(f"recording kept: {kept}" if kept else f"recording started in {record_to}.part") from None
         raise
     except OSError as exc:  # the recording could not be started or written
-        raise RecordingFailed(f"cannot record to {record_to}: {exc.strerror or exc}", target=record_to) from None
+        raise RecordingFailed.because(record_to, exc) from None
     problem = recorder.stopped if recorder is not None else None
     if problem:  # the disk filled up: the result stands, the file is cut
         print(f"warning: {record_to}: {problem}", file=sys.stderr)
@@ -274,7 +279,7 @@ def _recorder(record_to: Path | None, planner: Planner, live: LiveView | None):
         else:
             recorder = BackgroundRecorder(record_to)
     except OSError as exc:  # a full disk, a missing or read-only folder
-        raise RecordingFailed(f"cannot record to {record_to}: {exc.strerror or exc}", target=record_to) from None
+        raise RecordingFailed.because(record_to, exc) from None
     if options:
         planner.attach_recording(recorder)
     if live is not None:

@@ -17,7 +17,7 @@ from dynabarn.determinism import (
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces.events import Tick
 from dynabarn.interfaces.observation import Observation, ObstacleState
-from dynabarn.metrics import Outcome
+from dynabarn.metrics import NON_FINITE_COMMAND, Outcome
 from dynabarn.protocol import EvalProtocol
 from dynabarn.robot import JACKAL, to_robot_frame
 from dynabarn.sim.behaviors import ReactiveObstacles
@@ -194,7 +194,7 @@ class Episode:
     def apply(self, raw_v: float, raw_w: float) -> Outcome | None:
         """Limit the command, then run one control period of physics; the outcome if it ended."""
         if not (math.isfinite(raw_v) and math.isfinite(raw_w)):
-            self.end(Outcome.ERROR, f"planner returned a non-finite command ({raw_v}, {raw_w})")
+            self.end(Outcome.ERROR, f"{NON_FINITE_COMMAND} ({raw_v}, {raw_w})")
             return self.outcome
         sim, cfg, p = self.sim, self.sim.config, JACKAL
         data = sim.data

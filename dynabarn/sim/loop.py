@@ -26,11 +26,7 @@ from dynabarn.errors import EndEpisode
 from dynabarn.interfaces.events import EpisodeObserver, EpisodeStart, check_hooks
 from dynabarn.interfaces.observation import Observation
 from dynabarn.interfaces.planner import Planner, check_planner
-from dynabarn.metrics import (
-    INTERRUPTED,
-    EpisodeResult,
-    Outcome,
-)
+from dynabarn.metrics import INTERRUPTED, PLANNER_RAISED, EpisodeResult, Outcome
 from dynabarn.processes import no_interrupts
 from dynabarn.protocol import EvalProtocol
 from dynabarn.provenance import versions
@@ -82,7 +78,7 @@ def run_episode(
                 episode.end(Outcome.ERROR, str(exc) or "ended by the planner")
                 break
             except Exception as exc:  # the planner is foreign code: report, don't crash
-                episode.end(Outcome.ERROR, f"planner raised {type(exc).__name__}: {exc}")
+                episode.end(Outcome.ERROR, f"{PLANNER_RAISED} {type(exc).__name__}: {exc}")
                 break
             planning_ms = _planning_ms(planner, c0)
             tracks = episode.score_tracks(planner.tracks())
