@@ -12,7 +12,7 @@ LOCK := requirements.lock
 # The extras the tests exercise; the lock covers the package and all of them.
 EXTRAS := test,ray,learn,ros,docs
 
-.PHONY: install demo worlds test test-fast docs docs-serve lint format bench clean system-deps ros-deps ros-nav-deps ros-nav ros-teb-deps ros-teb lock verify-golden readme
+.PHONY: install demo worlds test test-fast docs docs-serve lint format bench clean system-deps ros-deps ros-nav-deps ros-nav ros-teb-deps ros-teb ros2-deps ros2-core lock verify-golden readme
 
 # The package and what running it needs.
 $(STAMP): pyproject.toml $(LOCK)
@@ -69,6 +69,22 @@ ros-deps:
 	  need=""; for p in $(ROS_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || need="$$need $$p"; done; \
 	  if [ -n "$$need" ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$need >/dev/null; fi; \
 	fi
+
+# ROS 2 Jazzy's core (rclcpp, rclpy over Debian's Cyclone DDS, messages, tf2, launch,
+# ros2cli) built from fetched sources with colcon into a prefix outside the package
+# (DYNABARN_ROS2_WS, default ~/.cache/dynabarn/ros2): `make ros2-core ROS2_SRC=DIR`, DIR a
+# folder of the repositories `python -m dynabarn.ros.ros2_build --repos` lists (vcstool:
+# `vcs import DIR < FILE`). About 11 minutes on 2 cores; a second run builds nothing.
+ros2-deps:
+	@if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
+	  need=""; for p in $$($(BIN)/python -c 'from dynabarn.ros.ros2_build import BUILD_DEPENDENCIES as d; print(*d)'); do \
+	    dpkg -s $$p >/dev/null 2>&1 || need="$$need $$p"; done; \
+	  if [ -n "$$need" ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$need >/dev/null; fi; \
+	else echo "ros2-deps: run as root to install Debian's build dependencies"; fi
+
+ros2-core: $(STAMP) ros2-deps
+	@[ -n "$(ROS2_SRC)" ] || { echo "ros2-core: give ROS2_SRC=<folder of the fetched repositories> (python -m dynabarn.ros.ros2_build --repos lists them)"; exit 2; }
+	$(BIN)/python -m dynabarn.ros.ros2_build --source $(ROS2_SRC)
 
 # ROS 1's navigation stack (move_base) built from source against Debian's ROS 1, into a
 # catkin workspace outside the package (DYNABARN_NAV_WS, default ~/.cache/dynabarn/ros_nav):

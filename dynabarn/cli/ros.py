@@ -187,7 +187,7 @@ def _ros_episode(args: argparse.Namespace) -> int:
     from dynabarn.mjcf import read_world
     from dynabarn.protocol import get_protocol
     from dynabarn.recording import default_run_path
-    from dynabarn.ros.bridge import remap_problem, ros_python
+    from dynabarn.ros.bridge_config import remap_problem, ros_python
     from dynabarn.ros.stacks import stack_command
     from dynabarn.runner import EpisodeSpec, run_spec
     from dynabarn.worldset import resolve_world

@@ -13,154 +13,28 @@ the goal is given in it. The true pose (world frame) is on /dynabarn/ground_trut
 
 from __future__ import annotations
 
-import functools
 import math
-import os
 import shlex
 import subprocess
 import sys
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.errors import NotInstalledHere
-from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, Planner
+from dynabarn.interfaces import EpisodeInfo, Observation, Planner
 from dynabarn.processes import die_with_parent
 from dynabarn.robot import JACKAL
-from dynabarn.ros import READY_WHEN
+from dynabarn.ros.bridge_config import BridgeConfig, ros_python
+from dynabarn.ros.domain import Ros2Domain
 from dynabarn.ros.master import RosMaster, stop_process
 from dynabarn.ros.node import COMMAND, GOAL, HEADER, OBSERVATION, READY, write_frame
 
 NODE = Path(__file__).resolve().parent / "node.py"
 """The rospy side; its frames (HEADER, OBSERVATION, ...) are the wire format's one definition."""
-ROS_PYTHON_ENV = "DYNABARN_ROS_PYTHON"
-"""Names the Python that has rospy (default: Debian's /usr/bin/python3)."""
-
-
-def ros_python() -> str:
-    """The interpreter that imports rospy (Debian's ROS 1 packages: `make ros-deps`)."""
-    return _checked_ros_python(os.environ.get(ROS_PYTHON_ENV) or "/usr/bin/python3")
-
-
-@functools.cache
-def _checked_ros_python(exe: str) -> str:
-    """`exe`, once it has shown it imports rospy (checked once per interpreter and process:
-    the check starts a Python, and every episode's bridge asks)."""
-    try:
-        ok = subprocess.run([exe, "-c", "import rospy"], capture_output=True, timeout=60).returncode == 0
-    except (OSError, subprocess.TimeoutExpired):
-        ok = False
-    if not ok:
-        raise NotInstalledHere(
-            f"{exe} cannot import rospy: install Debian's ROS 1 packages (`make ros-deps`, as root) "
-            f"or set {ROS_PYTHON_ENV} to a Python that has rospy",
-            "sudo make ros-deps",
-        )
-    return exe
-
-
-BRIDGE_TOPICS = (
-    "/clock",
-    "/front/scan",
-    "/odometry/filtered",
-    "/tf",
-    "/tf_static",
-    "/move_base_simple/goal",
-    "/collision",
-    "/dynabarn/ground_truth",
-    "/jackal_velocity_controller/odom",
-    "/cmd_vel",
-    "/jackal_velocity_controller/cmd_vel",
-)
-"""The topics the bridge node (`node.py`, which imports nothing of this package) publishes
-and subscribes to: what `--remap` may rename (a test holds this list to the node's)."""
-
-
-def remap_problem(remap: object) -> str | None:
-    """Why `remap` is not a `/from:=/to` renaming of one of the bridge's topics, or None."""
-    if not isinstance(remap, str):
-        return "not a string"
-    source, sep, target = remap.partition(":=")
-    if not sep or not source.startswith("/") or not target.startswith("/") or any(c.isspace() for c in remap):
-        return "use /from:=/to, e.g. /front/scan:=/scan"
-    if source not in BRIDGE_TOPICS:
-        return f"the bridge has no topic {source}; it has {', '.join(BRIDGE_TOPICS)}"
-    return None
-
-
-@dataclass
-class BridgeConfig(CheckedConfig):
-    """How the bridge meets the stack."""
-
-    lockstep: bool = True
-    """The simulation waits for the stack every control period (see `grace`)."""
-    rate: float = 1.0
-    """Real-time factor when not in lockstep (1 = real time, as Gazebo runs)."""
-    timeout: float = 10.0
-    """Wall seconds without any /cmd_vel, in lockstep, before the episode ends as an error."""
-    grace: float = 0.5
-    """Wall seconds a lockstep period waits for a /cmd_vel after its scan before the last
-    command holds for it (a stack that plans, or runs a slower loop, skips periods)."""
-    ready: str = "command"
-    """When the boot ends: `command` (a /cmd_vel after the goal) or `subscribed` (the scan)."""
-    ready_timeout: float = 30.0
-    """Wall seconds the boot may take before the episode ends as an error naming what is missing."""
-    stack_rate: float = 0.0
-    """[Hz] of the stack's control loop when it runs from a timer (move_base:
-    controller_frequency); 0: the stack answers each scan. Our stacks know theirs."""
-    clock_step: float = 0.005
-    """[s] of simulated time between /clock messages (the physics step: timers fire on time)."""
-    remaps: list[str] = field(default_factory=list)
-    """`from:=to` remappings of the bridge's topic names."""
-    launch: str | list[str] | None = None
-    """Command that starts the stack (run once the master is up; stopped at the end): a shell
-    line, or its words."""
-    stack: str | None = None
-    """A stack of ours instead of `launch` (`dynabarn.ros.stacks`: move_base from `make ros-nav`)."""
-    nav_workspace: str | None = None
-    """Where `make ros-nav` built move_base for `stack` (default: `$DYNABARN_NAV_WS` or
-    ~/.cache/dynabarn/ros_nav)."""
-    stack_log: str | None = None
-    """File for the stack's output (default: this process's stderr; never its stdout)."""
-    announce: bool = False
-    """Say on stderr, as the episode starts, where the master is and where the stack's
-    output goes (`dynabarn-ros`: a user who wants to `rostopic echo` the run needs it)."""
-
-    def __post_init__(self) -> None:
-        if self.ready not in READY_WHEN:
-            raise ValueError(f"ready {self.ready!r}: use one of {', '.join(READY_WHEN)}")
-        if not 0.0001 <= self.clock_step <= 0.1:
-            raise ValueError(f"clock_step {self.clock_step!r}: use a step in [0.0001, 0.1] s")
-
-    def check(self, what: str) -> None:
-        """Across fields (`interfaces.planner.check_relations`): one way to start the stack,
-        a launch line that splits into words, a stack of ours that is built, remappings of
-        the bridge's own topics."""
-        for remap in self.remaps:
-            problem = remap_problem(remap)
-            if problem:
-                raise TypeError(f"{what} remap {remap!r}: {problem}")
-        if self.launch and self.stack:
-            raise TypeError(f"{what}: give a launch command or a stack of ours, not both (--ros-launch, --ros-stack)")
-        words = self.launch
-        if isinstance(self.launch, str):
-            try:
-                words = shlex.split(self.launch)
-            except ValueError as exc:  # an unbalanced quote
-                raise TypeError(f"{what} launch {self.launch!r}: {exc}") from None
-        if self.launch is not None and not (isinstance(words, list) and all(isinstance(w, str) for w in words)):
-            raise TypeError(f"{what} launch {self.launch!r}: a command line, or a list of its words")
-        if self.launch is not None and not words:
-            raise TypeError(
-                f"{what} launch {self.launch!r}: an empty command; leave it out to start the stack yourself"
-            )
-        if self.stack:
-            from dynabarn.ros.stacks import stack_command
-
-            stack_command(self.stack, Path(self.nav_workspace) if self.nav_workspace else None)
+NODE2 = Path(__file__).resolve().parent / "node2.py"
+"""The rclpy side: `node.py`'s node over ROS 2."""
 
 
 class RosPlanner(Planner):
@@ -174,7 +48,7 @@ class RosPlanner(Planner):
         "master": "a ROS master it connects to",
     }
 
-    def __init__(self, master: RosMaster, config: BridgeConfig | None = None) -> None:
+    def __init__(self, master: RosMaster | Ros2Domain, config: BridgeConfig | None = None) -> None:
         self.master = master
         self.cfg = config or BridgeConfig()
         self.node: subprocess.Popen | None = None
@@ -204,13 +78,22 @@ class RosPlanner(Planner):
             "launch": c.launch,
             "stack": c.stack,
             "remaps": list(c.remaps),
+            **({"ros": c.ros} if c.ros != 1 else {}),  # ROS 1's runs recorded as before
         }
 
     def reset(self, info: EpisodeInfo) -> None:
         angles = info.laser_angles
         env = self.master.env()
         c = self.cfg
-        cmd = [ros_python(), str(NODE), *c.remaps, "--timeout", str(c.timeout), "--grace", str(min(c.grace, c.timeout))]
+        cmd = [
+            ros_python(c.ros),
+            str(NODE2 if c.ros == 2 else NODE),
+            *c.remaps,
+            "--timeout",
+            str(c.timeout),
+            "--grace",
+            str(min(c.grace, c.timeout)),
+        ]
         cmd += ["--ready", c.ready, "--ready-timeout", str(c.ready_timeout), "--clock-step", repr(c.clock_step)]
         cmd += ["--period", repr(info.control_period), "--rate", repr(c.rate)]
         cmd += ["--angle-min", repr(float(angles[0])), "--angle-max", repr(float(angles[-1]))]
@@ -228,7 +111,8 @@ class RosPlanner(Planner):
         if c.announce:  # the master is up; the stack is about to start
             mode = "lockstep" if c.lockstep else f"paced at {c.rate:g}x"
             where = f"; stack output: {c.stack_log}" if c.stack_log and launch else ""
-            print(f"ROS master {self.master.uri}; {mode}{where}", file=sys.stderr, flush=True)
+            where_ros = f"ROS master {self.master.uri}" if c.ros == 1 else f"ROS 2 in {self.master.uri}"
+            print(f"{where_ros}; {mode}{where}", file=sys.stderr, flush=True)
         self.node = subprocess.Popen(
             cmd,
             env=env,
@@ -377,6 +261,10 @@ def ros_planner(*, launch: str | None = None, master: str | None = None, **confi
     from dynabarn.interfaces import config_from_kwargs
 
     cfg = config_from_kwargs(BridgeConfig, {"launch": launch, **config}, "ros")
+    if cfg.ros == 2:  # no master: a DDS domain of its own, in the prefix `make ros2-core` built
+        if master is not None:
+            raise TypeError("ros master: ROS 2 has no master (each bridge takes a DDS domain of its own)")
+        return RosPlanner(Ros2Domain.start(Path(cfg.ros2_workspace) if cfg.ros2_workspace else None), cfg)
     if master is None:
         ros_python()  # one clear line when ROS is missing, before a master is started
     return RosPlanner(RosMaster.start(master), cfg)

@@ -90,6 +90,9 @@ def _arguments(argv: list[str]) -> argparse.Namespace:
 class Node:
     """The bridge node's publishers, subscriptions and clock (see the module docstring)."""
 
+    ACTION = "move_base"
+    """The navigation action the goal is also sent through, once a stack offers its server."""
+
     def __init__(self, args: argparse.Namespace) -> None:
         import rospy
         from geometry_msgs.msg import PoseStamped, Twist
@@ -129,7 +132,7 @@ class Node:
         rospy.Subscriber("/cmd_vel", Twist, self._on_cmd, queue_size=10, tcp_nodelay=True)
         rospy.Subscriber("/jackal_velocity_controller/cmd_vel", Twist, self._on_cmd, queue_size=10, tcp_nodelay=True)
         static = self._transform("base_link", "front_laser", 0.0, args.laser_x, 0.0, args.laser_z, 0.0)
-        self.tf_static.publish(TFMessage([static]))
+        self.tf_static.publish(TFMessage(transforms=[static]))
 
     def _on_cmd(self, msg) -> None:
         with self.answer:
@@ -137,6 +140,16 @@ class Node:
             self.count += 1
             self.heard_at = self.clock_now
             self.answer.notify_all()
+
+    # -- what differs between ROS 1 and ROS 2 (node2.Ros2Node overrides these) ---------------
+    def subscribers(self, publisher) -> int:
+        """How many subscribers `publisher` has."""
+        return publisher.get_num_connections()
+
+    def end(self, outcome: str) -> None:
+        """The episode ended: /collision says whether in a collision."""
+        self._stop_ticks.set()
+        self.collision_pub.publish(self.Bool(data=outcome == "collision"))
 
     # -- messages ---------------------------------------------------------------------------
     def _stamp(self, t: float):
@@ -165,13 +178,13 @@ class Node:
         with self._clock_lock:
             if t > self.clock_now:
                 self.clock_now = t
-                self.clock_pub.publish(self.Clock(self._stamp(t)))
+                self.clock_pub.publish(self.Clock(clock=self._stamp(t)))
 
     def publish_state(self, t: float, obs: tuple, ranges) -> None:
         """The clock at t, then the robot's transform, odometry, true pose and (last) scan."""
         _, x, y, yaw, v, w, wx, wy, wyaw, _ = obs
         self.tick(t)
-        self.tf_pub.publish(self.TFMessage([self._transform("odom", "base_link", t, x, y, 0.0, yaw)]))
+        self.tf_pub.publish(self.TFMessage(transforms=[self._transform("odom", "base_link", t, x, y, 0.0, yaw)]))
         odom = self._odometry(t, "odom", x, y, yaw, v, w)
         self.odom_pub.publish(odom)
         self.wheel_odom_pub.publish(odom)  # the controller's odometry, which some stacks read
@@ -217,7 +230,7 @@ class Node:
         ready = False
         while time.monotonic() < deadline and not ready:
             time.sleep(0.02)
-            subscribed = self.scan_pub.get_num_connections() > 0
+            subscribed = self.subscribers(self.scan_pub) > 0
             if subscribed and self.action_client is None:
                 self._offer_action_goal(msg)
             with self.answer:
@@ -227,12 +240,12 @@ class Node:
         thread.join()
         missing = ""
         if not ready:
-            if self.scan_pub.get_num_connections() == 0:
+            if self.subscribers(self.scan_pub) == 0:
                 missing = "nothing subscribed to the scan"
             else:
                 missing = "a node subscribed to the scan, but no /cmd_vel came"
                 if self.action_client is None:
-                    missing += " (and no move_base action server took the goal)"
+                    missing += f" (and no {self.ACTION} action server took the goal)"
         # The episode starts at the next whole control period after the boot's clock.
         t0 = (math.floor(self.clock_now / a.period + 1e-9) + 1) * a.period
         return t0, ready, missing
@@ -313,14 +326,8 @@ class Node:
             self.tick(tick)
 
 
-def main(argv: list[str]) -> int:
-    import rospy
-
-    args = _arguments(rospy.myargv(argv)[1:])
-    rospy.set_param("/use_sim_time", True)
-    rospy.init_node("dynabarn_bridge", disable_signals=True)
-    node = Node(args)
-    inp, out = sys.stdin.buffer, sys.stdout.buffer
+def serve(node: Node, inp, out) -> None:
+    """The frames from the simulation, answered, until its pipe closes (see the module docstring)."""
     t0 = 0.0
     while True:
         frame = read_frame(inp)
@@ -337,9 +344,17 @@ def main(argv: list[str]) -> int:
             else:
                 write_frame(out, b"C", COMMAND.pack(*node.period(t0 + obs[0], obs, ranges)))
         elif kind == b"E":
-            node._stop_ticks.set()
-            node.collision_pub.publish(node.Bool(body.decode() == "collision"))
+            node.end(body.decode())
             time.sleep(0.1)
+
+
+def main(argv: list[str]) -> int:
+    import rospy
+
+    args = _arguments(rospy.myargv(argv)[1:])
+    rospy.set_param("/use_sim_time", True)
+    rospy.init_node("dynabarn_bridge", disable_signals=True)
+    serve(Node(args), sys.stdin.buffer, sys.stdout.buffer)
     rospy.signal_shutdown("simulation ended")
     return 0
 

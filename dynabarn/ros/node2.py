@@ -1,0 +1,148 @@
+"""The ROS 2 side of `dynabarn-ros --ros 2`: `node.py`'s bridge node (the same frames from the
+simulation, the same boot, lockstep, timer-driven and paced periods, the same topic names
+and frames) over rclpy, for a ROS 2 navigation stack such as Nav2.
+
+Runs on Debian's `/usr/bin/python3` with the ROS 2 prefix's environment (`ros2_build`), as
+its own process, and imports nothing of dynabarn but `node.py` beside it. What differs
+from ROS 1:
+
+- no master: the planner gives the node and the stack a DDS domain of their own
+  (`ROS_DOMAIN_ID`) and keeps discovery on this machine (`ROS_AUTOMATIC_DISCOVERY_RANGE=
+  LOCALHOST`);
+- QoS as Nav2 expects: the scan with the sensor-data profile (best effort), /tf_static, the
+  goal and /robot_description transient-local (what ROS 1 latches), the rest reliable;
+- the goal also as `/goal_pose` (Nav2's topic) and through Nav2's `navigate_to_pose`
+  action once a stack offers it (where `nav2_msgs` is built);
+- the robot's description (a URDF of the Jackal's base and laser) on /robot_description
+  from the start, as `robot_state_publisher` gives it under Gazebo.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+
+from node import Node, _arguments, serve
+
+URDF = """<?xml version="1.0"?>
+<robot name="jackal">
+  <link name="base_link"/>
+  <link name="front_laser"/>
+  <joint name="front_laser_mount" type="fixed">
+    <parent link="base_link"/>
+    <child link="front_laser"/>
+    <origin xyz="{x} 0 {z}" rpy="0 0 0"/>
+  </joint>
+</robot>
+"""
+
+
+class Ros2Node(Node):
+    """`Node` over rclpy: its publishers and subscriptions with ROS 2's QoS, the rest inherited."""
+
+    ACTION = "navigate_to_pose"
+
+    def __init__(self, args, ros) -> None:
+        from builtin_interfaces.msg import Time
+        from geometry_msgs.msg import PoseStamped, Twist
+        from nav_msgs.msg import Odometry
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import LaserScan
+        from std_msgs.msg import Bool, String
+        from tf2_msgs.msg import TFMessage
+
+        self.ros, self.args, self.Time = ros, args, Time
+        self.ticks_per_period = max(1, round(args.period / args.clock_step))
+        self.Clock, self.Odometry, self.LaserScan, self.TFMessage = Clock, Odometry, LaserScan, TFMessage
+        self.PoseStamped, self.Bool = PoseStamped, Bool
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        latched = QoSProfile(
+            depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+        )
+        self.clock_pub = ros.create_publisher(Clock, "/clock", QoSProfile(depth=100))
+        self.scan_pub = ros.create_publisher(LaserScan, "/front/scan", qos_profile_sensor_data)
+        self.odom_pub = ros.create_publisher(Odometry, "/odometry/filtered", reliable)
+        self.tf_pub = ros.create_publisher(TFMessage, "/tf", QoSProfile(depth=100))
+        self.tf_static = ros.create_publisher(TFMessage, "/tf_static", latched)
+        self.goal_pub = ros.create_publisher(PoseStamped, "/move_base_simple/goal", latched)
+        self.nav2_goal_pub = ros.create_publisher(PoseStamped, "/goal_pose", latched)
+        self.collision_pub = ros.create_publisher(Bool, "/collision", latched)
+        self.truth_pub = ros.create_publisher(Odometry, "/dynabarn/ground_truth", reliable)
+        self.wheel_odom_pub = ros.create_publisher(Odometry, "/jackal_velocity_controller/odom", reliable)
+        self.description_pub = ros.create_publisher(String, "/robot_description", latched)
+        self.answer = threading.Condition()
+        self.cmd, self.count = (0.0, 0.0), 0
+        self.clock_now = 0.0
+        self.heard_at: float | None = None
+        self.firing: float | None = None
+        self._clock_lock = threading.Lock()
+        self._ticker: threading.Thread | None = None
+        self._stop_ticks = threading.Event()
+        self.action_client = None
+        self._no_action = False
+        # The Jackal's twist_mux takes /cmd_vel; the challenge's launch files publish straight
+        # to the controller's input. Both drive the robot here.
+        ros.create_subscription(Twist, "/cmd_vel", self._on_cmd, reliable)
+        ros.create_subscription(Twist, "/jackal_velocity_controller/cmd_vel", self._on_cmd, reliable)
+        self.description_pub.publish(String(data=URDF.format(x=args.laser_x, z=args.laser_z)))
+        static = self._transform("base_link", "front_laser", 0.0, args.laser_x, 0.0, args.laser_z, 0.0)
+        self.tf_static.publish(TFMessage(transforms=[static]))
+
+    def subscribers(self, publisher) -> int:
+        return publisher.get_subscription_count()
+
+    def _stamp(self, t: float):
+        return self.Time(sec=int(t), nanosec=round((t - int(t)) * 1e9) % 1_000_000_000)
+
+    def boot(self, obs, ranges, goal):
+        msg = self.PoseStamped()
+        msg.header.frame_id = "odom"
+        msg.pose.position.x, msg.pose.position.y = goal[0], goal[1]
+        msg.pose.orientation.z, msg.pose.orientation.w = math.sin(goal[2] / 2), math.cos(goal[2] / 2)
+        self.nav2_goal_pub.publish(msg)  # Nav2's goal topic, latched; the rest as on ROS 1
+        return super().boot(obs, ranges, goal)
+
+    def _offer_action_goal(self, goal) -> None:
+        """The goal through Nav2's `navigate_to_pose` action too, once a stack offers it
+        (where nav2_msgs is built; otherwise the topics alone)."""
+        if self._no_action:
+            return
+        try:
+            from nav2_msgs.action import NavigateToPose
+            from rclpy.action import ActionClient
+        except ImportError:
+            self._no_action = True
+            return
+        if self.action_client is None:
+            self._client = getattr(self, "_client", None) or ActionClient(self.ros, NavigateToPose, self.ACTION)
+            if not self._client.server_is_ready():
+                return
+            self._client.send_goal_async(NavigateToPose.Goal(pose=goal))
+            self.action_client = self._client
+
+
+def main(argv: list[str]) -> int:
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    rclpy.init(args=argv)
+    args = _arguments(rclpy.utilities.remove_ros_args(argv)[1:])
+    ros = rclpy.create_node("dynabarn_bridge")
+    node = Ros2Node(args, ros)
+    executor = SingleThreadedExecutor()
+    executor.add_node(ros)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    try:
+        serve(node, sys.stdin.buffer, sys.stdout.buffer)
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        ros.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

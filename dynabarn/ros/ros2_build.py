@@ -1,0 +1,343 @@
+"""Build the smallest ROS 2 Jazzy a navigation stack and the bridge need, from source,
+outside the package: rclcpp and rclpy over Debian's Cyclone DDS, the message packages, tf2,
+launch and the `ros2` command line.
+
+ROS 2 is not packaged for current Debian (no `rclpy` on PyPI or in Debian), but its
+sources are public repositories and Debian packs what they build on (Cyclone DDS 0.10,
+TinyXML2, spdlog, yaml-cpp, Eigen, console_bridge, pybind11, empy 3). The sources are one
+release sync of Jazzy, `release-jazzy-20241223` of `ros2/ros2` (each repository at the
+version that sync lists: no version skew between them), fetched by the user into one
+folder (`--source`, or `ROS2_SRC=` for `make ros2-core`), e.g. with vcstool:
+
+    vcs import ROS2_SRC < jazzy-core.repos      # python -m dynabarn.ros.ros2_build --repos
+    make ros2-core ROS2_SRC=ROS2_SRC            # deps (root), then colcon
+
+Each repository is a folder of ROS2_SRC named as the repository (`rclpy`, `geometry2`;
+vcstool's nesting, ROS2_SRC/ros2/rclpy, is found too), its package versions checked
+against the sync's before anything is built. colcon (from PyPI, in a virtual environment
+over Debian's /usr/bin/python3, the interpreter rclpy is built for) builds the packages
+`CORE_PACKAGES` need into the prefix (default `~/.cache/dynabarn/ros2`, or
+`$DYNABARN_ROS2_WS`): `install/` (merged), `build/`, the build's log and
+`dynabarn-ros2.json` (the sync, the packages, the sources' versions, seconds, size),
+written last: a prefix without it is not finished. A second run with the same sources
+finds that record and builds nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import os
+import re
+import shutil
+import sys
+import time
+from pathlib import Path
+
+from dynabarn.errors import DynabarnError
+from dynabarn.ros.nav_build import debian_env, read_marker, run_logged, write_marker
+
+SYNC = "release-jazzy-20241223"
+"""The release sync of `ros2/ros2` (its `ros2.repos` at this tag) every version below is from."""
+
+REPOSITORIES: dict[str, tuple[str, str]] = {
+    # name: (repository, version): the sync's tag; where a repository's own snapshot lacks
+    # it, the same tree from its release repository (ros2-gbp/NAME-release, upstream/VERSION).
+    "ament_cmake": ("ament/ament_cmake", "2.5.3"),
+    "ament_index": ("ament/ament_index", "1.8.1"),
+    "ament_lint": ("ament/ament_lint", "0.17.1"),
+    "ament_package": ("ament/ament_package", "0.16.3"),
+    "ament_cmake_ros": ("ros2/ament_cmake_ros", "0.12.0"),
+    "class_loader": ("ros/class_loader", "2.7.0"),
+    "common_interfaces": ("ros2/common_interfaces", "5.3.5"),
+    "console_bridge_vendor": ("ros2/console_bridge_vendor", "1.7.1"),
+    "eigen3_cmake_module": ("ros2/eigen3_cmake_module", "0.3.0"),
+    "geometry2": ("ros2/geometry2", "0.36.7"),
+    "launch": ("ros2/launch", "3.4.3"),
+    "launch_ros": ("ros2/launch_ros", "0.26.6"),
+    "libstatistics_collector": ("ros-tooling/libstatistics_collector", "1.7.4"),
+    "libyaml_vendor": ("ros2/libyaml_vendor", "1.6.3"),
+    "message_filters": ("ros2/message_filters", "4.11.2"),  # the sync: 4.11.3 (a fix to a Python test only)
+    "osrf_pycommon": ("osrf/osrf_pycommon", "2.1.5"),
+    "pluginlib": ("ros/pluginlib", "5.4.2"),
+    "pybind11_vendor": ("ros2/pybind11_vendor", "3.1.2"),
+    "python_cmake_module": ("ros2/python_cmake_module", "0.11.1"),
+    "rcl": ("ros2/rcl", "9.2.4"),
+    "rcl_interfaces": ("ros2/rcl_interfaces", "2.0.2"),
+    "rcl_logging": ("ros2/rcl_logging", "3.1.1"),
+    "rclcpp": ("ros2/rclcpp", "28.1.6"),
+    "rclpy": ("ros2/rclpy", "7.1.3"),
+    "rcpputils": ("ros2/rcpputils", "2.11.1"),
+    "rcutils": ("ros2/rcutils", "6.7.2"),
+    "rmw": ("ros2/rmw", "7.3.1"),
+    "rmw_cyclonedds": ("ros2/rmw_cyclonedds", "2.2.2"),
+    "rmw_dds_common": ("ros2/rmw_dds_common", "3.1.0"),
+    "rmw_implementation": ("ros2/rmw_implementation", "2.15.4"),
+    "ros2_tracing": ("ros2/ros2_tracing", "8.2.3"),
+    "ros2cli": ("ros2/ros2cli", "0.32.2"),
+    "ros_environment": ("ros/ros_environment", "4.2.1"),
+    "rosidl": ("ros2/rosidl", "4.6.5"),
+    "rosidl_core": ("ros2/rosidl_core", "0.2.0"),
+    "rosidl_defaults": ("ros2/rosidl_defaults", "1.6.0"),
+    "rosidl_dynamic_typesupport": ("ros2/rosidl_dynamic_typesupport", "0.1.2"),
+    "rosidl_python": ("ros2/rosidl_python", "0.22.0"),
+    "rosidl_runtime_py": ("ros2/rosidl_runtime_py", "0.13.1"),
+    "rosidl_typesupport": ("ros2/rosidl_typesupport", "3.2.2"),
+    "rpyutils": ("ros2/rpyutils", "0.4.1"),
+    "spdlog_vendor": ("ros2/spdlog_vendor", "1.6.1"),
+    "tinyxml2_vendor": ("ros2/tinyxml2_vendor", "0.9.1"),
+    "unique_identifier_msgs": ("ros2/unique_identifier_msgs", "2.5.0"),
+    "yaml_cpp_vendor": ("ros2/yaml_cpp_vendor", "9.0.1"),
+}
+"""Every repository the core is built from, with its version in the sync (`SYNC`)."""
+
+CORE_PACKAGES = (
+    "rclpy",
+    "rclcpp",
+    "rclcpp_lifecycle",
+    "rclcpp_action",
+    "rmw_cyclonedds_cpp",
+    "tf2_ros",
+    "tf2_ros_py",
+    "tf2_geometry_msgs",
+    "launch_ros",
+    "ros2launch",
+    "ros2topic",
+    "ros2node",
+    "ros2param",
+    "ros2service",
+    "ros2action",
+    "ros2run",
+    "ros2pkg",
+    "ros2interface",
+    "ros2lifecycle",
+    "sensor_msgs",
+    "nav_msgs",
+    "geometry_msgs",
+    "visualization_msgs",
+    "std_srvs",
+    "rosgraph_msgs",
+    "tf2_msgs",
+    "lifecycle_msgs",
+    "pluginlib",
+    "message_filters",
+)
+"""What the bridge and a navigation stack use; colcon builds these and what they depend on."""
+IGNORED = ("test_msgs", "ros2cli_test_interfaces", "test_tf2", "tf2_py", "tf2_kdl", "tf2_eigen_kdl", "tf2_bullet")
+"""Packages left out (test interfaces that `--packages-up-to` would follow; tf2's Python
+KDL and Bullet bindings, which need libraries a navigation stack does not)."""
+BUILD_DEPENDENCIES = [
+    "cmake",
+    "g++",
+    "python3-dev",
+    "python3-venv",
+    "python3-numpy",
+    "python3-empy",
+    "python3-lark",
+    "python3-catkin-pkg",
+    "python3-psutil",
+    "python3-yaml",
+    "cyclonedds-dev",
+    "libtinyxml2-dev",
+    "libspdlog-dev",
+    "libyaml-cpp-dev",
+    "libyaml-dev",
+    "pybind11-dev",
+    "libconsole-bridge-dev",
+    "libeigen3-dev",
+    "libacl1-dev",
+]
+"""Debian's packages for the build (`make ros2-deps` installs them)."""
+COLCON = "colcon-common-extensions==0.3.0"
+"""colcon from PyPI (Debian has none), in the prefix's own virtual environment."""
+WORKSPACE_ENV = "DYNABARN_ROS2_WS"
+MARKER = "dynabarn-ros2.json"
+
+
+def default_workspace() -> Path:
+    return Path(os.environ.get(WORKSPACE_ENV) or Path.home() / ".cache" / "dynabarn" / "ros2")
+
+
+def built(workspace: Path) -> dict | None:
+    """The finished build's description, or None when the prefix has none."""
+    return read_marker(workspace / MARKER)
+
+
+def setup_script(workspace: Path) -> Path:
+    """The prefix's `setup.bash`, which a stack's shell sources."""
+    return workspace / "install" / "setup.bash"
+
+
+def repos_file() -> str:
+    """`REPOSITORIES` as a vcstool file (`vcs import ROS2_SRC < FILE`)."""
+    lines = ["repositories:"]
+    for name, (repository, version) in REPOSITORIES.items():
+        url = f"https://github.com/{repository}.git"
+        lines += [f"  {name}:", "    type: git", f"    url: {url}", f"    version: {version}"]
+    return "\n".join(lines) + "\n"
+
+
+def _package_versions(tree: Path) -> dict[str, str]:
+    """name -> version of every package.xml under `tree` (the first folder down that has one)."""
+    found = {}
+    for xml in sorted(tree.rglob("package.xml")):
+        text = xml.read_text(errors="replace")
+        name, version = re.search(r"<name>\s*([^<\s]+)", text), re.search(r"<version>\s*([^<\s]+)", text)
+        if name and version:
+            found[name.group(1)] = version.group(1)
+    return found
+
+
+def find_sources(source: Path) -> dict[str, Path]:
+    """Each repository's folder in `source` (by its name, or vcstool's ORG/NAME), checked:
+    every one present, each of its packages at the sync's version. One line naming what is
+    missing or other."""
+    if not source.is_dir():
+        raise DynabarnError(f"{source}: no such folder (fetch the sources: python -m dynabarn.ros.ros2_build --repos)")
+    folders, problems = {}, []
+    for name, (repository, version) in REPOSITORIES.items():
+        folder = next((p for p in (source / name, source / repository) if p.is_dir()), None)
+        if folder is None:
+            problems.append(f"{name} (missing)")
+            continue
+        versions = _package_versions(folder)
+        other = sorted({v for v in versions.values() if v != version})
+        if not versions:
+            problems.append(f"{name} (no package.xml)")
+        elif other:
+            problems.append(f"{name} ({', '.join(other)}, not {version})")
+        folders[name] = folder
+    if problems:
+        shown = "; ".join(problems[:6]) + (f"; and {len(problems) - 6} more" if len(problems) > 6 else "")
+        raise DynabarnError(f"{source}: not the sources of {SYNC}: {shown}")
+    return folders
+
+
+def sources_digest(folders: dict[str, Path]) -> str:
+    """sha256 over every source file's path and bytes: what decides whether a build is current."""
+    digest = hashlib.sha256()
+    for name, folder in sorted(folders.items()):
+        for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+            digest.update(f"{name}/{path.relative_to(folder)}\0".encode())
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def _colcon(workspace: Path, log) -> Path:
+    """colcon in the prefix's virtual environment over Debian's Python (made once)."""
+    venv = workspace / "tools"
+    colcon = venv / "bin" / "colcon"
+    if not colcon.exists():
+        run_logged(["/usr/bin/python3", "-m", "venv", "--system-site-packages", str(venv)], log, env=debian_env())
+        (venv / "COLCON_IGNORE").write_text("")  # colcon never takes the tools for packages
+        run_logged([str(venv / "bin" / "pip"), "install", "-q", COLCON], log, env=debian_env())
+    return colcon
+
+
+def _folder_size(folder: Path) -> int:
+    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file() and not p.is_symlink())
+
+
+def build(workspace: Path, source: Path, *, jobs: int = 2) -> dict:
+    """The sources checked, then colcon; the description. Nothing is built when the prefix
+    already holds a finished build of the same sources."""
+    folders = find_sources(source)
+    if not Path("/usr/bin/python3").exists() or shutil.which("cmake") is None:
+        raise DynabarnError("Debian's build tools are missing: `sudo make ros2-deps`")
+    digest = sources_digest(folders)
+    done = built(workspace)
+    if done is not None and done.get("sources_sha256") == digest and setup_script(workspace).is_file():
+        return {**done, "rebuilt": False}
+    workspace.mkdir(parents=True, exist_ok=True)
+    (workspace / MARKER).unlink(missing_ok=True)
+    src = workspace / "src"
+    if src.exists():
+        shutil.rmtree(src)
+    shutil.copytree(source, src, symlinks=True, ignore=shutil.ignore_patterns(".git"))
+    for package in IGNORED:
+        for xml in src.rglob("package.xml"):
+            if f"<name>{package}</name>" in xml.read_text(errors="replace"):
+                (xml.parent / "COLCON_IGNORE").write_text("left out by dynabarn.ros.ros2_build\n")
+    log_path = workspace / "build.log"
+    t0 = time.monotonic()
+    with log_path.open("w") as log:
+        colcon = _colcon(workspace, log)
+        print(f"building ROS 2 ({SYNC}) with colcon, {jobs} workers: about 11 minutes on 2 cores (log: {log_path})",
+              file=sys.stderr)  # fmt: skip
+        env = {**debian_env(), "PATH": f"{colcon.parent}:/usr/bin:/bin", "MAKEFLAGS": f"-j{jobs}"}
+        run_logged(
+            [
+                str(colcon),
+                "build",
+                "--base-paths",
+                str(src),
+                "--build-base",
+                str(workspace / "build"),
+                "--install-base",
+                str(workspace / "install"),
+                "--merge-install",
+                "--parallel-workers",
+                str(jobs),
+                "--packages-up-to",
+                *CORE_PACKAGES,
+                "--event-handlers",
+                "console_direct-",
+                "--cmake-args",
+                "-DBUILD_TESTING=OFF",
+                "-DTRACETOOLS_DISABLED=ON",
+                "-DCMAKE_BUILD_TYPE=Release",
+                "-DPython3_EXECUTABLE=/usr/bin/python3",
+            ],
+            log,
+            cwd=workspace,
+            env=env,
+        )
+    if not setup_script(workspace).is_file():
+        raise DynabarnError(f"the build ended without {setup_script(workspace)}: see {log_path}")
+    packages = sorted(p.name for p in (workspace / "install" / "share").iterdir() if (p / "package.xml").is_file())
+    info = {
+        "sync": SYNC,
+        "sources": {name: version for name, (_, version) in REPOSITORIES.items()},
+        "sources_sha256": digest,
+        "packages": packages,
+        "install_bytes": _folder_size(workspace / "install"),
+        "jobs": jobs,
+    }
+    return {**write_marker(workspace / MARKER, info, t0), "rebuilt": True}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m dynabarn.ros.ros2_build",
+        description=f"Build the smallest ROS 2 Jazzy ({SYNC}: rclcpp, rclpy over Debian's Cyclone DDS, "
+        "messages, tf2, launch, ros2cli) from fetched sources into a prefix outside the package "
+        "(dependencies: `sudo make ros2-deps`).",
+    )
+    parser.add_argument("--source", type=Path, default=None, help="the folder of fetched repositories (ROS2_SRC)")
+    parser.add_argument(
+        "--workspace",
+        type=Path,
+        default=None,
+        help=f"prefix to build in (default: ${WORKSPACE_ENV} or ~/.cache/dynabarn/ros2)",
+    )
+    parser.add_argument("--jobs", type=int, default=2, help="packages built at once, and compile jobs (default: 2)")
+    parser.add_argument("--repos", action="store_true", help="print the repositories and versions as a vcstool file")
+    args = parser.parse_args(argv)
+    if args.repos:
+        print(repos_file(), end="")
+        return 0
+    if args.source is None:
+        parser.error("--source (ROS2_SRC) is required: the folder of fetched repositories (see --repos)")
+    workspace = (args.workspace or default_workspace()).expanduser().resolve()
+    try:
+        info = build(workspace, args.source.expanduser().resolve(), jobs=args.jobs)
+    except (DynabarnError, OSError) as exc:  # a read-only or full disk: one line too
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    what = f"built in {info['seconds']:.0f} s" if info["rebuilt"] else "already built from these sources"
+    print(f"ROS 2 {SYNC}: {len(info['packages'])} packages, {info['install_bytes'] / 1e6:.0f} MB, {what}: {workspace}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

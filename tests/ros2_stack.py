@@ -1,0 +1,91 @@
+"""A small ROS 2 navigation stack for the tests of `dynabarn-ros --ros 2`, written as a Nav2
+user's node would be: rclpy, `use_sim_time`, the scan with the sensor-data QoS, the goal
+from `/goal_pose` (transient-local, as the bridge latches it), /cmd_vel once per scan.
+
+Run with Debian's Python in the ROS 2 prefix's environment (the bridge starts it so). The
+controller is `ros_stack.py`'s: it steers at the goal and away from close returns in
+front, deterministic for the same messages (each scan paired with the odometry of the
+same stamp). Flags: --mute (never answer), --delay S (think S seconds per scan).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import sys
+import time
+
+
+def main() -> int:
+    import rclpy
+    from geometry_msgs.msg import PoseStamped, Twist
+    from nav_msgs.msg import Odometry
+    from rclpy.parameter import Parameter
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+    from sensor_msgs.msg import LaserScan
+
+    rclpy.init(args=sys.argv)
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--mute", action="store_true")
+    parser.add_argument("--delay", type=float, default=0.0, help="seconds of thinking per scan (a slow stack)")
+    args = parser.parse_args(rclpy.utilities.remove_ros_args(sys.argv)[1:])
+    node = rclpy.create_node("test_stack", parameter_overrides=[Parameter("use_sim_time", value=True)])
+    cmd_pub = node.create_publisher(Twist, "/cmd_vel", 10)
+    state = {"goal": None, "odom": {}, "scans": {}}
+
+    def on_goal(msg: PoseStamped) -> None:
+        state["goal"] = (msg.pose.position.x, msg.pose.position.y)
+
+    def decide(scan: LaserScan, odom: Odometry) -> None:
+        if args.mute:
+            return
+        if args.delay:
+            time.sleep(args.delay)
+        if state["goal"] is None:  # no goal yet: stand still, but answer
+            cmd_pub.publish(Twist())
+            return
+        p, q = odom.pose.pose.position, odom.pose.pose.orientation
+        yaw = 2.0 * math.atan2(q.z, q.w)
+        gx, gy = state["goal"]
+        heading = math.atan2(gy - p.y, gx - p.x) - yaw
+        heading = math.atan2(math.sin(heading), math.cos(heading))
+        n, ranges = len(scan.ranges), list(scan.ranges)
+        lo = max(0, math.ceil((-0.5 - scan.angle_min) / scan.angle_increment))  # the beams within +-0.5 rad
+        hi = min(n, math.floor((0.5 - scan.angle_min) / scan.angle_increment) + 1)
+        left = min(ranges[n // 2 : n // 2 + n // 4], default=scan.range_max)
+        right = min(ranges[n // 4 : n // 2], default=scan.range_max)
+        nearest = min(ranges[lo:hi], default=scan.range_max)
+        cmd = Twist()
+        cmd.linear.x = 2.0 if nearest > 2.0 else max(0.3, nearest - 0.5)
+        cmd.angular.z = max(-3.0, min(3.0, 2.0 * heading + (0.8 if nearest < 1.5 and right < left else 0.0)))
+        cmd_pub.publish(cmd)
+
+    def key(msg) -> tuple[int, int]:
+        return (msg.header.stamp.sec, msg.header.stamp.nanosec)
+
+    def pair(stamp) -> None:
+        scan, odom = state["scans"].get(stamp), state["odom"].get(stamp)
+        if scan is not None and odom is not None:
+            del state["scans"][stamp], state["odom"][stamp]
+            decide(scan, odom)
+
+    def on_scan(msg: LaserScan) -> None:
+        state["scans"][key(msg)] = msg
+        pair(key(msg))
+
+    def on_odom(msg: Odometry) -> None:
+        state["odom"][key(msg)] = msg
+        pair(key(msg))
+
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    node.create_subscription(PoseStamped, "/goal_pose", on_goal, latched)
+    node.create_subscription(Odometry, "/odometry/filtered", on_odom, 50)
+    node.create_subscription(LaserScan, "/front/scan", on_scan, qos_profile_sensor_data)
+    with contextlib.suppress(KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        rclpy.spin(node)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
