@@ -25,6 +25,7 @@ SKIPS_NO_INSTALL_BRINGS = (
     "on this CPU",  # a CPU feature the machine lacks
     "make ros-nav",  # move_base built from source: fetched from GitHub, which CI does not reach
     "make ros-teb",  # teb_local_planner and g2o built from source: the same
+    "make ros2-core",  # ROS 2 Jazzy built from fetched sources: the same
 )
 
 

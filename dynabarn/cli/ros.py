@@ -1,5 +1,5 @@
-"""`dynabarn-ros`: a ROS 1 navigation stack drives the Jackal through a DynaBARN world, over
-the BARN Challenge's topics; judged and recorded like `dynabarn-run`."""
+"""`dynabarn-ros`: a ROS 1 or ROS 2 navigation stack drives the Jackal through a DynaBARN
+world, over the BARN Challenge's topics; judged and recorded like `dynabarn-run`."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
     """`dynabarn-ros`'s parser (its `--help`, and the documentation's page of the command)."""
     parser = make_parser(
         "dynabarn-ros",
-        "Let a ROS 1 navigation stack drive the Jackal in a DynaBARN world: the bridge publishes /clock, "
+        "Let a ROS 1 or ROS 2 navigation stack drive the Jackal in a DynaBARN world: the bridge publishes /clock, "
         "/front/scan, /odometry/filtered, /tf and the goal as the BARN Challenge's Gazebo does, takes /cmd_vel, "
         "judges the episode with the protocol and records it to MCAP like dynabarn-run.",
     )
@@ -38,6 +38,20 @@ def build_parser() -> argparse.ArgumentParser:
     add_protocol(parser)
     add_trial_seed(parser)
     _add_stack(parser)
+    parser.add_argument(
+        "--ros",
+        type=int,
+        choices=(1, 2),
+        default=1,
+        help="the ROS the stack runs on: 1, Debian's ROS 1 with a master of our own (default); 2, the ROS 2 "
+        "Jazzy `make ros2-core` built, in a DDS domain of our own kept on this machine",
+    )
+    parser.add_argument(
+        "--ros2-workspace",
+        type=Path,
+        default=None,
+        help="where `make ros2-core` built ROS 2 (default: $DYNABARN_ROS2_WS or ~/.cache/dynabarn/ros2)",
+    )
     parser.add_argument(
         "--master",
         default=None,
@@ -180,6 +194,8 @@ def _bridge_config(args: argparse.Namespace, workspace: Path | None, stack_log: 
         "stack_log": str(stack_log) if stack_log else None,
         "master": args.master,
         "announce": True,
+        **({"ros": 2} if args.ros == 2 else {}),
+        **({"ros2_workspace": str(args.ros2_workspace.expanduser().resolve())} if args.ros2_workspace else {}),
     }
 
 
@@ -203,7 +219,14 @@ def _ros_episode(args: argparse.Namespace) -> int:
     world_path = resolve_world(args.world, args.set)
     world_name = read_world(world_path).name  # parsed and checked; compiled by run_spec
     protocol = get_protocol(args.protocol)
-    ros_python()  # one clear line when ROS is missing, before a master is started
+    if args.ros == 2:
+        if args.stack or args.master:
+            raise DynabarnError("--ros 2: --stack and --master are ROS 1's (a ROS 2 stack is given by --launch)")
+        from dynabarn.ros.domain import Ros2Domain
+
+        Ros2Domain.start(args.ros2_workspace).close()  # one clear line when ROS 2 is not built
+    else:
+        ros_python()  # one clear line when ROS is missing, before a master is started
     workspace = args.nav_workspace.expanduser().resolve() if args.nav_workspace else None
     if args.stack:
         stack_command(args.stack, workspace)  # one clear line when move_base is not built

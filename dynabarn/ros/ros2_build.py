@@ -194,22 +194,21 @@ def find_sources(source: Path) -> dict[str, Path]:
     missing or other."""
     if not source.is_dir():
         raise DynabarnError(f"{source}: no such folder (fetch the sources: python -m dynabarn.ros.ros2_build --repos)")
-    folders, problems = {}, []
+    folders, other, missing = {}, [], []
     for name, (repository, version) in REPOSITORIES.items():
         folder = next((p for p in (source / name, source / repository) if p.is_dir()), None)
-        if folder is None:
-            problems.append(f"{name} (missing)")
-            continue
-        versions = _package_versions(folder)
-        other = sorted({v for v in versions.values() if v != version})
+        versions = _package_versions(folder) if folder is not None else {}
         if not versions:
-            problems.append(f"{name} (no package.xml)")
-        elif other:
-            problems.append(f"{name} ({', '.join(other)}, not {version})")
+            missing.append(name)
+            continue
+        found = sorted({v for v in versions.values() if v != version})
+        if found:
+            other.append(f"{name} ({', '.join(found)}, not {version})")
         folders[name] = folder
-    if problems:
-        shown = "; ".join(problems[:6]) + (f"; and {len(problems) - 6} more" if len(problems) > 6 else "")
-        raise DynabarnError(f"{source}: not the sources of {SYNC}: {shown}")
+    if other or missing:
+        shown = other[:4] + ([f"{len(missing)} missing ({', '.join(missing[:4])}{', ...' if len(missing) > 4 else ''})"]
+                             if missing else [])  # fmt: skip
+        raise DynabarnError(f"{source}: not the sources of {SYNC}: {'; '.join(shown)}")
     return folders
 
 

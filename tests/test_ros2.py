@@ -1,0 +1,124 @@
+"""ROS 2 in the loop (`dynabarn-ros --ros 2`): the core `make ros2-core` builds, the bridge
+node over rclpy against real rclpy nodes, and a rclpy stack of ours driving world 137.
+Where no ROS 2 prefix is built (CI cannot fetch its sources) each test skips with the
+command that builds it; the build's own checks (its sources, its record) run everywhere."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from dynabarn.errors import DynabarnError
+from dynabarn.ros import ros2_build
+
+HERE = Path(__file__).resolve().parent
+BIN = Path(sys.executable).parent
+
+
+def _prefix() -> Path:
+    workspace = ros2_build.default_workspace()
+    if ros2_build.built(workspace) is None:
+        pytest.skip(f"ROS 2 is not built in {workspace}: make ros2-core ROS2_SRC=<folder of the fetched repositories>")
+    return workspace
+
+
+def test_the_repositories_are_one_release_sync_and_a_wrong_folder_is_one_line(tmp_path):
+    """The vcstool file lists every repository at its version; sources of another version,
+    or none, are refused naming them, before anything is built."""
+    text = ros2_build.repos_file()
+    assert text.startswith("repositories:\n") and text.count("type: git") == len(ros2_build.REPOSITORIES)
+    assert "    url: https://github.com/ros2/rclpy.git\n    version: 7.1.3" in text
+    with pytest.raises(DynabarnError, match="no such folder"):
+        ros2_build.find_sources(tmp_path / "nowhere")
+    (tmp_path / "rclpy" / "rclpy").mkdir(parents=True)
+    (tmp_path / "rclpy" / "rclpy" / "package.xml").write_text(
+        "<package><name>rclpy</name><version>9.9.9</version></package>"
+    )
+    with pytest.raises(
+        DynabarnError, match=r"not the sources of release-jazzy-20241223: .*rclpy \(9\.9\.9, not 7\.1\.3\)"
+    ):
+        ros2_build.find_sources(tmp_path)
+    out = subprocess.run(
+        [
+            str(BIN / "python"),
+            "-m",
+            "dynabarn.ros.ros2_build",
+            "--source",
+            str(tmp_path),
+            "--workspace",
+            str(tmp_path / "ws"),
+        ],
+        capture_output=True,
+        text=True,
+    )
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1 and "missing" in out.stderr
+
+
+def test_the_built_prefix_says_what_it_holds():
+    """The record of `make ros2-core`: the sync, every package a stack and the bridge need,
+    the size; rclpy imports in the prefix's environment with Cyclone DDS."""
+    workspace = _prefix()
+    record = ros2_build.built(workspace)
+    assert record["sync"] == ros2_build.SYNC and set(ros2_build.CORE_PACKAGES) <= set(record["packages"])
+    assert record["install_bytes"] > 10e6
+    from dynabarn.ros.domain import Ros2Domain
+
+    domain = Ros2Domain.start(workspace)
+    try:
+        code = "from rclpy.utilities import get_rmw_implementation_identifier as rmw; print(rmw())"
+        env = domain.env()
+        done = subprocess.run(["/usr/bin/python3", "-c", code], env=env, capture_output=True, text=True, timeout=60)
+        assert done.returncode == 0 and done.stdout.strip() == "rmw_cyclonedds_cpp", done.stderr
+    finally:
+        domain.close()
+
+
+def test_two_bridges_never_share_a_domain():
+    workspace = _prefix()
+    from dynabarn.ros.domain import Ros2Domain
+
+    a, b = Ros2Domain.start(workspace), Ros2Domain.start(workspace)
+    try:
+        assert a.domain != b.domain and a.env()["ROS_DOMAIN_ID"] == str(a.domain)
+        assert a.env()["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    finally:
+        a.close()
+        b.close()
+
+
+def test_a_rclpy_stack_drives_world_137_in_lockstep(tmp_path):
+    """Our rclpy stack (tests/ros2_stack.py) on the bridge: the goal from /goal_pose, scans
+    with the sensor-data QoS, /clock with use_sim_time; it reaches the goal, every control
+    period answered (none held), and the episode is recorded like any other."""
+    workspace = _prefix()
+    log = tmp_path / "ros2.mcap"
+    out = subprocess.run(
+        [str(BIN / "dynabarn-ros"), "--ros", "2", "--ros2-workspace", str(workspace), "--world", "137",
+         "--launch", f"/usr/bin/python3 {HERE / 'ros2_stack.py'}", "--log", str(log), "--json"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    result = json.loads(out.stdout)
+    assert result["outcome"] == "success" and result["held_periods"] == 0, result
+    assert result["planner_config"]["ros"] == 2
+    assert log.is_file()
+
+
+def test_a_stack_that_never_answers_ends_as_an_error_naming_what_is_missing(tmp_path):
+    workspace = _prefix()
+    out = subprocess.run(
+        [str(BIN / "dynabarn-ros"), "--ros", "2", "--ros2-workspace", str(workspace), "--world", "137",
+         "--launch", f"/usr/bin/python3 {HERE / 'ros2_stack.py'} --mute", "--no-log", "--json",
+         "--ready-timeout", "5"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )  # fmt: skip
+    result = json.loads(out.stdout)
+    assert result["outcome"] == "error" and "no /cmd_vel came" in result["reason"], result
