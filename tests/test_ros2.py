@@ -122,3 +122,30 @@ def test_a_stack_that_never_answers_ends_as_an_error_naming_what_is_missing(tmp_
     )  # fmt: skip
     result = json.loads(out.stdout)
     assert result["outcome"] == "error" and "no /cmd_vel came" in result["reason"], result
+
+
+def test_the_same_stack_on_ros_1_and_ros_2_drives_the_same_episode():
+    """The controller of tests/ros_stack.py (rospy) and tests/ros2_stack.py (rclpy) answers
+    each scan from that scan and its odometry: through the two bridges, in lockstep, the
+    same episode to the sample (what differs between them is transport, not simulation)."""
+    _prefix()
+    from dynabarn.ros.bridge_config import ros_python
+
+    try:
+        ros_python(1)
+    except DynabarnError as exc:
+        pytest.skip(str(exc))
+    results = []
+    for ros, stack in ((1, "ros_stack.py"), (2, "ros2_stack.py")):
+        out = subprocess.run(
+            [str(BIN / "dynabarn-ros"), "--ros", str(ros), "--world", "137", "--no-log", "--json",
+             "--launch", f"/usr/bin/python3 {HERE / stack}"],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )  # fmt: skip
+        assert out.returncode == 0, out.stderr[-2000:]
+        results.append(json.loads(out.stdout))
+    ros1, ros2 = results
+    for key in ("outcome", "time", "path_length", "min_clearance", "n_ticks"):
+        assert ros1[key] == ros2[key], (key, ros1[key], ros2[key])

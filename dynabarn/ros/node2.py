@@ -127,8 +127,10 @@ def main(argv: list[str]) -> int:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
-    rclpy.init(args=argv)
-    args = _arguments(rclpy.utilities.remove_ros_args(argv)[1:])
+    # ROS 1's `from:=to` arguments (what the planner passes for --remap) as ROS 2's remappings.
+    remaps = [a for a in argv[1:] if ":=" in a]
+    rclpy.init(args=[argv[0], "--ros-args", *(x for r in remaps for x in ("-r", r))] if remaps else argv[:1])
+    args = _arguments([a for a in argv[1:] if ":=" not in a])
     ros = rclpy.create_node("dynabarn_bridge")
     node = Ros2Node(args, ros)
     executor = SingleThreadedExecutor()

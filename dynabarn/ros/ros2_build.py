@@ -58,6 +58,7 @@ REPOSITORIES: dict[str, tuple[str, str]] = {
     "libstatistics_collector": ("ros-tooling/libstatistics_collector", "1.7.4"),
     "libyaml_vendor": ("ros2/libyaml_vendor", "1.6.3"),
     "message_filters": ("ros2/message_filters", "4.11.2"),  # the sync: 4.11.3 (a fix to a Python test only)
+    "orocos_kdl_vendor": ("ros2/orocos_kdl_vendor", "0.5.1"),
     "osrf_pycommon": ("osrf/osrf_pycommon", "2.1.5"),
     "pluginlib": ("ros/pluginlib", "5.4.2"),
     "pybind11_vendor": ("ros2/pybind11_vendor", "3.1.2"),
@@ -123,7 +124,16 @@ CORE_PACKAGES = (
     "message_filters",
 )
 """What the bridge and a navigation stack use; colcon builds these and what they depend on."""
-IGNORED = ("test_msgs", "ros2cli_test_interfaces", "test_tf2", "tf2_py", "tf2_kdl", "tf2_eigen_kdl", "tf2_bullet")
+IGNORED = (
+    "test_msgs",
+    "ros2cli_test_interfaces",
+    "test_tf2",
+    "tf2_py",
+    "tf2_kdl",
+    "tf2_eigen_kdl",
+    "tf2_bullet",
+    "python_orocos_kdl_vendor",
+)
 """Packages left out (test interfaces that `--packages-up-to` would follow; tf2's Python
 KDL and Bullet bindings, which need libraries a navigation stack does not)."""
 BUILD_DEPENDENCIES = [
@@ -146,6 +156,7 @@ BUILD_DEPENDENCIES = [
     "libconsole-bridge-dev",
     "libeigen3-dev",
     "libacl1-dev",
+    "liborocos-kdl-dev",
 ]
 """Debian's packages for the build (`make ros2-deps` installs them)."""
 COLCON = "colcon-common-extensions==0.3.0"
