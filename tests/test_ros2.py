@@ -149,3 +149,51 @@ def test_the_same_stack_on_ros_1_and_ros_2_drives_the_same_episode():
     ros1, ros2 = results
     for key in ("outcome", "time", "path_length", "min_clearance", "n_ticks"):
         assert ros1[key] == ros2[key], (key, ros1[key], ros2[key])
+
+
+def test_ros2_topic_sees_the_bridge_with_nav2s_qos():
+    """`ros2 topic` in the domain the bridge announces, while a paced episode runs: its
+    topics listed, /tf_static and /goal_pose received by a late subscriber (transient-local,
+    as ROS 1 latches them), the scan best-effort (the sensor-data profile Nav2 expects)."""
+    import re
+
+    workspace = _prefix()
+    from dynabarn.ros.domain import prefix_env
+    from dynabarn.ros.ros2_build import setup_script
+
+    proc = subprocess.Popen(
+        [str(BIN / "dynabarn-ros"), "--ros", "2", "--world", "137", "--no-log", "--rate", "1",
+         "--launch", f"/usr/bin/python3 {HERE / 'ros2_stack.py'}"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )  # fmt: skip
+    try:
+        line = proc.stderr.readline()
+        domain = re.search(r"ROS_DOMAIN_ID=(\d+)", line)
+        assert domain, line
+        env = {
+            **prefix_env(setup_script(workspace)),
+            "HOME": str(Path.home()),
+            "ROS_DOMAIN_ID": domain.group(1),
+            "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+            "RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp",
+        }
+
+        def ros2(*words: str) -> str:
+            done = subprocess.run(["ros2", *words], env=env, capture_output=True, text=True, timeout=60)
+            assert done.returncode == 0, done.stderr
+            return done.stdout
+
+        topics = ros2("topic", "list", "--no-daemon")
+        assert {"/clock", "/front/scan", "/odometry/filtered", "/tf", "/tf_static", "/goal_pose", "/cmd_vel"} <= set(
+            topics.split()
+        ), topics
+        latched = ("--qos-durability", "transient_local", "--qos-reliability", "reliable", "--no-daemon")
+        assert "child_frame_id: front_laser" in ros2("topic", "echo", "--once", *latched, "/tf_static")
+        assert "frame_id: odom" in ros2("topic", "echo", "--once", *latched, "/goal_pose")
+        info = ros2("topic", "info", "--verbose", "/front/scan", "--no-daemon")
+        assert "BEST_EFFORT" in info, info
+    finally:
+        proc.kill()
+        proc.communicate()

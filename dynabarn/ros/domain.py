@@ -34,11 +34,7 @@ def prefix_env(setup: Path) -> dict[str, str]:
     if done.returncode:
         raise NotInstalledHere(f"{setup} could not be sourced", "make ros2-core ROS2_SRC=<folder>")
     pairs = (item.split("=", 1) for item in done.stdout.decode().split("\0") if "=" in item)
-    return {
-        k: v
-        for k, v in pairs
-        if k.startswith(("AMENT", "COLCON", "ROS", "PYTHONPATH", "LD_LIBRARY_PATH", "CMAKE_PREFIX"))
-    }
+    return {k: v for k, v in pairs if k.startswith(PREFIX_VARIABLES)}
 
 
 @dataclass
