@@ -98,7 +98,7 @@ def test_a_rclpy_stack_drives_world_137_in_lockstep(tmp_path):
     log = tmp_path / "ros2.mcap"
     out = subprocess.run(
         [str(BIN / "dynabarn-ros"), "--ros", "2", "--ros2-workspace", str(workspace), "--world", "137",
-         "--launch", f"/usr/bin/python3 {HERE / 'ros2_stack.py'}", "--log", str(log), "--json"],
+         "--launch", f"/usr/bin/python3 {HERE / 'ros2_stack.py'}", "--log", str(log), "--json", "--bag"],
         capture_output=True,
         text=True,
         timeout=600,
@@ -108,6 +108,14 @@ def test_a_rclpy_stack_drives_world_137_in_lockstep(tmp_path):
     assert result["outcome"] == "success" and result["held_periods"] == 0, result
     assert result["planner_config"]["ros"] == 2
     assert log.is_file()
+    # --bag: the recording as a ROS 2 bag beside it, read back by rosbags' reader.
+    from rosbags.rosbag2 import Reader
+
+    bag = Path(result["bag"])
+    assert bag == tmp_path / "ros2_rosbag2"
+    with Reader(bag) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+    assert counts["/front/scan"] == result["n_ticks"] and counts["/tf_static"] == 1
 
 
 def test_a_stack_that_never_answers_ends_as_an_error_naming_what_is_missing(tmp_path):

@@ -47,6 +47,13 @@ def build_parser() -> argparse.ArgumentParser:
         "Jazzy `make ros2-core` built, in a DDS domain of our own kept on this machine",
     )
     parser.add_argument(
+        "--bag",
+        action="store_true",
+        help="also write the recording as a bag of the stack's ROS beside it (ROS 1: NAME.bag; ROS 2: the folder "
+        "NAME_rosbag2, MCAP storage), for rosbag / ros2 bag (needs rosbags: pip install 'dynabarn[ros]'); "
+        "off by default",
+    )
+    parser.add_argument(
         "--ros2-workspace",
         type=Path,
         default=None,
@@ -214,6 +221,8 @@ def _ros_episode(args: argparse.Namespace) -> int:
             raise DynabarnError(f"--remap {remap!r}: {problem}")
     if args.launch is not None and not args.launch.strip():
         raise DynabarnError("--launch '': an empty command; leave --launch out to start the stack yourself")
+    if args.bag and args.no_log:
+        raise DynabarnError("--bag writes the recording as a bag: it needs the recording (leave out --no-log)")
     if args.stack_log is not None and args.stack_log.is_dir():
         raise DynabarnError(f"--stack-log {args.stack_log}: a folder; name a file for the stack's output")
     world_path = resolve_world(args.world, args.set)
@@ -254,6 +263,13 @@ def _ros_episode(args: argparse.Namespace) -> int:
     result, report = run.result, run.planner_report
     overhead, held = report["bridge_ms_per_tick"], report["held_periods"]
     extra = {**report, "stack_log": str(stack_log) if stack_log else None}
+    if args.bag and run.recording is not None:  # the stack's own ROS reads it: rosbag, ros2 bag
+        from dynabarn.recording import read_recording
+        from dynabarn.ros.export import export_bag
+
+        bag = run.recording.with_name(run.recording.stem + (".bag" if args.ros == 1 else "_rosbag2"))
+        export_bag(read_recording(run.recording), bag, "rosbag1" if args.ros == 1 else "rosbag2")
+        extra["bag"] = str(bag)
     print_result(result, as_json=args.json, recording=log_path, extra=extra)
     if not args.json:
         held_note = f"; {held} control periods without a /cmd_vel (the last command held)" if held else ""
