@@ -6,6 +6,7 @@ command that builds it; the build's own checks (its sources, its record) run eve
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -103,6 +104,7 @@ def test_a_rclpy_stack_drives_world_137_in_lockstep(tmp_path):
         capture_output=True,
         text=True,
         timeout=600,
+        env={**os.environ, "PYTHONSAFEPATH": "1"},  # as after a sweep or a vector env in this process
     )  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     result = json.loads(out.stdout)

@@ -22,7 +22,11 @@ from __future__ import annotations
 import math
 import sys
 import threading
+from pathlib import Path
 
+# `node.py` beside this file, also in safe-path mode (PYTHONSAFEPATH, which the package sets
+# for every Python it starts), where a script's own folder is not on sys.path.
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 from node import Node, _arguments, serve
 
 URDF = """<?xml version="1.0"?>
