@@ -18,10 +18,12 @@ goal and three of every 40 after that, as while its global planner runs).
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import sys
 import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # also in safe-path mode
+from stack_controller import steer
 
 
 def main() -> int:
@@ -60,20 +62,8 @@ def main() -> int:
         if state["goal"] is None:  # no goal yet: stand still, but answer
             cmd_pub.publish(Twist())
             return
-        p, q = odom.pose.pose.position, odom.pose.pose.orientation
-        yaw = 2.0 * math.atan2(q.z, q.w)
-        gx, gy = state["goal"]
-        heading = math.atan2(gy - p.y, gx - p.x) - yaw
-        heading = math.atan2(math.sin(heading), math.cos(heading))
-        n, ranges = len(scan.ranges), scan.ranges
-        lo = max(0, math.ceil((-0.5 - scan.angle_min) / scan.angle_increment))  # the beams within +-0.5 rad
-        hi = min(n, math.floor((0.5 - scan.angle_min) / scan.angle_increment) + 1)
-        left = min(ranges[n // 2 : n // 2 + n // 4], default=scan.range_max)
-        right = min(ranges[n // 4 : n // 2], default=scan.range_max)
-        nearest = min(ranges[lo:hi], default=scan.range_max)
         cmd = Twist()
-        cmd.linear.x = 2.0 if nearest > 2.0 else max(0.3, nearest - 0.5)
-        cmd.angular.z = max(-3.0, min(3.0, 2.0 * heading + (0.8 if nearest < 1.5 and right < left else 0.0)))
+        cmd.linear.x, cmd.angular.z = steer(scan, odom, state["goal"])
         cmd_pub.publish(cmd)
 
     def pair(stamp) -> None:
