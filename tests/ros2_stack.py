@@ -17,7 +17,7 @@ import sys
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # also in safe-path mode
-from stack_controller import steer
+from stack_controller import StampPairs, steer
 
 
 def main() -> int:
@@ -35,7 +35,7 @@ def main() -> int:
     args = parser.parse_args(rclpy.utilities.remove_ros_args(sys.argv)[1:])
     node = rclpy.create_node("test_stack", parameter_overrides=[Parameter("use_sim_time", value=True)])
     cmd_pub = node.create_publisher(Twist, "/cmd_vel", 10)
-    state = {"goal": None, "odom": {}, "scans": {}}
+    state = {"goal": None}
 
     def on_goal(msg: PoseStamped) -> None:
         state["goal"] = (msg.pose.position.x, msg.pose.position.y)
@@ -55,24 +55,12 @@ def main() -> int:
     def key(msg) -> tuple[int, int]:
         return (msg.header.stamp.sec, msg.header.stamp.nanosec)
 
-    def pair(stamp) -> None:
-        scan, odom = state["scans"].get(stamp), state["odom"].get(stamp)
-        if scan is not None and odom is not None:
-            del state["scans"][stamp], state["odom"][stamp]
-            decide(scan, odom)
-
-    def on_scan(msg: LaserScan) -> None:
-        state["scans"][key(msg)] = msg
-        pair(key(msg))
-
-    def on_odom(msg: Odometry) -> None:
-        state["odom"][key(msg)] = msg
-        pair(key(msg))
+    pairs = StampPairs(decide)
 
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     node.create_subscription(PoseStamped, "/goal_pose", on_goal, latched)
-    node.create_subscription(Odometry, "/odometry/filtered", on_odom, 50)
-    node.create_subscription(LaserScan, "/front/scan", on_scan, qos_profile_sensor_data)
+    node.create_subscription(Odometry, "/odometry/filtered", lambda m: pairs.odom(key(m), m), 50)
+    node.create_subscription(LaserScan, "/front/scan", lambda m: pairs.scan(key(m), m), qos_profile_sensor_data)
     with contextlib.suppress(KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         rclpy.spin(node)
     return 0

@@ -23,7 +23,7 @@ import sys
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # also in safe-path mode
-from stack_controller import steer
+from stack_controller import StampPairs, steer
 
 
 def main() -> int:
@@ -45,7 +45,7 @@ def main() -> int:
     args = parser.parse_args(rospy.myargv(sys.argv)[1:])
     rospy.init_node("test_stack")
     cmd_pub = rospy.Publisher("/cmd_vel", Twist, queue_size=10, tcp_nodelay=True)
-    state = {"goal": None, "odom": {}, "scans": {}, "n": 0}
+    state = {"goal": None, "n": 0}
 
     def on_goal(msg: PoseStamped) -> None:
         if args.goal_from == "topic":
@@ -66,19 +66,7 @@ def main() -> int:
         cmd.linear.x, cmd.angular.z = steer(scan, odom, state["goal"])
         cmd_pub.publish(cmd)
 
-    def pair(stamp) -> None:
-        scan, odom = state["scans"].get(stamp), state["odom"].get(stamp)
-        if scan is not None and odom is not None:
-            del state["scans"][stamp], state["odom"][stamp]
-            decide(scan, odom)
-
-    def on_scan(msg: LaserScan) -> None:
-        state["scans"][msg.header.stamp] = msg
-        pair(msg.header.stamp)
-
-    def on_odom(msg: Odometry) -> None:
-        state["odom"][msg.header.stamp] = msg
-        pair(msg.header.stamp)
+    pairs = StampPairs(decide)
 
     def on_action(goal) -> None:  # the move_base action: drive there, succeed when close
         pose = goal.target_pose.pose.position
@@ -91,6 +79,8 @@ def main() -> int:
     if args.like_move_base:
         _run_like_move_base(args, state, decide)
     else:
+        on_odom = lambda m: pairs.odom(m.header.stamp, m)  # noqa: E731
+        on_scan = lambda m: pairs.scan(m.header.stamp, m)  # noqa: E731
         rospy.Subscriber("/odometry/filtered", Odometry, on_odom, queue_size=50, tcp_nodelay=True)
         rospy.Subscriber("/front/scan", LaserScan, on_scan, queue_size=50, tcp_nodelay=True)
     rospy.spin()

@@ -23,3 +23,28 @@ def steer(scan, odom, goal: tuple[float, float]) -> tuple[float, float]:
     v = 2.0 if nearest > 2.0 else max(0.3, nearest - 0.5)
     w = max(-3.0, min(3.0, 2.0 * heading + (0.8 if nearest < 1.5 and right < left else 0.0)))
     return v, w
+
+
+class StampPairs:
+    """Each scan paired with the odometry of the same stamp, whichever comes first: `decide`
+    is called once per pair (so a stack answers the same messages the same way, whatever
+    order the middleware delivers them in)."""
+
+    def __init__(self, decide) -> None:
+        self.decide = decide
+        self.scans: dict = {}
+        self.odoms: dict = {}
+
+    def scan(self, stamp, msg) -> None:
+        self.scans[stamp] = msg
+        self._pair(stamp)
+
+    def odom(self, stamp, msg) -> None:
+        self.odoms[stamp] = msg
+        self._pair(stamp)
+
+    def _pair(self, stamp) -> None:
+        scan, odom = self.scans.get(stamp), self.odoms.get(stamp)
+        if scan is not None and odom is not None:
+            del self.scans[stamp], self.odoms[stamp]
+            self.decide(scan, odom)
