@@ -14,10 +14,9 @@ import argparse
 import contextlib
 import os
 import sys
-import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # also in safe-path mode
-from stack_controller import StampPairs, steer
+from stack_controller import StampPairs, command
 
 
 def main() -> int:
@@ -43,13 +42,8 @@ def main() -> int:
     def decide(scan: LaserScan, odom: Odometry) -> None:
         if args.mute:
             return
-        if args.delay:
-            time.sleep(args.delay)
-        if state["goal"] is None:  # no goal yet: stand still, but answer
-            cmd_pub.publish(Twist())
-            return
-        cmd = Twist()
-        cmd.linear.x, cmd.angular.z = steer(scan, odom, state["goal"])
+        cmd = Twist()  # before a goal: standing still, but answering
+        cmd.linear.x, cmd.angular.z = command(scan, odom, state["goal"], delay=args.delay)
         cmd_pub.publish(cmd)
 
     def key(msg) -> tuple[int, int]:

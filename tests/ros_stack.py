@@ -20,10 +20,9 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # also in safe-path mode
-from stack_controller import StampPairs, steer
+from stack_controller import StampPairs, command
 
 
 def main() -> int:
@@ -57,13 +56,8 @@ def main() -> int:
             os._exit(3)  # a crash: no clean shutdown
         if args.mute or (args.mute_after and state["n"] > args.mute_after):
             return
-        if args.delay:
-            time.sleep(args.delay)
-        if state["goal"] is None:  # no goal yet: stand still, but answer
-            cmd_pub.publish(Twist())
-            return
-        cmd = Twist()
-        cmd.linear.x, cmd.angular.z = steer(scan, odom, state["goal"])
+        cmd = Twist()  # before a goal: standing still, but answering
+        cmd.linear.x, cmd.angular.z = command(scan, odom, state["goal"], delay=args.delay)
         cmd_pub.publish(cmd)
 
     pairs = StampPairs(decide)

@@ -5,6 +5,15 @@ test compares their episodes). Plain Python: it runs on Debian's /usr/bin/python
 from __future__ import annotations
 
 import math
+import time
+
+
+def command(scan, odom, goal: tuple[float, float] | None, *, delay: float = 0.0) -> tuple[float, float]:
+    """The stack's answer to a scan and its odometry: standing still until there is a goal,
+    then `steer`; `delay` seconds of thinking first (a slow stack)."""
+    if delay:
+        time.sleep(delay)
+    return (0.0, 0.0) if goal is None else steer(scan, odom, goal)
 
 
 def steer(scan, odom, goal: tuple[float, float]) -> tuple[float, float]:
