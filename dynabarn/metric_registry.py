@@ -12,8 +12,6 @@ processes know the built-in and installed ones (install it to have it everywhere
 
 from __future__ import annotations
 
-import functools
-import sys
 from dataclasses import fields
 
 from dynabarn.metrics import METRICS, EpisodeResult, Metric
@@ -46,15 +44,7 @@ def added_metrics() -> tuple[Metric, ...]:
     """The metrics beyond the table: installed (by entry-point name), then registered in
     this process (in the order registered). One installed that cannot load or breaks the
     contract is named in one warning and left out."""
-    registered = tuple(m for name, m in METRIC_REGISTRY.items() if name not in METRIC_REGISTRY.builtin)
-    return (*_installed(tuple(sys.path)), *registered)
-
-
-@functools.lru_cache(maxsize=4)
-def _installed(path: tuple[str, ...]) -> tuple[Metric, ...]:
-    """The installed metrics for one sys.path (the installed packages scanned once)."""
-    loaded = METRIC_REGISTRY.loaded()
-    return tuple(loaded[name] for name in sorted(loaded) if name not in METRIC_REGISTRY)
+    return (*METRIC_REGISTRY.installed_items().values(), *METRIC_REGISTRY.run_time_items())
 
 
 def computed(facts) -> dict | None:

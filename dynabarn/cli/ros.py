@@ -231,9 +231,9 @@ def _ros_episode(args: argparse.Namespace) -> int:
     if args.ros == 2:
         if args.stack or args.master:
             raise DynabarnError("--ros 2: --stack and --master are ROS 1's (a ROS 2 stack is given by --launch)")
-        from dynabarn.ros.domain import Ros2Domain
+        from dynabarn.ros.domain import built_setup
 
-        Ros2Domain.start(args.ros2_workspace).close()  # one clear line when ROS 2 is not built
+        built_setup(args.ros2_workspace)  # one clear line when ROS 2 is not built
     else:
         ros_python()  # one clear line when ROS is missing, before a master is started
     workspace = args.nav_workspace.expanduser().resolve() if args.nav_workspace else None

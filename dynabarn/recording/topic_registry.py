@@ -12,9 +12,7 @@ in that order, in this process or the writer's: the same bytes either way.
 
 from __future__ import annotations
 
-import functools
 import pickle
-import sys
 
 from dynabarn.errors import DynabarnError
 from dynabarn.recording.topics import TOPICS, Topic
@@ -59,28 +57,19 @@ under `TOPICS_GROUP`, each checked (`_check_topic`)."""
 
 def run_time_topics() -> tuple[Topic, ...]:
     """The topics registered in this process, in the order they were registered."""
-    return tuple(TOPIC_REGISTRY.values())
+    return TOPIC_REGISTRY.run_time_items()
 
 
 def installed_topics() -> tuple[Topic, ...]:
     """The topics other packages installed, by entry-point name. One that cannot load, is
-    not a JSON topic made each tick, or reuses a name is named in one warning and left out."""
-    return _installed(tuple(sys.path))
-
-
-@functools.lru_cache(maxsize=4)
-def _installed(path: tuple[str, ...]) -> tuple[Topic, ...]:
-    """The installed topics for one sys.path (scanning the installed packages costs ~2 ms:
-    once per process, again only when the path changes), each checked by the registry."""
+    not a JSON topic made each tick, or reuses a name is named in one warning and left out:
+    the table's topics are recorded whatever another package installs."""
     extra: list[Topic] = []
-    # One that cannot load or breaks the contract is named in one warning and left out: the
-    # table's topics are recorded whatever another package installs.
-    for name, topic in sorted(TOPIC_REGISTRY.loaded().items()):
-        if name in TOPIC_REGISTRY:  # registered in this process: after the installed ones
-            continue
+    for name, topic in TOPIC_REGISTRY.installed_items().items():
         if topic.name in {t.name for t in extra}:
-            twice = DynabarnError(f"recording topic {name!r}: topic {topic.name} is already recorded")
-            TOPIC_REGISTRY.warn(name, twice)
+            TOPIC_REGISTRY.warn(
+                name, DynabarnError(f"recording topic {name!r}: topic {topic.name} is already recorded")
+            )
             continue
         extra.append(topic)
     return tuple(extra)

@@ -37,6 +37,20 @@ def prefix_env(setup: Path) -> dict[str, str]:
     return {k: v for k, v in pairs if k.startswith(PREFIX_VARIABLES)}
 
 
+def built_setup(workspace: Path | None = None) -> Path:
+    """The `setup.bash` of a finished `make ros2-core` build in `workspace` (default: the
+    prefix's default); one clear line naming the command when there is none."""
+    from dynabarn.ros.ros2_build import built, default_workspace, setup_script
+
+    workspace = workspace or default_workspace()
+    if built(workspace) is None or not setup_script(workspace).is_file():
+        raise NotInstalledHere(
+            f"no ROS 2 built in {workspace}: `make ros2-core ROS2_SRC=<folder of the fetched repositories>`",
+            "make ros2-core ROS2_SRC=<folder>",
+        )
+    return setup_script(workspace)
+
+
 @dataclass
 class Ros2Domain:
     """A DDS domain of the bridge's own in the ROS 2 prefix's environment (`close` frees it)."""
@@ -47,14 +61,7 @@ class Ros2Domain:
 
     @classmethod
     def start(cls, workspace: Path | None = None) -> Ros2Domain:
-        from dynabarn.ros.ros2_build import built, default_workspace, setup_script
-
-        workspace = workspace or default_workspace()
-        if built(workspace) is None or not setup_script(workspace).is_file():
-            raise NotInstalledHere(
-                f"no ROS 2 built in {workspace}: `make ros2-core ROS2_SRC=<folder of the fetched repositories>`",
-                "make ros2-core ROS2_SRC=<folder>",
-            )
+        setup = built_setup(workspace)
         for domain in DOMAINS:
             fd = os.open(Path(tempfile.gettempdir()) / f"dynabarn-ros2-domain-{domain}.lock", os.O_RDWR | os.O_CREAT)
             try:
@@ -62,7 +69,7 @@ class Ros2Domain:
             except OSError:
                 os.close(fd)
                 continue
-            return cls(domain, setup_script(workspace), fd)
+            return cls(domain, setup, fd)
         raise NotInstalledHere(f"every ROS 2 domain of {DOMAINS.start}..{DOMAINS.stop - 1} is in use here")
 
     @property
