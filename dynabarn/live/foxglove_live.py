@@ -103,16 +103,8 @@ class FoxgloveLive(EpisodeObserver):
     # -- EpisodeObserver: the server's clock follows simulated time ---------------------
     def on_start(self, start) -> None:
         self.server.broadcast_time(0)
-        if self.wait <= 0:
-            return
-        if not self.wait_for_client(self.wait):
+        if self.wait > 0 and not self.wait_for_client(self.wait):
             print(f"no Foxglove client after {self.wait:g} s; starting anyway", file=sys.stderr, flush=True)
-            return
-        # Once more, now that the waiting client's subscriptions have settled: a subscription
-        # made while the start was being written can miss both the message and its resend
-        # (seen once in CI under load), and a latched message twice does no harm.
-        for topic in list(self.recorder.latched if self.recorder is not None else ()):
-            self.resend(topic)
 
     def on_tick(self, tick) -> None:
         self.server.broadcast_time(round(tick.time * 1e9))
