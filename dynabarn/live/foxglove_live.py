@@ -25,6 +25,12 @@ from dynabarn.recording import McapRecorder
 HOST = "127.0.0.1"
 """Loopback only: a simulator has no business listening on every interface (use an SSH
 tunnel to watch from another machine)."""
+BACKLOG = 16384
+"""Messages the server queues per client before it drops the oldest (foxglove-sdk's default
+is 1024). A paced episode at 10x real time streams about 2,500 messages a second (a
+transform every physics step), so the default is 0.4 s of a client that reads slowly: the
+first to go are the oldest, the world's metadata sent once at the start (a test lost it
+so, under load). 16384 is 6 s of that stream, a few MB of transforms."""
 SETTLE = 0.2
 """Seconds without a new subscription after which a waiting episode starts."""
 
@@ -65,6 +71,7 @@ class FoxgloveLive(EpisodeObserver):
             capabilities=[Capability.Time],
             server_listener=_Latch(self),
             context=self.context,
+            message_backlog_size=BACKLOG,
         )
 
     @property
