@@ -152,6 +152,33 @@ class ObstacleTracker(Tracker):
         self.p_xv[k] = p_xv - gain_x * p_xv
         self.p_vv[k] = p_vv - gain_v * p_xv
 
+    def _correct_velocity(self, k: np.ndarray, z: np.ndarray, r: np.ndarray) -> None:
+        """Kalman update of tracks k with measured velocities z (m, 2) of variances r (m, 2)."""
+        s = self.p_vv[k] + r
+        gain_x, gain_v = self.p_xv[k] / s, self.p_vv[k] / s
+        innovation = z - self.v[k]
+        self.x[k] += gain_x * innovation
+        self.v[k] += gain_v * innovation
+        p_xx, p_xv, p_vv = self.p_xx[k], self.p_xv[k], self.p_vv[k]
+        self.p_xx[k] = p_xx - gain_x * p_xv
+        self.p_xv[k] = p_xv - gain_x * p_vv
+        self.p_vv[k] = p_vv - gain_v * p_vv
+
+    def _motion(
+        self, k: np.ndarray, columns: np.ndarray, det: Detections, time: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Velocities measured for tracks k (matched with detections `columns`) other than by
+        their centres: (the tracks, the velocities (m, 2), their variances (m, 2)), or None.
+        This tracker measures centres only; `registered_tracker` registers returns."""
+        return None
+
+    def _remember(
+        self, det: Detections, matched: np.ndarray, columns: np.ndarray, born: np.ndarray, time: float
+    ) -> None:
+        """What a tracker keeps of this scan beyond the filter's state (here nothing): after
+        the scan, given the ids of the tracks `matched` with detections `columns` and the
+        detections `born` as the last tracks."""
+
     # -- one scan -----------------------------------------------------------------------------
     def _next_scan(self, time: float, scan: np.ndarray, pose: np.ndarray) -> tuple[Detections, float, np.ndarray]:
         """Every track predicted to `time`, the scan's detections: (them, the time since the
@@ -169,10 +196,14 @@ class ObstacleTracker(Tracker):
         det, dt, var = self._next_scan(time, scan, pose)
         track_rows, det_cols = self._associate(det)
         if len(track_rows):
+            motion = self._motion(track_rows, det_cols, det, time)  # from the predicted state
             self._correct(track_rows, det.centres[det_cols], var[det_cols])
+            if motion is not None:
+                self._correct_velocity(*motion)
             self.size[track_rows] = det.sizes[det_cols]
             self.seen[track_rows] = time
             self.unseen_in_view[track_rows] = 0.0
+        matched_ids = self.ids[track_rows]  # rows move when stale tracks are dropped
         # The rows and columns left unmatched, in order (a mask: setdiff1d sorts, costing more).
         unmatched = np.ones(len(self.ids), dtype=bool)
         unmatched[track_rows] = False
@@ -182,6 +213,7 @@ class ObstacleTracker(Tracker):
         born = np.flatnonzero(unclaimed)
         if len(born):
             self._birth(det.centres[born], det.sizes[born], var[born], time)
+        self._remember(det, matched_ids, det_cols, born, time)
         # On a fixed grid: the state carried to the next scan is the same bits everywhere.
         snap_array(self.x, STATE_RESOLUTION, out=self.x)
         snap_array(self.v, STATE_RESOLUTION, out=self.v)

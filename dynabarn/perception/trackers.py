@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import is_dataclass
 
 from dynabarn.interfaces import BaseTrackerConfig, EpisodeInfo, Tracker
+from dynabarn.perception.registered_tracker import RegisteredTracker
 from dynabarn.perception.shaped_tracker import ShapeTracker
 from dynabarn.perception.tracker import ObstacleTracker
 from dynabarn.registry import Registry, subclasses_of
@@ -27,7 +28,7 @@ def _check_tracker(item: object) -> None:
 
 TRACKERS: Registry[type[Tracker]] = Registry(
     "tracker",
-    {"kalman": ObstacleTracker, "shaped": ShapeTracker},
+    {"kalman": ObstacleTracker, "shaped": ShapeTracker, "registered": RegisteredTracker},
     group="dynabarn.trackers",
     check=_check_tracker,
 )
