@@ -1,5 +1,5 @@
 """The shaped tracker's table (issue 57), from the committed sweeps of
-`benchmarks/shaped_tracker_sweeps.py`: per world set's hard worlds, the circle tracker
+`benchmarks/tracker_sweeps.py`: per world set's hard worlds, the circle tracker
 (`predictive`) and the shaped one (`predictive@shaped_tracker`) side by side, their
 tracking quality against the truth, their success with its interval and the skill over
 the blind floor, and the privileged rung (`oracle_present`, the true present state) beside.

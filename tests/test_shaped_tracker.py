@@ -6,80 +6,15 @@ from __future__ import annotations
 
 import math
 
-import mujoco
 import numpy as np
 import pytest
 
-from dynabarn.perception.detect import ObstacleDetector
 from dynabarn.perception.shape_fit import fit_headings
 from dynabarn.perception.shaped_tracker import SEEN_EXTENT_STD, ShapeTracker
 from dynabarn.perception.tracker import ObstacleTracker, TrackerConfig
 from dynabarn.perception.trackers import TRACKERS
 from dynabarn.perception.tracks import Tracks
-from dynabarn.robot import JACKAL
-
-ANGLES = JACKAL.laser_angles()
-LASER_Z = 0.3
-
-
-class Scene:
-    """Moving shapes (mocap bodies) and standing cylinders, scanned from a robot pose."""
-
-    def __init__(self, moving: list[dict], standing: np.ndarray | None = None) -> None:
-        spec = mujoco.MjSpec()
-        for i, shape in enumerate(moving):
-            yaw = shape.get("yaw", 0.0)
-            body = spec.worldbody.add_body(name=f"moving{i}", pos=[0, 0, 0], mocap=True)
-            turn = [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
-            if shape["kind"] == "box":
-                body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[*shape["half"], 0.5], pos=[0, 0, 0.5], quat=turn)
-            elif shape["kind"] == "capsule":  # lying along its yaw, axis at height r
-                lie = np.zeros(4)
-                mujoco.mju_mulQuat(
-                    lie, np.array(turn), np.array([math.cos(math.pi / 4), 0.0, math.sin(math.pi / 4), 0.0])
-                )
-                r = shape["radius"]
-                body.add_geom(
-                    type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[r, shape["half_length"], 0], pos=[0, 0, r], quat=lie
-                )
-            else:
-                body.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[shape["radius"], 0.5, 0], pos=[0, 0, 0.5])
-        self.standing = np.zeros((0, 3)) if standing is None else np.asarray(standing, dtype=float)
-        for x, y, r in self.standing:
-            spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[r, 0.5, 0], pos=[x, y, 0.5])
-        self.model = spec.compile()
-        self.data = mujoco.MjData(self.model)
-        self.rng = np.random.default_rng(57)
-
-    def scan(self, positions: np.ndarray, pose: np.ndarray) -> np.ndarray:
-        self.data.mocap_pos[:, :2] = positions
-        self.data.mocap_pos[:, 2] = 0.0
-        mujoco.mj_kinematics(self.model, self.data)
-        origin = [pose[0] + JACKAL.laser_x * math.cos(pose[2]), pose[1] + JACKAL.laser_x * math.sin(pose[2]), LASER_Z]
-        a = ANGLES + pose[2]
-        vec = np.column_stack([np.cos(a), np.sin(a), np.zeros(len(a))]).ravel()
-        geom, dist = np.zeros(len(a), np.int32), np.zeros(len(a))
-        mujoco.mj_multiRay(self.model, self.data, np.array(origin), vec, None, 1, -1, geom, dist, None, len(a), 30.0)
-        ranges = np.where(geom < 0, 30.0, dist) + self.rng.normal(0.0, JACKAL.laser_noise_std, len(a))
-        return np.round(np.minimum(ranges, 30.0), 3)
-
-    def tracker(self, kind: type = ShapeTracker) -> ObstacleTracker:
-        cfg = kind.Config(kind=kind.name)  # each tracker's own configuration
-        detector = ObstacleDetector(
-            cfg.detector,
-            walls=np.zeros((0, 4)),
-            static_obstacles=self.standing,
-            laser_angles=ANGLES,
-            laser_offset=np.array([JACKAL.laser_x, 0.0]),
-            range_max=30.0,
-        )
-        return kind(cfg, detector)
-
-
-def _pose_looking_at(target: np.ndarray, bearing: float, distance: float) -> np.ndarray:
-    """A robot pose `distance` from `target` at `bearing` from it, facing it."""
-    x, y = target[0] + distance * math.cos(bearing), target[1] + distance * math.sin(bearing)
-    return np.array([x, y, bearing + math.pi])
+from tests.laser_scene import Scene, pose_looking_at
 
 
 def _heading_error(estimate: float, truth: float) -> float:
@@ -119,7 +54,7 @@ def test_a_box_seen_at_a_corner_gives_its_centre_extent_and_heading():
     scene = Scene([{"kind": "box", "half": half, "yaw": yaw}])
     for bearing in yaw + np.array([0.25, 0.75, 1.25, 1.75]) * math.pi:  # the four corners
         tracker = scene.tracker()
-        pose = _pose_looking_at(centre, bearing, 4.0)
+        pose = pose_looking_at(centre, bearing, 4.0)
         tracks = tracker.update(0.0, scene.scan(centre[None], pose), pose)
         assert len(tracks) == 1
         assert np.hypot(*(tracks.positions[0] - centre)) < 0.03
@@ -133,7 +68,7 @@ def test_a_box_seen_from_every_side_gives_its_centre_extent_and_heading():
     scene = Scene([{"kind": "box", "half": half, "yaw": yaw}])
     tracker = scene.tracker()
     for k, bearing in enumerate(np.linspace(0.0, 2.0 * math.pi, 8, endpoint=False)):
-        pose = _pose_looking_at(centre, bearing, 3.5)
+        pose = pose_looking_at(centre, bearing, 3.5)
         tracks = tracker.update(0.1 * k, scene.scan(centre[None], pose), pose)
         assert len(tracks) == 1 and tracks.ids[0] == 0
     assert np.hypot(*(tracks.positions[0] - centre)) < 0.03
@@ -146,7 +81,7 @@ def test_a_box_seen_face_on_is_placed_behind_its_face_with_an_uncertain_depth():
     centre, half, yaw = np.array([0.0, 0.0]), (0.5, 0.2), 0.0
     scene = Scene([{"kind": "box", "half": half, "yaw": yaw}])
     tracker = scene.tracker()
-    pose = _pose_looking_at(centre, -math.pi / 2, 4.0)  # straight at the long side
+    pose = pose_looking_at(centre, -math.pi / 2, 4.0)  # straight at the long side
     tracks = tracker.update(0.0, scene.scan(centre[None], pose), pose)
     across = tracks.positions[0] - centre
     assert abs(across[0]) < 0.03  # along the face: exact
@@ -164,7 +99,7 @@ def test_a_capsule_passed_by_is_tracked_by_its_outline_not_by_a_circle(side):
     scene = Scene([CAPSULE])
     shaped, circles = scene.tracker(), scene.tracker(ObstacleTracker)
     for k, off_axis in enumerate(np.linspace(0.6, math.pi - 0.6, 12)):  # from one end to the other
-        pose = _pose_looking_at(centre, yaw + side * off_axis, 3.0)
+        pose = pose_looking_at(centre, yaw + side * off_axis, 3.0)
         scan = scene.scan(centre[None], pose)
         tracks, circle_tracks = shaped.update(0.1 * k, scan, pose), circles.update(0.1 * k, scan, pose)
     error = np.hypot(*(tracks.positions[0] - centre))
@@ -185,7 +120,7 @@ def test_a_capsule_seen_end_on_is_placed_across_and_says_its_length_is_unknown(e
     scene = Scene([CAPSULE])
     tracker = scene.tracker()
     for k in range(4):
-        pose = _pose_looking_at(centre, yaw + end + 0.1 * k, 3.0)
+        pose = pose_looking_at(centre, yaw + end + 0.1 * k, 3.0)
         tracks = tracker.update(0.1 * k, scene.scan(centre[None], pose), pose)
     axis = np.array([math.cos(yaw), math.sin(yaw)])
     error = tracks.positions[0] - centre
@@ -203,7 +138,7 @@ def test_a_cylinder_keeps_the_circle_trackers_precision():
     scene = Scene([{"kind": "cylinder", "radius": 0.5}])
     tracker = scene.tracker()
     for k in range(4):
-        pose = _pose_looking_at(centre, 0.4 * k, 5.0)
+        pose = pose_looking_at(centre, 0.4 * k, 5.0)
         tracks = tracker.update(0.1 * k, scene.scan(centre[None], pose), pose)
     assert np.hypot(*(tracks.positions[0] - centre)) < 0.005
     assert tracks.half_sizes[0] == pytest.approx([0.5, 0.5])

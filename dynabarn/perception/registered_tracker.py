@@ -30,7 +30,6 @@ from dynabarn.perception.tracker import ObstacleTracker, TrackerConfig
 class RegisteredTrackerConfig(TrackerConfig):
     """`registered`'s settings: `kalman`'s, and the registration's."""
 
-    kind: str = "registered"
     residual_weight: float = 3.0
     """A detection's fit residual times this is added to its centre's standard deviation."""
     registration_sigma: float = 0.03
