@@ -36,7 +36,7 @@ from certified_tables import calibration_table, certification_table, certified_l
 from leaderboard import leaderboard_table, tier_ladder_table
 from learning_tables import dagger_curves, dagger_training, generalisation_table, student_ablation, student_table
 from ros_tables import MOVE_BASE_SETS, ablation_table, move_base_table
-from tracker_tables import SHAPED_SETS, shaped_tracker_table
+from tracker_tables import LADDERS, TRACKER_FOLDERS, tracker_table
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS_DIR = ROOT / "results"
@@ -65,14 +65,13 @@ TIER_SETS = {
     "tier_combined_barn": "`tier-combined`: all of them",
 }
 """The tiers beyond the paper's hard, 10 trials per world, every world certified solvable."""
-SHAPED = SHAPED_SETS.items()
 LEADERBOARD_SETS = {
     **SETS,
     **TIER_SETS,
     **OTHER_SETS,
     **{
-        folder: f"{title}, hard worlds: the shaped tracker beside the circle one"
-        for folder, (title, _) in SHAPED_SETS.items()
+        folder: f"{LADDERS[world_set][0]}, hard worlds: the `{preset}` preset"
+        for folder, (preset, world_set) in TRACKER_FOLDERS.items()
     },
 }
 """The leaderboard's world sets, in its order (the move_base folders compare stacks, not planners)."""
@@ -90,6 +89,8 @@ PLANNERS = {
     "predictive": "The laser tracker feeding the oracle's search (`predictive`)",
     "predictive@shaped_tracker": "`predictive` with the tracker for boxes, capsules and cylinders "
     "(`predictive@shaped_tracker`)",
+    "predictive@registered_tracker": "`predictive` with velocities from registered returns "
+    "(`predictive@registered_tracker`)",
     "oracle_present": "*Privileged*: the true present state, constant velocity (`oracle_present`)",
     "oracle": "*Privileged*: the exact future (`oracle`)",
 }
@@ -126,7 +127,7 @@ def load(folder: str) -> tuple[list[dict], list[dict]]:
 def load_all() -> tuple[dict, dict]:
     """(folders, summaries): every results folder the pages use as (rows, summary), and the
     summaries of the paper's two world sets and the unseen worlds."""
-    folders = {folder: load(folder) for folder in (*SETS, *OTHER_SETS, *TIER_SETS, *MOVE_BASE_SETS, *SHAPED_SETS)}
+    folders = {folder: load(folder) for folder in (*SETS, *OTHER_SETS, *TIER_SETS, *MOVE_BASE_SETS, *TRACKER_FOLDERS)}
     return folders, {folder: s for folder, (_, s) in folders.items() if folder in SETS}
 
 
@@ -339,12 +340,12 @@ BLOCKS = {
     "calibration": lambda f, s: calibration_table(),
     "leaderboard": lambda f, s: leaderboard_table(f, LEADERBOARD_SETS),
     "tier-ladder": lambda f, s: tier_ladder_table(f, TIER_SETS, LADDER),
-    "shaped-tracker": lambda f, s: shaped_tracker_table(f, _ci, _skill),
+    "trackers": lambda f, s: tracker_table(f, _ci, _skill),
 }
 
 
 PAGES = {
-    README: ("headline", "ladder", "tier-ladder", "shaped-tracker", "certification", "generalisation"),
+    README: ("headline", "ladder", "tier-ladder", "trackers", "certification", "generalisation"),
     DOCS / "results.md": (
         "fig5",
         "skill",
@@ -353,7 +354,7 @@ PAGES = {
         "certification",
         "certified-ladder",
         "tracking",
-        "shaped-tracker",
+        "trackers",
         "other-worlds",
         "tiers",
         "generalisation",

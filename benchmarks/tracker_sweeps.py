@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from bench_command import ROOT, run_dynabarn
+from bench_command import run_dynabarn
 
 SETS = ("tier-combined", "tier-mixed", "tier-dense", "tier-fast", "paper60")
 PRESETS = ("shaped_tracker", "registered_tracker")

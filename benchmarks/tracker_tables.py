@@ -1,10 +1,11 @@
-"""The shaped tracker's table (issue 57), from the committed sweeps of
+"""The laser trackers' table (issue 57), from the committed sweeps of
 `benchmarks/tracker_sweeps.py`: per world set's hard worlds, the circle tracker
-(`predictive`) and the shaped one (`predictive@shaped_tracker`) side by side, their
-tracking quality against the truth, their success with its interval and the skill over
-the blind floor, and the privileged rung (`oracle_present`, the true present state) beside.
+(`predictive`), the outlines (`predictive@shaped_tracker`) and the registered velocities
+(`predictive@registered_tracker`) side by side, their tracking quality against the truth,
+their success with its interval and the skill over the blind floor, and the privileged
+rung (`oracle_present`, the true present state) beside.
 
-Where a shaped-tracker folder holds no `predictive` rows of its own (the sets without a
+Where a tracker's folders hold no `predictive` rows of their own (the sets without a
 static field, where the circle tracker's committed recall was right), its row is the one
 of the set's committed ladder folder, hard worlds, the same 10 trials.
 """
@@ -13,15 +14,23 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-SHAPED_SETS = {
-    "shaped_tracker_paper60": ("paper60", "paper60_barn"),
-    "shaped_tracker_tier_dense": ("`tier-dense`", "tier_dense_barn"),
-    "shaped_tracker_tier_fast": ("`tier-fast`", "tier_fast_barn"),
-    "shaped_tracker_tier_mixed": ("`tier-mixed`", "tier_mixed_barn"),
-    "shaped_tracker_tier_combined": ("`tier-combined`", "tier_combined_barn"),
+from tracker_sweeps import PRESETS, SETS, folder
+
+LADDERS = {
+    "paper60": ("paper60", "paper60_barn"),
+    "tier-dense": ("`tier-dense`", "tier_dense_barn"),
+    "tier-fast": ("`tier-fast`", "tier_fast_barn"),
+    "tier-mixed": ("`tier-mixed`", "tier_mixed_barn"),
+    "tier-combined": ("`tier-combined`", "tier_combined_barn"),
 }
-"""The shaped tracker's folders: (the set's name, its committed ladder folder)."""
-TRACKERS = (("predictive", "circles (`kalman`)"), ("predictive@shaped_tracker", "outlines (`shaped`)"))
+"""Each swept set: (its name in the table, its committed ladder folder)."""
+TRACKER_FOLDERS = {folder(preset, world_set): (preset, world_set) for preset in PRESETS for world_set in SETS}
+"""Every tracker sweep's folder: (its preset, its set)."""
+TRACKERS = (
+    ("predictive", "circles (`kalman`)"),
+    ("predictive@shaped_tracker", "outlines (`shaped`)"),
+    ("predictive@registered_tracker", "registered velocity (`registered`)"),
+)
 
 
 def _tracking(s: dict) -> str:
@@ -34,7 +43,7 @@ def _tracking(s: dict) -> str:
     )
 
 
-def shaped_tracker_table(
+def tracker_table(
     folders: dict[str, tuple[list[dict], list[dict]]], ci: Callable[[dict], str], skill: Callable[[dict], str]
 ) -> str:
     """The table; `folders` maps a results folder to (rows, summary); `ci` and `skill` are
@@ -45,11 +54,13 @@ def shaped_tracker_table(
         "| `oracle_present` (privileged) |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for folder, (title, ladder) in SHAPED_SETS.items():
-        own = {(s["planner"], s["difficulty"]): s for s in folders.get(folder, ([], []))[1]}
-        base = {(s["planner"], s["difficulty"]): s for s in folders.get(ladder, ([], []))[1]}
+    for world_set, (title, ladder) in LADDERS.items():
+        own: dict = {}  # the sweeps' rows first (the circle tracker's re-scored recall), then the ladder's
+        for preset in reversed(PRESETS):
+            own |= {(s["planner"], s["difficulty"]): s for s in folders.get(folder(preset, world_set), ([], []))[1]}
         if not own:
             continue
+        base = {(s["planner"], s["difficulty"]): s for s in folders.get(ladder, ([], []))[1]}
         privileged = base.get(("oracle_present", "hard"))
         beside = ci(privileged) if privileged else "-"
         for planner, tracker in TRACKERS:

@@ -42,7 +42,7 @@ FIGURE = ROOT / "docs" / "assets" / "tracking_error.png"
 RANGE_BINS = np.array([0.0, 2.0, 4.0, 6.0, 8.0, 12.0, 30.0])
 SPEED_BINS = np.array([0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 4.0])
 SEED = 5700
-TRACKER_KINDS = ("kalman", "shaped")
+TRACKER_KINDS = ("kalman", "shaped", "registered")
 FIELDS = ("recall", "precision", "position_error_median", "position_error_p95", "velocity_error_p95", "id_switches")
 
 
@@ -153,7 +153,7 @@ def draw(pairs: dict[str, np.ndarray]) -> None:
             (axes[row, 1], 1, SPEED_BINS, "speed [m/s]"),
         ):
             middle = 0.5 * (bins[:-1] + bins[1:])
-            for kind, colour in zip(TRACKER_KINDS, ("tab:blue", "tab:orange"), strict=True):
+            for kind, colour in zip(TRACKER_KINDS, ("tab:blue", "tab:orange", "tab:green"), strict=True):
                 p = pairs[kind][pairs[kind][:, 3] == shaped]
                 med, p95 = binned(p[:, column], p[:, 2], bins)
                 ax.plot(middle, 1000 * med, "o-", color=colour, label=f"{kind}: median")
