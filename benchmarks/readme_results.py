@@ -28,7 +28,7 @@ from pathlib import Path
 
 from dynabarn.bench import DIFFICULTIES, PAPER_FIG5, paper_worlds, read_results, summarise
 from dynabarn.bench.results import RESULTS, WORLDS
-from dynabarn.bench.stats import skill_text
+from dynabarn.bench.stats import skill_text, wilson_interval
 from dynabarn.bench.summary import FLOOR, plot_fig5
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -36,7 +36,7 @@ from certified_tables import calibration_table, certification_table, certified_l
 from leaderboard import leaderboard_table, tier_ladder_table
 from learning_tables import dagger_curves, dagger_training, generalisation_table, student_ablation, student_table
 from ros_tables import MOVE_BASE_SETS, ablation_table, move_base_table
-from tracker_tables import LADDERS, TRACKER_FOLDERS, tracker_table
+from tracker_tables import LADDERS, TRACKER_FOLDERS, gap_table, tracker_table, validation_table
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS_DIR = ROOT / "results"
@@ -116,6 +116,12 @@ def _skill(s: dict) -> str:
     if s.get("skill") is None:
         return "-"
     return skill_text(s)
+
+
+def _record(name: str) -> dict | None:
+    """A committed benchmark record under results/ (None where it is absent)."""
+    path = RESULTS_DIR / name
+    return json.loads(path.read_text()) if path.is_file() else None
 
 
 def load(folder: str) -> tuple[list[dict], list[dict]]:
@@ -341,6 +347,8 @@ BLOCKS = {
     "leaderboard": lambda f, s: leaderboard_table(f, LEADERBOARD_SETS),
     "tier-ladder": lambda f, s: tier_ladder_table(f, TIER_SETS, LADDER),
     "trackers": lambda f, s: tracker_table(f, _ci, _skill),
+    "tracker-validation": lambda f, s: validation_table(_record("tracker_validation/validation.json")),
+    "perception-gap": lambda f, s: gap_table(_record("perception_gap/tier-combined.json"), wilson_interval),
 }
 
 
@@ -362,6 +370,7 @@ PAGES = {
     DOCS / "tutorials" / "training.md": ("td3-training", "dagger-training"),
     DOCS / "tutorials" / "ros.md": ("move-base", "dwa-ablation"),
     DOCS / "concepts" / "difficulty.md": ("calibration",),
+    DOCS / "concepts" / "perception.md": ("tracker-validation", "perception-gap"),
     DOCS / "concepts" / "learning.md": ("student-ablation", "dagger-curves", "set-student", "map-student"),
     DOCS / "leaderboard.md": ("leaderboard",),
 }

@@ -380,6 +380,9 @@ def main(argv: list[str] | None = None) -> int:
     # The student that sees the map (issue 57): the map's closed-form cast on top of its call.
     mean, p95, calls = planner_compute("dagger", policy=str(SHIPPED_POLICIES / "dagger_map.pt"))
     print(f"{'dagger, policy dagger_map.pt':<44}{mean:>11.2f}{p95:>11.2f}{calls:>8}")
+    # The tracker that registers returns (issue 57): its registrations on top of predictive's call.
+    mean, p95, calls = planner_compute("predictive@registered_tracker")
+    print(f"{'predictive@registered_tracker':<44}{mean:>11.2f}{p95:>11.2f}{calls:>8}")
     print_breakdown(("oracle", "predictive", "dwa@dwa_dynabarn_authors", "teb", "dagger"))
     print_sweep_speeds()
     mean, p95, n_obstacles = min(tracker_cost() for _ in range(args.repeat))

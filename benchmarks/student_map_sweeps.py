@@ -14,10 +14,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from bench_command import ROOT, run_dynabarn
+from bench_command import import_release, run_dynabarn
 
 POLICY = "dynabarn/policies/dagger_map.pt"
-RELEASE = ROOT.parent / "shared" / "reference" / "dynabarn60.json"
 SWEEPS = (
     # (set, hard world ids, trials, the committed folder its rows pair with)
     ("imported_worlds", "40-59", 10, "original60_barn"),
@@ -31,15 +30,9 @@ SWEEPS = (
 
 
 def main() -> int:
-    if not (ROOT / "imported_worlds" / "index.json").is_file():
-        if not RELEASE.is_file():
-            print(f"{RELEASE} is not here: the release's 60 are left out", flush=True)
-        else:
-            importing = ["worlds", "import", str(RELEASE), "--format", "dynabarn-release", "--name", "release"]
-            if run_dynabarn(*importing, "--out", "imported_worlds"):
-                return 1
+    released = import_release()
     for world_set, ids, trials, folder in SWEEPS:
-        if world_set == "imported_worlds" and not (ROOT / "imported_worlds" / "index.json").is_file():
+        if world_set == "imported_worlds" and not released:
             continue
         out = Path("results") / f"dagger_map_{folder}"
         if run_dynabarn(

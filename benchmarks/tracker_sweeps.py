@@ -1,5 +1,6 @@
 """The committed evaluations of the laser trackers beyond the circle tracker (issue 57):
-`predictive@PRESET` on the hard worlds (ids 200-219) of every tier and of `paper60`, 10
+`predictive@PRESET` on the hard worlds of every tier, of `paper60` (ids 200-219) and of the
+release's 60 (ids 40-59, imported first from ../shared/reference where that is there), 10
 trials, into results/PRESET_<set>/ (`shaped_tracker`: outlines; `registered_tracker`:
 velocity from registered returns).
 
@@ -17,18 +18,25 @@ from __future__ import annotations
 import argparse
 import sys
 
-from bench_command import run_dynabarn
+from bench_command import import_release, run_dynabarn
 
-SETS = ("tier-combined", "tier-mixed", "tier-dense", "tier-fast", "paper60")
+SETS = {
+    # set: (its hard worlds, its name in folders)
+    "tier-combined": ("200-219", "tier_combined"),
+    "tier-mixed": ("200-219", "tier_mixed"),
+    "tier-dense": ("200-219", "tier_dense"),
+    "tier-fast": ("200-219", "tier_fast"),
+    "paper60": ("200-219", "paper60"),
+    "imported_worlds": ("40-59", "original60"),  # the release's 60, where ../shared/reference has them
+}
 PRESETS = ("shaped_tracker", "registered_tracker")
 CIRCLES_AGAIN = {("shaped_tracker", "tier-combined"), ("shaped_tracker", "tier-mixed")}
 """The sweeps that ran the circle tracker again beside the preset."""
-HARD = "200-219"
 
 
 def folder(preset: str, world_set: str) -> str:
     """A preset's sweep folder of a set, under results/."""
-    return f"{preset}_{world_set.replace('-', '_')}"
+    return f"{preset}_{SETS[world_set][1]}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -38,11 +46,14 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(args.presets) - set(PRESETS))
     if unknown:
         parser.error(f"unknown preset(s) {unknown}; known: {', '.join(PRESETS)}")
+    released = import_release()
     for preset in args.presets or PRESETS:
-        for world_set in SETS:
+        for world_set, (hard, _) in SETS.items():
+            if world_set == "imported_worlds" and not released:
+                continue
             planners = f"predictive@{preset}" + (",predictive" if (preset, world_set) in CIRCLES_AGAIN else "")
             if run_dynabarn(
-                "bench", "--set", world_set, "--worlds", HARD,
+                "bench", "--set", world_set, "--worlds", hard,
                 "--planner", planners, "--trials", "10", "--jobs", "2",
                 "--out", f"results/{folder(preset, world_set)}",
             ):  # fmt: skip

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from tracker_sweeps import PRESETS, SETS, folder
 
 LADDERS = {
+    "imported_worlds": ("the release's 60", "original60_barn"),
     "paper60": ("paper60", "paper60_barn"),
     "tier-dense": ("`tier-dense`", "tier_dense_barn"),
     "tier-fast": ("`tier-fast`", "tier_fast_barn"),
@@ -68,4 +69,59 @@ def tracker_table(
             if s is None:
                 continue
             lines.append(f"| {title} | {tracker} | {ci(s)} | {skill(s)} | {_tracking(s)} | {beside} |")
+    return "\n".join(lines)
+
+
+def validation_table(record: dict | None) -> str:
+    """The trackers on validation worlds (`benchmarks/tracker_validation.py`'s record):
+    per tier's profile, each tracker's medians over episodes."""
+    if not record:
+        return "(no record: run `python benchmarks/tracker_validation.py`)"
+    lines = [
+        "| profile | tracker | recall | precision | position error median / p95 [mm] "
+        "| velocity error p95 [m/s] | identity switches |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for tier, kinds in record["tiers"].items():
+        for kind, m in kinds.items():
+            lines.append(
+                f"| `{tier}` | `{kind}` | {m['recall']:.3f} | {m['precision']:.3f} | "
+                f"{1000 * m['position_error_median']:.1f} / {1000 * m['position_error_p95']:.0f} | "
+                f"{m['velocity_error_p95']:.2f} | {m['id_switches']:.1f} |"
+            )
+    return "\n".join(lines)
+
+
+GAP_RUNGS = {
+    "laser": "the tracker's tracks (`predictive`)",
+    "velocity": "matched tracks given the true velocity",
+    "state": "... and the true centre and bounding radius",
+    "state_exact": "... and no uncertainty padding",
+    "seen": "... and the tracks that match no obstacle left out",
+    "oracle_present": "every obstacle's true state, seen or not (`oracle_present`)",
+}
+"""`benchmarks/perception_gap.py`'s rungs, in order, as the table names them."""
+
+
+def gap_table(record: dict | None, wilson: Callable[[int, int], tuple[float, float]]) -> str:
+    """`predictive`'s gap to `oracle_present` split rung by rung (`perception_gap.py`'s
+    record), a column per tracker; `wilson` gives a success count's interval."""
+    if not record:
+        return "(no record: run `python benchmarks/perception_gap.py --record`)"
+    trackers = list(record["trackers"])
+    lines = [
+        "| tracks planned against | " + " | ".join(f"`{t}` tracker" for t in trackers) + " |",
+        "|---|" + "---|" * len(trackers),
+    ]
+    for rung, what in GAP_RUNGS.items():
+        cells = []
+        for tracker in trackers:
+            ends = record["trackers"][tracker].get(rung)
+            if not ends:
+                cells.append("-")
+                continue
+            n, wins = sum(ends.values()), ends.get("success", 0)
+            low, high = wilson(wins, n)
+            cells.append(f"{wins / n:.2f} [{low:.2f}, {high:.2f}]")
+        lines.append(f"| {what} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
