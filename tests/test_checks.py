@@ -12,6 +12,7 @@ import pytest
 import dynabarn
 from dynabarn import CheckFailed, Planner, check_planner, check_tracker
 from dynabarn.perception import ObstacleTracker
+from dynabarn.perception.trackers import TRACKERS
 from dynabarn.planners import available_planners
 from dynabarn.planners.registry import PLANNERS, register_planner
 
@@ -28,7 +29,7 @@ def test_every_shipped_planner_keeps_the_contract(name):
     assert report.passed and report.calls > 10 and report.ms_per_call > 0
 
 
-@pytest.mark.parametrize("kind", ["kalman", "shaped"])
+@pytest.mark.parametrize("kind", sorted(TRACKERS.builtin))
 def test_every_shipped_tracker_keeps_the_contract(kind):
     report = check_tracker(kind)
     assert report.passed and report.calls > 100 and np.isfinite(report.ms_per_call_p95)
