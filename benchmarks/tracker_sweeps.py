@@ -21,13 +21,13 @@ import sys
 from bench_command import import_release, run_dynabarn
 
 SETS = {
-    # set: (its hard worlds, its name in folders)
-    "tier-combined": ("200-219", "tier_combined"),
-    "tier-mixed": ("200-219", "tier_mixed"),
+    # set: (its hard worlds, its name in folders), from the paper's worlds to the hardest tier
+    "imported_worlds": ("40-59", "original60"),  # the release's 60, where ../shared/reference has them
+    "paper60": ("200-219", "paper60"),
     "tier-dense": ("200-219", "tier_dense"),
     "tier-fast": ("200-219", "tier_fast"),
-    "paper60": ("200-219", "paper60"),
-    "imported_worlds": ("40-59", "original60"),  # the release's 60, where ../shared/reference has them
+    "tier-mixed": ("200-219", "tier_mixed"),
+    "tier-combined": ("200-219", "tier_combined"),
 }
 PRESETS = ("shaped_tracker", "registered_tracker")
 CIRCLES_AGAIN = {("shaped_tracker", "tier-combined"), ("shaped_tracker", "tier-mixed")}

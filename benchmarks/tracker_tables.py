@@ -24,7 +24,8 @@ LADDERS = {
     "tier-mixed": ("`tier-mixed`", "tier_mixed_barn"),
     "tier-combined": ("`tier-combined`", "tier_combined_barn"),
 }
-"""Each swept set: (its name in the table, its committed ladder folder)."""
+"""Each swept set (`tracker_sweeps.SETS`, in whose order the table lists them): (its name in
+the table, its committed ladder folder)."""
 TRACKER_FOLDERS = {folder(preset, world_set): (preset, world_set) for preset in PRESETS for world_set in SETS}
 """Every tracker sweep's folder: (its preset, its set)."""
 TRACKERS = (
@@ -55,7 +56,8 @@ def tracker_table(
         "| `oracle_present` (privileged) |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for world_set, (title, ladder) in LADDERS.items():
+    for world_set in SETS:
+        title, ladder = LADDERS[world_set]
         own: dict = {}  # the sweeps' rows first (the circle tracker's re-scored recall), then the ladder's
         for preset in reversed(PRESETS):
             own |= {(s["planner"], s["difficulty"]): s for s in folders.get(folder(preset, world_set), ([], []))[1]}
