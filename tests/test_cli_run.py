@@ -140,8 +140,9 @@ def test_shipped_presets_load_into_their_planners():
     for name in planner_presets():
         cfg = _planner_config(name)
         assert cfg and not any(k.startswith("_") for k in cfg)
-        # A preset named after a planner is its; the tracker's is every tracking planner's.
-        owners = ("predictive", "dwa", "teb") if name == "shaped_tracker" else (name.split("_")[0],)
+        # A preset named after a planner is its; a tracker's (it sets only `tracker`) is every
+        # tracking planner's.
+        owners = ("predictive", "dwa", "teb") if set(cfg) == {"tracker"} else (name.split("_")[0],)
         for owner in owners:
             config = get_planner(owner, **cfg).config()
             for key, value in cfg.items():  # every preset value reaches the planner's configuration
