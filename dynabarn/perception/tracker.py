@@ -142,27 +142,27 @@ class ObstacleTracker(Tracker):
     def _correct(self, k: np.ndarray, z: np.ndarray, r: np.ndarray) -> None:
         """Kalman update of tracks k with measured positions z (m, 2), variances r (m,) (the
         same on both axes) or (m, 2)."""
-        s = self.p_xx[k] + (r[:, None] if r.ndim == 1 else r)
-        gain_x, gain_v = self.p_xx[k] / s, self.p_xv[k] / s
-        innovation = z - self.x[k]
-        self.x[k] += gain_x * innovation
-        self.v[k] += gain_v * innovation
-        p_xx, p_xv, p_vv = self.p_xx[k], self.p_xv[k], self.p_vv[k]
-        self.p_xx[k] = p_xx - gain_x * p_xx
-        self.p_xv[k] = p_xv - gain_x * p_xv
-        self.p_vv[k] = p_vv - gain_v * p_xv
+        self._update(k, z, r[:, None] if r.ndim == 1 else r, velocity=False)
 
     def _correct_velocity(self, k: np.ndarray, z: np.ndarray, r: np.ndarray) -> None:
         """Kalman update of tracks k with measured velocities z (m, 2) of variances r (m, 2)."""
-        s = self.p_vv[k] + r
-        gain_x, gain_v = self.p_xv[k] / s, self.p_vv[k] / s
-        innovation = z - self.v[k]
+        self._update(k, z, r, velocity=True)
+
+    def _update(self, k: np.ndarray, z: np.ndarray, r: np.ndarray, *, velocity: bool) -> None:
+        """The Kalman update of tracks k, per axis, by a measurement z (m, 2) of variance r
+        (m, 2) of their velocity or their position: with the measured component's
+        covariances with position and velocity (`with_x`, `with_v`), the gains are those
+        over the innovation's variance, and each covariance loses its gain times them."""
+        p_xx, p_xv, p_vv = self.p_xx[k], self.p_xv[k], self.p_vv[k]
+        with_x, with_v = (p_xv, p_vv) if velocity else (p_xx, p_xv)
+        s = (with_v if velocity else with_x) + r
+        gain_x, gain_v = with_x / s, with_v / s
+        innovation = z - (self.v[k] if velocity else self.x[k])
         self.x[k] += gain_x * innovation
         self.v[k] += gain_v * innovation
-        p_xx, p_xv, p_vv = self.p_xx[k], self.p_xv[k], self.p_vv[k]
-        self.p_xx[k] = p_xx - gain_x * p_xv
-        self.p_xv[k] = p_xv - gain_x * p_vv
-        self.p_vv[k] = p_vv - gain_v * p_vv
+        self.p_xx[k] = p_xx - gain_x * with_x
+        self.p_xv[k] = p_xv - gain_x * with_v
+        self.p_vv[k] = p_vv - gain_v * with_v
 
     def _motion(
         self, k: np.ndarray, columns: np.ndarray, det: Detections, time: float
