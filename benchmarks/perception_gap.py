@@ -7,7 +7,7 @@ tracks), so these are diagnostics, not planners:
 
 - `laser`: `predictive` as shipped (the tracker's tracks);
 - `velocity`: the tracker's tracks, each matched track (one to one, within 1 m of a true
-  centre) given its obstacle's true velocity;
+  centre, as the tracking metrics match them) given its obstacle's true velocity;
 - `state`: matched tracks given their obstacle's true centre, velocity and bounding radius
   (the tracker's uncertainty still pads them);
 - `state_exact`: as `state`, with no padding (zero uncertainty) on the matched tracks;
@@ -36,7 +36,6 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 from tracker_validation import SEED, validation_worlds
 
 from dynabarn.bench.stats import wilson_interval
@@ -46,6 +45,7 @@ from dynabarn.planners import get_planner
 from dynabarn.planners.predictive import PredictivePlanner
 from dynabarn.protocol import get_protocol
 from dynabarn.runner import EpisodeSpec, run_spec
+from dynabarn.sim.track_scoring import matched_pairs
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "results" / "perception_gap"
@@ -56,10 +56,7 @@ def corrected(tracks: Tracks, truth, rung: str) -> Tracks:
     """`tracks` with the matched ones made true as far as `rung` says."""
     if not len(tracks) or rung == "laser":
         return tracks
-    d = np.sqrt(((tracks.positions[:, None] - truth.positions[None]) ** 2).sum(axis=-1))
-    rows, cols = linear_sum_assignment(np.where(d <= 1.0, d, 1e6))
-    ok = d[rows, cols] <= 1.0
-    rows, cols = rows[ok], cols[ok]
+    rows, cols, _ = matched_pairs(tracks.positions, truth.positions)  # as the tracking metrics match
     positions, velocities, sizes = tracks.positions.copy(), tracks.velocities.copy(), tracks.sizes.copy()
     pos_var, vel_var, cov = tracks.position_var.copy(), tracks.velocity_var.copy(), tracks.position_velocity_cov.copy()
     if rung.startswith("velocity_"):

@@ -25,7 +25,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from dynabarn.files import write_atomically
 from dynabarn.interfaces import EpisodeObserver, Planner
@@ -34,6 +33,7 @@ from dynabarn.planners import get_planner
 from dynabarn.planners.tracking import with_tracker
 from dynabarn.protocol import get_protocol
 from dynabarn.runner import EpisodeSpec, run_spec
+from dynabarn.sim.track_scoring import matched_pairs
 from dynabarn.worlds.tiers import PROFILES_DIR, TIERS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -89,11 +89,9 @@ class PairErrors(EpisodeObserver):
         self._last = truth.copy()
         if tracks is None or not len(tracks) or not len(truth):
             return
-        d = np.sqrt(((tracks.positions[:, None] - truth[None]) ** 2).sum(axis=-1))
-        rows, cols = linear_sum_assignment(np.where(d <= 1.0, d, 1e6))
-        ok = d[rows, cols] <= 1.0
-        reach = np.hypot(*(truth[cols[ok]] - tick.pose[:2]).T)
-        columns = (reach, speed[cols[ok]], d[rows[ok], cols[ok]], self.shaped[cols[ok]])
+        rows, cols, d = matched_pairs(tracks.positions, truth)
+        reach = np.hypot(*(truth[cols] - tick.pose[:2]).T)
+        columns = (reach, speed[cols], d[rows, cols], self.shaped[cols])
         self.pairs += list(zip(*(c.tolist() for c in columns), strict=True))
 
     def on_poses(self, times, poses) -> None:

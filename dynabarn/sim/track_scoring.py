@@ -22,6 +22,18 @@ from scipy.optimize import linear_sum_assignment
 
 MATCH_DISTANCE = 1.0
 """[m] A track farther than this from an obstacle's centre is not that obstacle."""
+
+
+def matched_pairs(tracked: np.ndarray, true: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tracked centres (n, 2) matched one to one with true centres (k, 2) by the Hungarian
+    method, a pair counting only within `MATCH_DISTANCE`: (the tracks' rows, the obstacles'
+    rows, the (n, k) distances)."""
+    d = np.sqrt(((tracked[:, None, :] - true[None, :, :]) ** 2).sum(axis=-1))
+    rows, cols = linear_sum_assignment(np.where(d <= MATCH_DISTANCE, d, 1e6))
+    ok = d[rows, cols] <= MATCH_DISTANCE
+    return rows[ok], cols[ok], d
+
+
 MIN_BEAMS = 3
 """An obstacle is in view when at least this many beams end on it."""
 TRACKING_FIELDS = (
@@ -59,10 +71,7 @@ class TrackScorer:
         self.n_tracks += len(tracks.ids)
         if not len(tracks.ids) or not len(positions):
             return
-        d = np.sqrt(((tracks.positions[:, None, :] - positions[None, :, :]) ** 2).sum(axis=-1))
-        rows, cols = linear_sum_assignment(np.where(d <= MATCH_DISTANCE, d, 1e6))
-        ok = d[rows, cols] <= MATCH_DISTANCE
-        rows, cols = rows[ok], cols[ok]
+        rows, cols, d = matched_pairs(tracks.positions, positions)
         self.n_matched_tracks += len(rows)
         self.found += int(in_view[cols].sum())
         self._pos.append(d[rows, cols])
