@@ -99,13 +99,8 @@ class Corrected(PredictivePlanner):
         super().__init__(**config)
         self.rung = rung
 
-    def obstacle_future(self, obs):
-        tracks = corrected(self.tracker.update(obs.time, obs.scan, obs.pose), obs.obstacles, self.rung)
-        self._tracks = tracks
-        c = self.cfg
-        times = obs.time + self._steps
-        padding = np.minimum(c.max_padding, c.uncertainty_sigmas * tracks.position_std(times))
-        return tracks.predict(times), tracks.sizes[None, :] + padding
+    def updated_tracks(self, obs):
+        return corrected(super().updated_tracks(obs), obs.obstacles, self.rung)
 
 
 def episode(task: tuple) -> tuple[str, str, str]:

@@ -85,8 +85,13 @@ class PredictivePlanner(OraclePlanner):
     def tracks(self) -> Tracks:
         return self._tracks
 
+    def updated_tracks(self, obs: Observation) -> Tracks:
+        """The tracker's tracks after this tick's scan: what the search plans against (a
+        diagnostic subclass may correct them, as `benchmarks/perception_gap.py` does)."""
+        return self.tracker.update(obs.time, obs.scan, obs.pose)
+
     def obstacle_future(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
-        self._tracks = self.tracker.update(obs.time, obs.scan, obs.pose)
+        self._tracks = self.updated_tracks(obs)
         c = self.cfg
         tracks = self._tracks.covering_circles()  # outlines as circles
         times = obs.time + self._steps
