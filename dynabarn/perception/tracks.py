@@ -84,6 +84,15 @@ class Tracks:
         var = self.position_var + 2.0 * dt * self.position_velocity_cov + dt * dt * self.velocity_var
         return np.sqrt(np.maximum(var, 0.0)).max(axis=-1)
 
+    def padded_sizes(self, t: float | np.ndarray, sigmas: float, max_padding: float) -> np.ndarray:
+        """Each track's radius grown by `sigmas` standard deviations of its predicted position
+        at time(s) t (`position_std`), by at most `max_padding` [m]: (n,) or (T, n) (t's shape,
+        then the tracks). What a planner keeps clear of when it plans against the tracker's
+        uncertainty rather than a centre and a radius; `sigmas` 0 gives the sizes as they are."""
+        if sigmas == 0.0:
+            return np.broadcast_to(self.sizes, np.shape(t) + self.sizes.shape).copy()
+        return self.sizes + np.minimum(max_padding, sigmas * self.position_std(t))
+
     def covering_circles(self, extent_sigmas: float | None = None) -> Tracks:
         """These tracks with every outline replaced by circles that cover it (each circle a
         track of its own: the same identity, velocity and uncertainty, its centre offset

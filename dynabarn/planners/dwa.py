@@ -36,11 +36,11 @@ from dynabarn.perception import TrackerConfig, Tracks
 from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.planners.tracking import track_moving, with_tracker
+from dynabarn.planners.tracking import UncertaintyPadding, track_moving, with_tracker
 
 
 @dataclass
-class DWAConfig(CheckedConfig):
+class DWAConfig(UncertaintyPadding, CheckedConfig):
     max_vel_x: float = 2.0
     """Top forward speed sampled [m/s] (the Jackal's)."""
     min_vel_x: float = 0.0
@@ -75,12 +75,14 @@ class DWAConfig(CheckedConfig):
     include_dynamic_obstacles: bool = False
     """Track the moving obstacles with the laser tracker (`perception`), take their returns
     out of the costmap, and reject rollouts that come within `collision_radius` of a track
-    at constant velocity at the rollout's time (as TEB's switch of the same name)."""
+    at constant velocity at the rollout's time (as TEB's switch of the same name), its radius
+    grown by `uncertainty_sigmas` standard deviations of its predicted position."""
     costmap: CostmapConfig = field(default_factory=CostmapConfig)
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     """The tracker's parameters (with `include_dynamic_obstacles`)."""
 
     LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        **UncertaintyPadding.PADDING_LIMITS,
         "max_vel_x": (0.0, 5.0),
         "min_vel_x": (-2.0, 5.0),
         "max_vel_theta": (0.0, 10.0),
@@ -275,12 +277,15 @@ class DWAPlanner(Planner):
 
     def _moving_clearance(self, xy: np.ndarray, now: float, times: np.ndarray) -> np.ndarray:
         """Smallest distance (N,) of each rollout (N, K, 2) from the tracks' surfaces, each
-        track at constant velocity at the rollout point's time (`times` from now)."""
+        track at constant velocity at the rollout point's time (`times` from now), its radius
+        grown by its uncertainty then (`uncertainty_sigmas`)."""
+        cfg = self.cfg
         tracks = self._tracks.covering_circles()  # outlines as circles
         future = tracks.predict(now + times)  # (K, n, 2)
+        radii = tracks.padded_sizes(now + times, cfg.uncertainty_sigmas, cfg.max_padding)  # (K, n)
         ex = xy[:, :, None, 0] - future[None, :, :, 0]
         ey = xy[:, :, None, 1] - future[None, :, :, 1]
-        return (hypot(ex, ey) - tracks.sizes).min(axis=(1, 2))
+        return (hypot(ex, ey) - radii).min(axis=(1, 2))
 
     def _escape(self, obs: Observation) -> tuple[float, float]:
         """Nothing admissible: back up turning to the freer side, else rotate in place."""

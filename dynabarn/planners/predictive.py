@@ -95,8 +95,7 @@ class PredictivePlanner(OraclePlanner):
         c = self.cfg
         tracks = self._tracks.covering_circles()  # outlines as circles
         times = obs.time + self._steps
-        padding = np.minimum(c.max_padding, c.uncertainty_sigmas * tracks.position_std(times))  # (K, n)
-        future, radii = tracks.predict(times), tracks.sizes[None, :] + padding
+        future, radii = tracks.predict(times), tracks.padded_sizes(times, c.uncertainty_sigmas, c.max_padding)
         if self._unexplained is None:
             return future, radii
         points = self._unexplained(obs, self._tracks)

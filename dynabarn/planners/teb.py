@@ -43,11 +43,11 @@ from dynabarn.planners.coloured_jacobian import Colouring, residuals_and_jacobia
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.levenberg_marquardt import Evaluation, minimise
-from dynabarn.planners.tracking import track_moving, with_tracker
+from dynabarn.planners.tracking import UncertaintyPadding, track_moving, with_tracker
 
 
 @dataclass
-class TEBConfig(CheckedConfig):
+class TEBConfig(UncertaintyPadding, CheckedConfig):
     n_poses: int = 12
     """Poses in the band (including start and goal)."""
     lookahead: float = 3.0
@@ -76,7 +76,8 @@ class TEBConfig(CheckedConfig):
     include_dynamic_obstacles: bool = False
     """teb_local_planner's switch: track the moving obstacles with the laser tracker
     (`perception`), take their returns out of the static obstacles, and keep every band pose
-    clear of each track at constant velocity at that pose's time."""
+    clear of each track at constant velocity at that pose's time, its radius grown by
+    `uncertainty_sigmas` standard deviations of its predicted position."""
     weight_dynamic_obstacle: float = 50.0
     """teb_local_planner's default."""
     weight_dynamic_obstacle_inflation: float = 0.1
@@ -88,6 +89,7 @@ class TEBConfig(CheckedConfig):
     """The tracker's parameters (with `include_dynamic_obstacles`)."""
 
     LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        **UncertaintyPadding.PADDING_LIMITS,
         "n_poses": (3, 100),
         "lookahead": (0.1, 30.0),
         "max_vel_x": (0.0, 5.0),
@@ -285,7 +287,7 @@ class TEBPlanner(Planner):
             w_[8] * np.maximum(0.0, cfg.inflation_dist - d),
         ]
         if moving is not None:
-            dm = self._moving_distance(x[..., 1:-1], y[..., 1:-1], dts, moving)
+            dm = self._moving_distance(x[..., 1:-1], y[..., 1:-1], dts, moving, cfg)
             parts += [
                 w_[9] * np.maximum(0.0, cfg.min_obstacle_dist - dm),
                 w_[10] * np.maximum(0.0, cfg.dynamic_obstacle_inflation_dist - dm),
@@ -293,17 +295,20 @@ class TEBPlanner(Planner):
         return np.concatenate(parts, axis=-1)
 
     @staticmethod
-    def _moving_distance(x: np.ndarray, y: np.ndarray, dts: np.ndarray, moving: Tracks) -> np.ndarray:
+    def _moving_distance(
+        x: np.ndarray, y: np.ndarray, dts: np.ndarray, moving: Tracks, padding: UncertaintyPadding
+    ) -> np.ndarray:
         """Distance (..., n - 2) from each inner band pose to the nearest tracked obstacle's
         surface, the obstacles at constant velocity at the pose's time (teb_local_planner's
-        `include_dynamic_obstacles`)."""
+        `include_dynamic_obstacles`), each radius grown by its uncertainty then (`padding`)."""
         if not len(moving):
             return np.full(x.shape, np.inf)
         t = np.cumsum(dts, axis=-1)[..., :-1, None]  # (..., n - 2, 1): seconds from now to pose i
         ox = moving.positions[:, 0] + moving.velocities[:, 0] * t
         oy = moving.positions[:, 1] + moving.velocities[:, 1] * t
         ex, ey = x[..., None] - ox, y[..., None] - oy
-        return (hypot(ex, ey) - moving.sizes).min(axis=-1)
+        radii = moving.padded_sizes(moving.time + t[..., 0], padding.uncertainty_sigmas, padding.max_padding)
+        return (hypot(ex, ey) - radii).min(axis=-1)
 
     def _evaluate(
         self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray, moving: Tracks | None

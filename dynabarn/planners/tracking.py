@@ -1,13 +1,15 @@
 """What every planner that tracks obstacles shares: its tracker's configuration (the
 `tracker.*` keys, checked against the `Config` of the tracker they name), and each scan split into the tracked, moving
 obstacles and what stands still (so a planner can leave the moving ones out of its static
-picture). A planner's tracker: `perception.trackers.make_tracker(cfg.tracker, info)`, of
-the kind its configuration names (`tracker.kind`)."""
+picture), and how far beyond each track's outline a planner keeps clear
+(`UncertaintyPadding`). A planner's tracker: `perception.trackers.make_tracker(cfg.tracker,
+info)`, of the kind its configuration names (`tracker.kind`)."""
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import dataclass, fields
 from functools import partial
+from typing import ClassVar
 
 import numpy as np
 
@@ -23,6 +25,30 @@ from dynabarn.interfaces import (
 from dynabarn.interfaces.tracker import DEFAULT_TRACKER
 from dynabarn.perception import Tracks
 from dynabarn.perception.trackers import TRACKERS
+
+
+@dataclass
+class UncertaintyPadding:
+    """The settings of a planner that keeps clear of each track's predicted position grown by
+    the tracker's uncertainty (`Tracks.padded_sizes`), a base of its configuration (`dwa`'s
+    and `teb`'s with `include_dynamic_obstacles`; `predictive` has the same two, on by
+    default). Off by default, so every earlier result keeps its configuration."""
+
+    uncertainty_sigmas: float = 0.0
+    """Standard deviations of a prediction's position added to a track's radius (0: the
+    radius alone, as every result before issue 57)."""
+    max_padding: float = 0.3
+    """Most that uncertainty adds to a track's radius [m]."""
+
+    PADDING_LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        "uncertainty_sigmas": (0.0, 10.0),
+        "max_padding": (0.0, 5.0),
+    }
+    """The two settings' accepted ranges (a part of the configuration's `LIMITS`)."""
+    RECORDED_WHEN_SET: ClassVar[dict[str, tuple[str, ...]]] = {
+        "uncertainty_sigmas": ("uncertainty_sigmas", "max_padding")
+    }
+    """Recorded only when on: every earlier result's configuration stays as it was."""
 
 
 def with_tracker(kwargs: dict, what: str) -> dict:
