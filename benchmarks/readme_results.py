@@ -36,7 +36,15 @@ from certified_tables import calibration_table, certification_table, certified_l
 from leaderboard import leaderboard_table, tier_ladder_table
 from learning_tables import dagger_curves, dagger_training, generalisation_table, student_ablation, student_table
 from ros_tables import MOVE_BASE_SETS, ablation_table, move_base_table
-from tracker_tables import LADDERS, TRACKER_FOLDERS, gap_table, tracker_table, validation_table
+from tracker_tables import (
+    LADDERS,
+    TRACKER_FOLDERS,
+    anatomy_table,
+    gap_table,
+    padding_table,
+    tracker_table,
+    validation_table,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS_DIR = ROOT / "results"
@@ -349,6 +357,8 @@ BLOCKS = {
     "trackers": lambda f, s: tracker_table(f, _ci, _skill),
     "tracker-validation": lambda f, s: validation_table(_record("tracker_validation/validation.json")),
     "perception-gap": lambda f, s: gap_table(_record("perception_gap/tier-combined.json"), wilson_interval),
+    "collision-anatomy": lambda f, s: anatomy_table(_record("perception_gap/collisions_tier-combined.json")),
+    "uncertainty-padding": lambda f, s: padding_table(_record("uncertainty_padding/validation.json"), wilson_interval),
 }
 
 
@@ -370,7 +380,12 @@ PAGES = {
     DOCS / "tutorials" / "training.md": ("td3-training", "dagger-training"),
     DOCS / "tutorials" / "ros.md": ("move-base", "dwa-ablation"),
     DOCS / "concepts" / "difficulty.md": ("calibration",),
-    DOCS / "concepts" / "perception.md": ("tracker-validation", "perception-gap"),
+    DOCS / "concepts" / "perception.md": (
+        "tracker-validation",
+        "perception-gap",
+        "collision-anatomy",
+        "uncertainty-padding",
+    ),
     DOCS / "concepts" / "learning.md": ("student-ablation", "dagger-curves", "set-student", "map-student"),
     DOCS / "leaderboard.md": ("leaderboard",),
 }

@@ -127,3 +127,56 @@ def gap_table(record: dict | None, wilson: Callable[[int, int], tuple[float, flo
             cells.append(f"{wins / n:.2f} [{low:.2f}, {high:.2f}]")
         lines.append(f"| {what} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+def padding_table(record: dict | None, wilson: Callable[[int, int], tuple[float, float]]) -> str:
+    """Each planner's success with the uncertainty padding off and on, on the same validation
+    episodes (`uncertainty_padding.py`'s record); `wilson` gives a success count's interval."""
+    if not record:
+        return "(no record: run `python benchmarks/uncertainty_padding.py --record`)"
+    padding = record["padding"]
+    on = f"radius + {padding['uncertainty_sigmas']:g} std (at most {padding['max_padding']:g} m)"
+    lines = [
+        f"| profile | planner | radius only | {on} | episodes the padding won / lost |",
+        "|---|---|---|---|---|",
+    ]
+    for tier, planners in sorted(record["tiers"].items()):
+        for planner, row in planners.items():
+            cells = []
+            for setting in ("off", "on"):
+                n, wins = sum(row[setting].values()), row[setting].get("success", 0)
+                low, high = wilson(wins, n)
+                cells.append(f"{wins / n:.2f} [{low:.2f}, {high:.2f}]")
+            flips = row["paired"]
+            lines.append(f"| `{tier}` | `{planner}` | {cells[0]} | {cells[1]} | {flips['won']} / {flips['lost']} |")
+    return "\n".join(lines)
+
+
+def anatomy_table(record: dict | None) -> str:
+    """`predictive`'s collisions by what its tracker knew of the obstacle that hit it and where
+    that came from (`collision_anatomy.py`'s record): each cell the collisions, and in
+    brackets those `oracle_present` survived (the gap's share)."""
+    if not record:
+        return "(no record: run `python benchmarks/collision_anatomy.py --record`)"
+    kinds = ("untracked", "lost", "centre off", "velocity off", "tracked")
+    sides = ("front", "side", "behind")
+    hits = [e for e in record["episodes"] if e["kind"] != "-"]
+    lines = [
+        "| the obstacle that hit, in its last second | "
+        + " | ".join(f"from the {s}" if s != "behind" else "from behind (outside the laser's view)" for s in sides)
+        + " | all |",
+        "|---|" + "---|" * (len(sides) + 1),
+    ]
+
+    def cell(chosen: list[dict]) -> str:
+        return f"{len(chosen)} ({sum(e['oracle_present'] == 'success' for e in chosen)})"
+
+    for kind in (*kinds, None):
+        of_kind = [e for e in hits if kind is None or e["kind"] == kind]
+        label = "every collision" if kind is None else kind
+        lines.append(
+            f"| {label} | "
+            + " | ".join(cell([e for e in of_kind if e["side"] == s]) for s in sides)
+            + f" | {cell(of_kind)} |"
+        )
+    return "\n".join(lines)
