@@ -38,6 +38,7 @@ from learning_tables import dagger_curves, dagger_training, generalisation_table
 from ros_tables import MOVE_BASE_SETS, ablation_table, move_base_table
 from tracker_tables import (
     LADDERS,
+    TEB_PADDING,
     TRACKER_FOLDERS,
     anatomy_table,
     gap_table,
@@ -94,6 +95,8 @@ PLANNERS = {
     "dagger": "DAgger student taught by `predictive`, procedural training worlds only (shipped `dagger_predictive.pt`)",
     "dwa@dwa_dynamic": "DWA with the laser tracker's predictions (`dwa@dwa_dynamic`)",
     "teb@teb_dynamic": "TEB with the laser tracker's predictions (`teb@teb_dynamic`)",
+    "teb@teb_dynamic_uncertain": "TEB with the laser tracker's predictions grown by their uncertainty "
+    "(`teb@teb_dynamic_uncertain`)",
     "predictive": "The laser tracker feeding the oracle's search (`predictive`)",
     "predictive@shaped_tracker": "`predictive` with the tracker for boxes, capsules and cylinders "
     "(`predictive@shaped_tracker`)",
@@ -355,6 +358,7 @@ BLOCKS = {
     "leaderboard": lambda f, s: leaderboard_table(f, LEADERBOARD_SETS),
     "tier-ladder": lambda f, s: tier_ladder_table(f, TIER_SETS, LADDER),
     "trackers": lambda f, s: tracker_table(f, _ci, _skill),
+    "teb-padding": lambda f, s: tracker_table(f, _ci, _skill, TEB_PADDING, "TEB plans against"),
     "tracker-validation": lambda f, s: validation_table(_record("tracker_validation/validation.json")),
     "perception-gap": lambda f, s: gap_table(_record("perception_gap/tier-combined.json"), wilson_interval),
     "collision-anatomy": lambda f, s: anatomy_table(_record("perception_gap/collisions_tier-combined.json")),
@@ -385,6 +389,7 @@ PAGES = {
         "perception-gap",
         "collision-anatomy",
         "uncertainty-padding",
+        "teb-padding",
     ),
     DOCS / "concepts" / "learning.md": ("student-ablation", "dagger-curves", "set-student", "map-student"),
     DOCS / "leaderboard.md": ("leaderboard",),

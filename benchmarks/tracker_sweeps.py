@@ -1,8 +1,10 @@
-"""The committed evaluations of the laser trackers beyond the circle tracker (issue 57):
-`predictive@PRESET` on the hard worlds of every tier, of `paper60` (ids 200-219) and of the
-release's 60 (ids 40-59, imported first from ../shared/reference where that is there), 10
-trials, into results/PRESET_<set>/ (`shaped_tracker`: outlines; `registered_tracker`:
-velocity from registered returns).
+"""The committed evaluations of the laser trackers beyond the circle tracker and of planning
+against their uncertainty (issue 57): `PLANNER@PRESET` on the hard worlds of every tier, of
+`paper60` (ids 200-219) and of the release's 60 (ids 40-59, imported first from
+../shared/reference where that is there), 10 trials, into results/PRESET_<set>/
+(`predictive@shaped_tracker`: outlines; `predictive@registered_tracker`: velocity from
+registered returns; `teb@teb_dynamic_uncertain`: TEB's band kept clear of each track grown
+by its uncertainty).
 
 With the shaped tracker's sweeps, on the two tiers with a static field, `predictive` (the
 circle tracker) ran again beside it, since its committed tracking recall counted obstacles
@@ -29,7 +31,8 @@ SETS = {
     "tier-mixed": ("200-219", "tier_mixed"),
     "tier-combined": ("200-219", "tier_combined"),
 }
-PRESETS = ("shaped_tracker", "registered_tracker")
+PRESETS = {"shaped_tracker": "predictive", "registered_tracker": "predictive", "teb_dynamic_uncertain": "teb"}
+"""Each swept preset: the planner it is run with."""
 CIRCLES_AGAIN = {("shaped_tracker", "tier-combined"), ("shaped_tracker", "tier-mixed")}
 """The sweeps that ran the circle tracker again beside the preset."""
 
@@ -51,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
         for world_set, (hard, _) in SETS.items():
             if world_set == "imported_worlds" and not released:
                 continue
-            planners = f"predictive@{preset}" + (",predictive" if (preset, world_set) in CIRCLES_AGAIN else "")
+            planners = f"{PRESETS[preset]}@{preset}" + (",predictive" if (preset, world_set) in CIRCLES_AGAIN else "")
             if run_dynabarn(
                 "bench", "--set", world_set, "--worlds", hard,
                 "--planner", planners, "--trials", "10", "--jobs", "2",

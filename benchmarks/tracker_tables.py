@@ -33,6 +33,13 @@ TRACKERS = (
     ("predictive@shaped_tracker", "outlines (`shaped`)"),
     ("predictive@registered_tracker", "registered velocity (`registered`)"),
 )
+"""The trackers' table's rows: `predictive` with each tracker."""
+TEB_PADDING = (
+    ("teb@teb_dynamic", "radius only (`teb@teb_dynamic`)"),
+    ("teb@teb_dynamic_uncertain", "radius + 1 std (`teb@teb_dynamic_uncertain`)"),
+)
+"""The uncertainty table's rows: TEB planning against each track's radius, and grown by its
+uncertainty."""
 
 
 def _tracking(s: dict) -> str:
@@ -46,12 +53,17 @@ def _tracking(s: dict) -> str:
 
 
 def tracker_table(
-    folders: dict[str, tuple[list[dict], list[dict]]], ci: Callable[[dict], str], skill: Callable[[dict], str]
+    folders: dict[str, tuple[list[dict], list[dict]]],
+    ci: Callable[[dict], str],
+    skill: Callable[[dict], str],
+    rows: tuple[tuple[str, str], ...] = TRACKERS,
+    what: str = "tracker",
 ) -> str:
-    """The table; `folders` maps a results folder to (rows, summary); `ci` and `skill` are
-    the pages' formatters of a summary row's success interval and skill over the floor."""
+    """The table of `rows` (planner, its name in the table; `what` heads the column);
+    `folders` maps a results folder to (rows, summary); `ci` and `skill` are the pages'
+    formatters of a summary row's success interval and skill over the floor."""
     lines = [
-        "| worlds (hard) | tracker | success [95% CI] | skill over floor | recall | precision "
+        f"| worlds (hard) | {what} | success [95% CI] | skill over floor | recall | precision "
         "| position error median / p95 [mm] | velocity error p95 [m/s] | identity switches per episode "
         "| `oracle_present` (privileged) |",
         "|---|---|---|---|---|---|---|---|---|---|",
@@ -66,7 +78,7 @@ def tracker_table(
         base = {(s["planner"], s["difficulty"]): s for s in folders.get(ladder, ([], []))[1]}
         privileged = base.get(("oracle_present", "hard"))
         beside = ci(privileged) if privileged else "-"
-        for planner, tracker in TRACKERS:
+        for planner, tracker in rows:
             s = own.get((planner, "hard")) or base.get((planner, "hard"))
             if s is None:
                 continue
