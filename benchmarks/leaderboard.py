@@ -22,6 +22,7 @@ SEES = {
     "teb": "laser",
     "dwa@dwa_dynamic": "laser + tracker",
     "teb@teb_dynamic": "laser + tracker",
+    "teb@teb_dynamic_uncertain": "laser + tracker",
     "dwa@dwa_dynabarn_authors": "laser",
     "teb@teb_ros_defaults": "laser",
     "predictive": "laser + tracker",

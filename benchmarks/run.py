@@ -383,6 +383,9 @@ def main(argv: list[str] | None = None) -> int:
     # The tracker that registers returns (issue 57): its registrations on top of predictive's call.
     mean, p95, calls = planner_compute("predictive@registered_tracker")
     print(f"{'predictive@registered_tracker':<44}{mean:>11.2f}{p95:>11.2f}{calls:>8}")
+    # TEB against tracks grown by their uncertainty (issue 57): a std per pose and track per evaluation.
+    mean, p95, calls = planner_compute("teb@teb_dynamic_uncertain")
+    print(f"{'teb@teb_dynamic_uncertain':<44}{mean:>11.2f}{p95:>11.2f}{calls:>8}")
     print_breakdown(("oracle", "predictive", "dwa@dwa_dynabarn_authors", "teb", "dagger"))
     print_sweep_speeds()
     mean, p95, n_obstacles = min(tracker_cost() for _ in range(args.repeat))
