@@ -12,7 +12,7 @@ from dynabarn.errors import DynabarnError
 from dynabarn.interfaces import recorded_config
 from dynabarn.perception import Tracks
 from dynabarn.planners import get_planner
-from dynabarn.planners.teb import TEBPlanner
+from dynabarn.planners.tracking import distance_to_tracks
 
 
 def _track(position=(2.0, 0.0), velocity=(0.0, 0.0), size=0.5, position_std=0.2, velocity_std=0.0) -> Tracks:
@@ -74,12 +74,20 @@ def test_dwa_refuses_a_rollout_that_passes_inside_a_young_tracks_uncertainty():
 def test_teb_keeps_its_band_clear_of_the_grown_radius_at_each_poses_time():
     moving = _track(position_std=0.0, velocity_std=0.5)
     x, y = np.zeros((1, 3)), np.zeros((1, 3))  # three inner poses at the origin
-    dts = np.full((1, 4), 0.2)  # poses 0.2, 0.4, 0.6 s from now
-    plain = TEBPlanner._moving_distance(x, y, dts, moving, get_planner("teb").cfg)
-    padded = TEBPlanner._moving_distance(x, y, dts, moving, get_planner("teb", uncertainty_sigmas=2.0).cfg)
+    ahead = np.array([[0.2, 0.4, 0.6]])  # seconds from now
+    plain = distance_to_tracks(x, y, ahead, moving, get_planner("teb").cfg)
+    padded = distance_to_tracks(x, y, ahead, moving, get_planner("teb", uncertainty_sigmas=2.0).cfg)
     assert np.allclose(plain, 1.5, atol=1e-12)
     # 2 x 0.5 m/s x t, at most 0.3: 0.2, 0.3, 0.3
     assert np.allclose(plain - padded, [[0.2, 0.3, 0.3]], atol=1e-12)
+    assert distance_to_tracks(x, y, ahead, Tracks.empty(10.0), get_planner("teb").cfg).tolist() == [[np.inf] * 3]
+
+
+def test_a_moving_track_is_met_where_it_will_be():
+    moving = _track(position=(2.0, 0.0), velocity=(-1.0, 0.0), position_std=0.0)  # 1 m/s towards the origin
+    x, y = np.zeros(3), np.zeros(3)
+    assert np.allclose(distance_to_tracks(x, y, np.array([0.0, 0.5, 1.0]), moving, get_planner("teb").cfg),
+                       [1.5, 1.0, 0.5], atol=1e-12)  # fmt: skip
 
 
 @pytest.mark.parametrize("name", ["dwa", "teb"])

@@ -36,7 +36,7 @@ from dynabarn.perception import TrackerConfig, Tracks
 from dynabarn.perception.trackers import make_tracker
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
-from dynabarn.planners.tracking import UncertaintyPadding, track_moving, with_tracker
+from dynabarn.planners.tracking import UncertaintyPadding, distance_to_tracks, track_moving, with_tracker
 
 
 @dataclass
@@ -279,13 +279,9 @@ class DWAPlanner(Planner):
         """Smallest distance (N,) of each rollout (N, K, 2) from the tracks' surfaces, each
         track at constant velocity at the rollout point's time (`times` from now), its radius
         grown by its uncertainty then (`uncertainty_sigmas`)."""
-        cfg = self.cfg
         tracks = self._tracks.covering_circles()  # outlines as circles
-        future = tracks.predict(now + times)  # (K, n, 2)
-        radii = tracks.padded_sizes(now + times, cfg.uncertainty_sigmas, cfg.max_padding)  # (K, n)
-        ex = xy[:, :, None, 0] - future[None, :, :, 0]
-        ey = xy[:, :, None, 1] - future[None, :, :, 1]
-        return (hypot(ex, ey) - radii).min(axis=(1, 2))
+        after = (now + times) - tracks.time  # (K,): the points' times after the tracks'
+        return distance_to_tracks(xy[..., 0], xy[..., 1], after, tracks, self.cfg).min(axis=1)
 
     def _escape(self, obs: Observation) -> tuple[float, float]:
         """Nothing admissible: back up turning to the freer side, else rotate in place."""

@@ -35,7 +35,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from dynabarn.determinism import STATE_RESOLUTION, exp, hypot, sincos, snap_array
+from dynabarn.determinism import STATE_RESOLUTION, exp, sincos, snap_array
 from dynabarn.interfaces import CheckedConfig, EpisodeInfo, Observation, Planner, config_from_kwargs, recorded_config
 from dynabarn.perception import TrackerConfig, Tracks
 from dynabarn.perception.trackers import make_tracker
@@ -43,7 +43,7 @@ from dynabarn.planners.coloured_jacobian import Colouring, residuals_and_jacobia
 from dynabarn.planners.costmap import CostmapConfig, LocalCostmap, with_costmap
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.levenberg_marquardt import Evaluation, minimise
-from dynabarn.planners.tracking import UncertaintyPadding, track_moving, with_tracker
+from dynabarn.planners.tracking import UncertaintyPadding, distance_to_tracks, track_moving, with_tracker
 
 
 @dataclass
@@ -76,8 +76,7 @@ class TEBConfig(UncertaintyPadding, CheckedConfig):
     include_dynamic_obstacles: bool = False
     """teb_local_planner's switch: track the moving obstacles with the laser tracker
     (`perception`), take their returns out of the static obstacles, and keep every band pose
-    clear of each track at constant velocity at that pose's time, its radius grown by
-    `uncertainty_sigmas` standard deviations of its predicted position."""
+    clear of each track at constant velocity at that pose's time (`uncertainty_sigmas`)."""
     weight_dynamic_obstacle: float = 50.0
     """teb_local_planner's default."""
     weight_dynamic_obstacle_inflation: float = 0.1
@@ -287,28 +286,13 @@ class TEBPlanner(Planner):
             w_[8] * np.maximum(0.0, cfg.inflation_dist - d),
         ]
         if moving is not None:
-            dm = self._moving_distance(x[..., 1:-1], y[..., 1:-1], dts, moving, cfg)
+            ahead = np.cumsum(dts, axis=-1)[..., :-1]  # seconds from now to each inner pose
+            dm = distance_to_tracks(x[..., 1:-1], y[..., 1:-1], ahead, moving, cfg)
             parts += [
                 w_[9] * np.maximum(0.0, cfg.min_obstacle_dist - dm),
                 w_[10] * np.maximum(0.0, cfg.dynamic_obstacle_inflation_dist - dm),
             ]
         return np.concatenate(parts, axis=-1)
-
-    @staticmethod
-    def _moving_distance(
-        x: np.ndarray, y: np.ndarray, dts: np.ndarray, moving: Tracks, padding: UncertaintyPadding
-    ) -> np.ndarray:
-        """Distance (..., n - 2) from each inner band pose to the nearest tracked obstacle's
-        surface, the obstacles at constant velocity at the pose's time (teb_local_planner's
-        `include_dynamic_obstacles`), each radius grown by its uncertainty then (`padding`)."""
-        if not len(moving):
-            return np.full(x.shape, np.inf)
-        t = np.cumsum(dts, axis=-1)[..., :-1, None]  # (..., n - 2, 1): seconds from now to pose i
-        ox = moving.positions[:, 0] + moving.velocities[:, 0] * t
-        oy = moving.positions[:, 1] + moving.velocities[:, 1] * t
-        ex, ey = x[..., None] - ox, y[..., None] - oy
-        radii = moving.padded_sizes(moving.time + t[..., 0], padding.uncertainty_sigmas, padding.max_padding)
-        return (hypot(ex, ey) - radii).min(axis=-1)
 
     def _evaluate(
         self, z: np.ndarray, start: np.ndarray, goal: np.ndarray, obstacles: np.ndarray, moving: Tracks | None

@@ -13,6 +13,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from dynabarn.determinism import hypot
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces import (
     BaseTrackerConfig,
@@ -81,3 +82,19 @@ def track_moving(tracker: Tracker, obs: Observation, range_max: float) -> tuple[
     tracks = tracker.update(obs.time, obs.scan, obs.pose)
     moving = tracker.obstacle_beams(len(obs.scan))  # declared: interfaces.Tracker
     return tracks, moving, np.where(moving, range_max, obs.scan)
+
+
+def distance_to_tracks(
+    x: np.ndarray, y: np.ndarray, t: np.ndarray, tracks: Tracks, padding: UncertaintyPadding
+) -> np.ndarray:
+    """Distance from each point (x, y), taken `t` seconds after the tracks' time, to the
+    nearest track's surface then: every track at constant velocity, its radius grown by its
+    uncertainty then (`padding`). x, y and t broadcast to one shape, which is the result's
+    (inf without tracks). What `dwa` and `teb` keep clear of with `include_dynamic_obstacles`."""
+    if not len(tracks):
+        return np.full(np.broadcast_shapes(np.shape(x), np.shape(t)), np.inf)
+    t = np.asarray(t)
+    ox = tracks.positions[:, 0] + tracks.velocities[:, 0] * t[..., None]
+    oy = tracks.positions[:, 1] + tracks.velocities[:, 1] * t[..., None]
+    radii = tracks.padded_sizes(tracks.time + t, padding.uncertainty_sigmas, padding.max_padding)
+    return (hypot(x[..., None] - ox, y[..., None] - oy) - radii).min(axis=-1)
