@@ -12,8 +12,8 @@ import pytest
 from dynabarn.perception import Tracks
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from collision_anatomy import classify  # noqa: E402
-from tracker_tables import anatomy_table  # noqa: E402
+from collision_anatomy import classify
+from tracker_tables import anatomy_table
 
 
 def _tracks(time: float, positions, velocities) -> Tracks:
