@@ -28,18 +28,18 @@ from dynabarn.perception import TrackerConfig, Tracks
 from dynabarn.perception.trackers import make_tracker
 from dynabarn.perception.unexplained import UnexplainedReturns
 from dynabarn.planners.oracle import OracleConfig, OraclePlanner
-from dynabarn.planners.tracking import with_tracker
+from dynabarn.planners.tracking import UncertaintyPadding, with_tracker
 
 FAR_AWAY = 1e6
 """[m] Where a standing point is put for the rollout steps beyond `scan_guard`."""
 
 
 @dataclass
-class PredictiveConfig(OracleConfig):
+class PredictiveConfig(UncertaintyPadding, OracleConfig):
     uncertainty_sigmas: float = 1.0
-    """Standard deviations of a prediction's position added to an obstacle's radius."""
-    max_padding: float = 0.3
-    """Most that uncertainty adds to an obstacle's radius [m]."""
+    """Standard deviations of a prediction's position added to an obstacle's radius: on by
+    default, as `predictive` has always planned (and always recorded; `max_padding` is the
+    shared one, `UncertaintyPadding`)."""
     scan_guard: float = 0.0
     """[s] How far ahead the returns no track or map explains are planned against, as
     standing points (0: not at all, as every result before issue 57)."""
@@ -48,12 +48,12 @@ class PredictiveConfig(OracleConfig):
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     """The tracker's parameters (`tracker.KEY=...`, `tracker.detector.KEY=...`)."""
 
-    # Every result before the guard keeps its configuration as recorded.
+    # Every result before the guard keeps its configuration as recorded; the padding's two
+    # keys are recorded always (not UncertaintyPadding's rule, which is for dwa and teb).
     RECORDED_WHEN_SET: ClassVar[dict[str, tuple[str, ...]]] = {"scan_guard": ("scan_guard", "scan_guard_radius")}
     LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
         **OracleConfig.LIMITS,
-        "uncertainty_sigmas": (0.0, 10.0),
-        "max_padding": (0.0, 5.0),
+        **UncertaintyPadding.PADDING_LIMITS,
         "scan_guard": (0.0, 10.0),
         "scan_guard_radius": (0.0, 1.0),
     }

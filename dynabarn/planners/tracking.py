@@ -32,7 +32,7 @@ from dynabarn.perception.trackers import TRACKERS
 class UncertaintyPadding:
     """The settings of a planner that keeps clear of each track's predicted position grown by
     the tracker's uncertainty (`Tracks.padded_sizes`), a base of its configuration (`dwa`'s
-    and `teb`'s with `include_dynamic_obstacles`; `predictive` has the same two, on by
+    and `teb`'s with `include_dynamic_obstacles`, and `predictive`'s, which turns it on by
     default). Off by default, so every earlier result keeps its configuration."""
 
     uncertainty_sigmas: float = 0.0
