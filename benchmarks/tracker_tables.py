@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from collision_anatomy import KINDS, SIDES
 from tracker_sweeps import PRESETS, SETS, folder
 
 LADDERS = {
@@ -117,6 +118,13 @@ GAP_RUNGS = {
 """`benchmarks/perception_gap.py`'s rungs, in order, as the table names them."""
 
 
+def success_cell(ends: dict[str, int], wilson: Callable[[int, int], tuple[float, float]]) -> str:
+    """How a setting's episodes ended ({outcome: count}) as its success with its interval."""
+    n, wins = sum(ends.values()), ends.get("success", 0)
+    low, high = wilson(wins, n)
+    return f"{wins / n:.2f} [{low:.2f}, {high:.2f}]"
+
+
 def gap_table(record: dict | None, wilson: Callable[[int, int], tuple[float, float]]) -> str:
     """`predictive`'s gap to `oracle_present` split rung by rung (`perception_gap.py`'s
     record), a column per tracker; `wilson` gives a success count's interval."""
@@ -131,12 +139,7 @@ def gap_table(record: dict | None, wilson: Callable[[int, int], tuple[float, flo
         cells = []
         for tracker in trackers:
             ends = record["trackers"][tracker].get(rung)
-            if not ends:
-                cells.append("-")
-                continue
-            n, wins = sum(ends.values()), ends.get("success", 0)
-            low, high = wilson(wins, n)
-            cells.append(f"{wins / n:.2f} [{low:.2f}, {high:.2f}]")
+            cells.append(success_cell(ends, wilson) if ends else "-")
         lines.append(f"| {what} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -154,11 +157,7 @@ def padding_table(record: dict | None, wilson: Callable[[int, int], tuple[float,
     ]
     for tier, planners in sorted(record["tiers"].items()):
         for planner, row in planners.items():
-            cells = []
-            for setting in ("off", "on"):
-                n, wins = sum(row[setting].values()), row[setting].get("success", 0)
-                low, high = wilson(wins, n)
-                cells.append(f"{wins / n:.2f} [{low:.2f}, {high:.2f}]")
+            cells = [success_cell(row[setting], wilson) for setting in ("off", "on")]
             flips = row["paired"]
             lines.append(f"| `{tier}` | `{planner}` | {cells[0]} | {cells[1]} | {flips['won']} / {flips['lost']} |")
     return "\n".join(lines)
@@ -170,8 +169,7 @@ def anatomy_table(record: dict | None) -> str:
     brackets those `oracle_present` survived (the gap's share)."""
     if not record:
         return "(no record: run `python benchmarks/collision_anatomy.py --record`)"
-    kinds = ("untracked", "lost", "centre off", "velocity off", "tracked")
-    sides = ("front", "side", "behind")
+    kinds, sides = KINDS, SIDES
     hits = [e for e in record["episodes"] if e["kind"] != "-"]
     lines = [
         "| the obstacle that hit, in its last second | "

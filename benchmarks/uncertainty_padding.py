@@ -22,6 +22,7 @@ from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+from tracker_tables import success_cell
 from tracker_validation import SEED, validation_worlds
 
 from dynabarn.bench.stats import wilson_interval
@@ -99,11 +100,7 @@ def main(argv: list[str] | None = None) -> int:
         for planner in planners:
             off, on = (ends[tier, planner, s] for s in SIGMAS)
             record[tier][planner] = {"off": summary(off), "on": summary(on), "paired": paired(off, on)}
-            cells = []
-            for outcomes in (off, on):
-                wins = sum(v == "success" for v in outcomes.values())
-                low, high = wilson_interval(wins, len(outcomes))
-                cells.append(f"{wins / len(outcomes):.2f} [{low:.2f}, {high:.2f}]")
+            cells = [success_cell(record[tier][planner][setting], wilson_interval) for setting in ("off", "on")]
             flips = record[tier][planner]["paired"]
             print(f"{tier:<14} {planner:<11} off {cells[0]}  on {cells[1]}  won {flips['won']} lost {flips['lost']}")
     if args.record:
