@@ -38,7 +38,7 @@ from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
-from tracker_validation import SEED, validation_worlds
+from tracker_validation import SEED, check_arguments, validation_worlds
 
 from dynabarn.files import write_atomically
 from dynabarn.interfaces import EpisodeObserver
@@ -134,6 +134,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--record", action="store_true", help=f"write {OUT.relative_to(ROOT)}/collisions_TIER.json")
     args = parser.parse_args(argv)
     config = {"tracker.kind": args.tracker}
+    check_arguments(parser, [args.tier], [("predictive", config)])
     with tempfile.TemporaryDirectory(prefix="dynabarn-anatomy-") as scratch:
         folder = str(validation_worlds(args.tier, Path(scratch)))
         with ProcessPoolExecutor(args.jobs) as pool:

@@ -36,7 +36,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from tracker_validation import SEED, validation_worlds
+from tracker_validation import SEED, check_arguments, validation_worlds
 
 from dynabarn.bench.stats import wilson_interval
 from dynabarn.files import write_atomically
@@ -127,6 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     config = {k: json.loads(v) if v[:1] in "-.0123456789[" else v for k, v in (a.split("=", 1) for a in args.set)}
     rungs, trackers = args.rungs.split(","), args.trackers.split(",")
+    check_arguments(parser, [args.tier], [("predictive", config | {"tracker.kind": t}) for t in trackers])
     table: dict[str, dict[str, Counter]] = {t: {r: Counter() for r in rungs} for t in trackers}
     with tempfile.TemporaryDirectory(prefix="dynabarn-gap-") as scratch:
         folder = str(validation_worlds(args.tier, Path(scratch)))

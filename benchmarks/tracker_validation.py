@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
 from dynabarn.interfaces import EpisodeObserver, Planner
 from dynabarn.perception.trackers import make_tracker
@@ -99,6 +100,19 @@ class PairErrors(EpisodeObserver):
 
     def on_end(self, result) -> None:
         pass
+
+
+def check_arguments(parser: argparse.ArgumentParser, tiers: list[str], planners: list[tuple[str, dict]]) -> None:
+    """Before anything runs: each of `tiers` a tier and each (planner, configuration) one
+    the planner accepts, or the parser's one-line error (exit 2)."""
+    unknown = sorted(set(tiers) - set(TIERS))
+    if unknown:
+        parser.error(f"unknown tier(s) {unknown}; known: {', '.join(TIERS)}")
+    for name, config in planners:
+        try:
+            get_planner(name, **config)
+        except DynabarnError as exc:
+            parser.error(str(exc))
 
 
 def validation_worlds(tier: str, folder: Path) -> Path:

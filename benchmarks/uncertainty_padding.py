@@ -23,7 +23,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from tracker_tables import success_cell
-from tracker_validation import SEED, validation_worlds
+from tracker_validation import SEED, check_arguments, validation_worlds
 
 from dynabarn.bench.stats import wilson_interval
 from dynabarn.files import write_atomically
@@ -80,6 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(planners) - set(PLANNERS))
     if unknown:
         parser.error(f"unknown planner(s) {unknown}; known: {', '.join(PLANNERS)}")
+    check_arguments(parser, tiers, [])
     ends: dict[tuple[str, str, float], dict[tuple[int, int], str]] = {
         (t, p, s): {} for t in tiers for p in planners for s in SIGMAS
     }
