@@ -122,7 +122,7 @@ worlds: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/dynabarn-run --world 137 --planner dwa
 
-# The whole suite, a worker per core (about 8 minutes on 2 cores); every test has a time
+# The whole suite, a worker per core (about 21 minutes on 2 cores kept busy by other work); every test has a time
 # limit (pyproject.toml). DYNABARN_REQUIRE_ALL=1 (CI) fails on a skip that lacks only an install.
 test: $(TEST_STAMP)
 	$(BIN)/python -m pytest -q -n auto
