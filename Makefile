@@ -12,7 +12,7 @@ LOCK := requirements.lock
 # The extras the tests exercise; the lock covers the package and all of them.
 EXTRAS := test,ray,learn,ros,docs
 
-.PHONY: install demo worlds test test-fast docs docs-serve lint format bench clean system-deps ros-deps ros-nav-deps ros-nav ros-teb-deps ros-teb ros2-deps ros2-core lock verify-golden readme
+.PHONY: install demo worlds test test-fast docs docs-serve lint format bench clean system-deps ros-deps ros-nav-deps ros-nav ros-teb-deps ros-teb ros2-deps ros2-core nav2-deps nav2 lock verify-golden readme
 
 # The package and what running it needs.
 $(STAMP): pyproject.toml $(LOCK)
@@ -85,6 +85,21 @@ ros2-deps:
 ros2-core: $(STAMP) ros2-deps
 	@[ -n "$(ROS2_SRC)" ] || { echo "ros2-core: give ROS2_SRC=<folder of the fetched repositories> (python -m dynabarn.ros.ros2_build --repos lists them)"; exit 2; }
 	$(BIN)/python -m dynabarn.ros.ros2_build --source $(ROS2_SRC)
+
+# Nav2 1.3.4 (controller server with DWB and MPPI, planner server with NavFn, costmap_2d,
+# lifecycle manager, BT navigator) as an overlay on the ROS 2 core, from fetched sources
+# (`python -m dynabarn.ros.nav2_build --repos` lists them): `make nav2 NAV2_SRC=DIR`, into
+# DYNABARN_NAV2_WS (default ~/.cache/dynabarn/nav2). About 35 minutes on 2 cores.
+nav2-deps: ros2-deps
+	@if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
+	  need=""; for p in $$($(BIN)/python -c 'from dynabarn.ros.nav2_build import BUILD_DEPENDENCIES as d; print(*d)'); do \
+	    dpkg -s $$p >/dev/null 2>&1 || need="$$need $$p"; done; \
+	  if [ -n "$$need" ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$need >/dev/null; fi; \
+	else echo "nav2-deps: run as root to install Debian's build dependencies"; fi
+
+nav2: $(STAMP) nav2-deps
+	@[ -n "$(NAV2_SRC)" ] || { echo "nav2: give NAV2_SRC=<folder of the fetched repositories> (python -m dynabarn.ros.nav2_build --repos lists them)"; exit 2; }
+	$(BIN)/python -m dynabarn.ros.nav2_build --source $(NAV2_SRC)
 
 # ROS 1's navigation stack (move_base) built from source against Debian's ROS 1, into a
 # catkin workspace outside the package (DYNABARN_NAV_WS, default ~/.cache/dynabarn/ros_nav):

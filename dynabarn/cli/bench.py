@@ -82,7 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         choices=sorted(STACKS),
         help="with --planner ros: a stack of ours instead of --ros-launch (move_base from `make ros-nav`; "
-        "move_base_teb also needs `make ros-teb`)",
+        "move_base_teb also needs `make ros-teb`; nav2_dwb and nav2_mppi, on ROS 2, from `make nav2`)",
     )
     parser.add_argument(
         "--set", default="paper60", help=SET_HELP + "; with --verify, a further folder the rows' world files may be in"

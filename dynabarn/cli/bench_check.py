@@ -121,7 +121,11 @@ def command_line_config(args: argparse.Namespace) -> dict:
     if args.ros_launch is not None:
         config["launch"] = args.ros_launch
     if args.ros_stack is not None:
+        from dynabarn.ros.stacks import STACKS
+
         config["stack"] = args.ros_stack
+        if STACKS[args.ros_stack].ros != 1:  # Nav2: the bridge on ROS 2 (ROS 1's rows keep their configuration)
+            config["ros"] = STACKS[args.ros_stack].ros
     return config
 
 

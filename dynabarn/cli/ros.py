@@ -42,9 +42,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--ros",
         type=int,
         choices=(1, 2),
-        default=1,
-        help="the ROS the stack runs on: 1, Debian's ROS 1 with a master of our own (default); 2, the ROS 2 "
-        "Jazzy `make ros2-core` built, in a DDS domain of our own kept on this machine",
+        default=None,
+        help="the ROS the stack runs on: 1, Debian's ROS 1 with a master of our own; 2, the ROS 2 Jazzy "
+        "`make ros2-core` built, in a DDS domain of our own kept on this machine (default: the --stack's ROS, "
+        "else 1)",
     )
     parser.add_argument(
         "--bag",
@@ -107,7 +108,7 @@ def _add_stack(parser: argparse.ArgumentParser) -> None:
         choices=sorted(STACKS),
         help="a stack of ours: "
         + "; ".join(f"{name}: {s.about}" for name, s in STACKS.items())
-        + " (needs `make ros-nav`)",
+        + " (move_base: `make ros-nav`; Nav2: `make nav2`, and runs on ROS 2)",
     )
     parser.add_argument(
         "--nav-workspace",
@@ -115,7 +116,8 @@ def _add_stack(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="DIR",
         help=f"the catkin workspace `make ros-nav` built move_base in (default: ${WORKSPACE_ENV} or "
-        "~/.cache/dynabarn/ros_nav)",
+        "~/.cache/dynabarn/ros_nav), or for a Nav2 stack the prefix `make nav2` built (default: $DYNABARN_NAV2_WS "
+        "or ~/.cache/dynabarn/nav2)",
     )
     parser.add_argument(
         "--stack-log",
@@ -228,9 +230,14 @@ def _ros_episode(args: argparse.Namespace) -> int:
     world_path = resolve_world(args.world, args.set)
     world_name = read_world(world_path).name  # parsed and checked; compiled by run_spec
     protocol = get_protocol(args.protocol)
+    stack_ros = STACKS[args.stack].ros if args.stack else None
+    if args.ros is None:
+        args.ros = stack_ros or 1
+    if stack_ros is not None and stack_ros != args.ros:
+        raise DynabarnError(f"--stack {args.stack} runs on ROS {stack_ros}: leave out --ros {args.ros}")
     if args.ros == 2:
-        if args.stack or args.master:
-            raise DynabarnError("--ros 2: --stack and --master are ROS 1's (a ROS 2 stack is given by --launch)")
+        if args.master:
+            raise DynabarnError("--ros 2: --master is ROS 1's (each ROS 2 bridge takes a DDS domain of its own)")
         from dynabarn.ros.domain import built_setup
 
         built_setup(args.ros2_workspace)  # one clear line when ROS 2 is not built

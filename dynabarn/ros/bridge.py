@@ -264,7 +264,13 @@ def ros_planner(*, launch: str | None = None, master: str | None = None, **confi
     if cfg.ros == 2:  # no master: a DDS domain of its own, in the prefix `make ros2-core` built
         if master is not None:
             raise TypeError("ros master: ROS 2 has no master (each bridge takes a DDS domain of its own)")
-        return RosPlanner(Ros2Domain.start(Path(cfg.ros2_workspace) if cfg.ros2_workspace else None), cfg)
+        overlay = None
+        if cfg.stack:  # a Nav2 stack: the bridge in its overlay too (nav2_msgs, for `navigate_to_pose`)
+            from dynabarn.ros.stacks import nav2_setup
+
+            overlay = nav2_setup(Path(cfg.nav_workspace) if cfg.nav_workspace else None)
+        core = Path(cfg.ros2_workspace) if cfg.ros2_workspace else None
+        return RosPlanner(Ros2Domain.start(core, overlay), cfg)
     if master is None:
         ros_python()  # one clear line when ROS is missing, before a master is started
     return RosPlanner(RosMaster.start(master), cfg)

@@ -102,10 +102,11 @@ class BridgeConfig(CheckedConfig):
     """Command that starts the stack (run once the master is up; stopped at the end): a shell
     line, or its words."""
     stack: str | None = None
-    """A stack of ours instead of `launch` (`dynabarn.ros.stacks`: move_base from `make ros-nav`)."""
+    """A stack of ours instead of `launch` (`dynabarn.ros.stacks`: move_base from `make ros-nav`,
+    Nav2 from `make nav2`)."""
     nav_workspace: str | None = None
-    """Where `make ros-nav` built move_base for `stack` (default: `$DYNABARN_NAV_WS` or
-    ~/.cache/dynabarn/ros_nav)."""
+    """Where `make ros-nav` built move_base, or `make nav2` Nav2, for `stack` (default:
+    `$DYNABARN_NAV_WS` or ~/.cache/dynabarn/ros_nav; `$DYNABARN_NAV2_WS` or ~/.cache/dynabarn/nav2)."""
     ros: int = 1
     """Which ROS the stack runs on: 1 (Debian's ROS 1, a rosmaster of the bridge's own) or 2
     (the ROS 2 Jazzy `make ros2-core` built, a DDS domain of the bridge's own: `node2.py`)."""
@@ -148,6 +149,9 @@ class BridgeConfig(CheckedConfig):
                 f"{what} launch {self.launch!r}: an empty command; leave it out to start the stack yourself"
             )
         if self.stack:
-            from dynabarn.ros.stacks import stack_command
+            from dynabarn.ros.stacks import STACKS, stack_command
 
+            STACKS.get_item(self.stack)  # one line for an unknown name, with the nearest
+            if STACKS[self.stack].ros != self.ros:
+                raise TypeError(f"{what} stack {self.stack!r} runs on ROS {STACKS[self.stack].ros}, not ROS {self.ros}")
             stack_command(self.stack, Path(self.nav_workspace) if self.nav_workspace else None)

@@ -60,8 +60,10 @@ class Ros2Domain:
     _lock: int | None = None
 
     @classmethod
-    def start(cls, workspace: Path | None = None) -> Ros2Domain:
-        setup = built_setup(workspace)
+    def start(cls, workspace: Path | None = None, overlay: Path | None = None) -> Ros2Domain:
+        """A free domain in the core's environment, or in `overlay` (the `setup.bash` of a
+        prefix built over the core, e.g. Nav2's, whose messages the bridge then imports)."""
+        setup = overlay or built_setup(workspace)
         for domain in DOMAINS:
             fd = os.open(Path(tempfile.gettempdir()) / f"dynabarn-ros2-domain-{domain}.lock", os.O_RDWR | os.O_CREAT)
             try:

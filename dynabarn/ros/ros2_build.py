@@ -29,6 +29,7 @@ import argparse
 import hashlib
 import os
 import re
+import shlex
 import shutil
 import sys
 import time
@@ -122,6 +123,12 @@ CORE_PACKAGES = (
     "lifecycle_msgs",
     "pluginlib",
     "message_filters",
+    # what Nav2 (`nav2_build`) takes from the core beyond the bridge's needs
+    "diagnostic_msgs",
+    "tf2_eigen",
+    "tf2_sensor_msgs",
+    "sensor_msgs_py",
+    "ros_environment",
 )
 """What the bridge and a navigation stack use; colcon builds these and what they depend on."""
 IGNORED = (
@@ -179,10 +186,10 @@ def setup_script(workspace: Path) -> Path:
     return workspace / "install" / "setup.bash"
 
 
-def repos_file() -> str:
-    """`REPOSITORIES` as a vcstool file (`vcs import ROS2_SRC < FILE`)."""
+def repos_file(repositories: dict[str, tuple[str, str]] = REPOSITORIES) -> str:
+    """The repositories as a vcstool file (`vcs import SRC < FILE`)."""
     lines = ["repositories:"]
-    for name, (repository, version) in REPOSITORIES.items():
+    for name, (repository, version) in repositories.items():
         url = f"https://github.com/{repository}.git"
         lines += [f"  {name}:", "    type: git", f"    url: {url}", f"    version: {version}"]
     return "\n".join(lines) + "\n"
@@ -199,14 +206,20 @@ def _package_versions(tree: Path) -> dict[str, str]:
     return found
 
 
-def find_sources(source: Path) -> dict[str, Path]:
+def find_sources(
+    source: Path,
+    repositories: dict[str, tuple[str, str]] = REPOSITORIES,
+    *,
+    release: str = SYNC,
+    module: str = "ros2_build",
+) -> dict[str, Path]:
     """Each repository's folder in `source` (by its name, or vcstool's ORG/NAME), checked:
-    every one present, each of its packages at the sync's version. One line naming what is
-    missing or other."""
+    every one present, each of its packages at the release's version. One line naming what
+    is missing or other."""
     if not source.is_dir():
-        raise DynabarnError(f"{source}: no such folder (fetch the sources: python -m dynabarn.ros.ros2_build --repos)")
+        raise DynabarnError(f"{source}: no such folder (fetch the sources: python -m dynabarn.ros.{module} --repos)")
     folders, other, missing = {}, [], []
-    for name, (repository, version) in REPOSITORIES.items():
+    for name, (repository, version) in repositories.items():
         folder = next((p for p in (source / name, source / repository) if p.is_dir()), None)
         versions = _package_versions(folder) if folder is not None else {}
         if not versions:
@@ -219,7 +232,7 @@ def find_sources(source: Path) -> dict[str, Path]:
     if other or missing:
         shown = other[:4] + ([f"{len(missing)} missing ({', '.join(missing[:4])}{', ...' if len(missing) > 4 else ''})"]
                              if missing else [])  # fmt: skip
-        raise DynabarnError(f"{source}: not the sources of {SYNC}: {'; '.join(shown)}")
+        raise DynabarnError(f"{source}: not the sources of {release}: {'; '.join(shown)}")
     return folders
 
 
@@ -248,72 +261,89 @@ def _folder_size(folder: Path) -> int:
     return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file() and not p.is_symlink())
 
 
-def build(workspace: Path, source: Path, *, jobs: int = 2) -> dict:
-    """The sources checked, then colcon; the description. Nothing is built when the prefix
-    already holds a finished build of the same sources."""
-    folders = find_sources(source)
+def colcon_build(
+    workspace: Path,
+    source: Path,
+    folders: dict[str, Path],
+    *,
+    packages: tuple[str, ...],
+    ignored: tuple[str, ...],
+    record: dict,
+    marker: str,
+    what: str,
+    jobs: int = 2,
+    underlay: Path | None = None,
+    cmake_args: tuple[str, ...] = (),
+) -> dict:
+    """colcon over the checked sources `folders` of `source` into `workspace` (`install/`
+    merged, `build/`, `build.log`, the marker written last), over the prefix `underlay`
+    when given (its `setup.bash` sourced first); `record` plus the packages, the sources'
+    digest, size and seconds, with `rebuilt`. Nothing is built when the marker names the
+    same sources and holds every package asked for."""
     if not Path("/usr/bin/python3").exists() or shutil.which("cmake") is None:
         raise DynabarnError("Debian's build tools are missing: `sudo make ros2-deps`")
     digest = sources_digest(folders)
-    done = built(workspace)
-    if done is not None and done.get("sources_sha256") == digest and setup_script(workspace).is_file():
+    done = read_marker(workspace / marker)
+    if (
+        done is not None
+        and done.get("sources_sha256") == digest
+        and set(packages) <= set(done.get("packages", ()))
+        and setup_script(workspace).is_file()
+    ):
         return {**done, "rebuilt": False}
     workspace.mkdir(parents=True, exist_ok=True)
-    (workspace / MARKER).unlink(missing_ok=True)
+    (workspace / marker).unlink(missing_ok=True)
     src = workspace / "src"
     if src.exists():
         shutil.rmtree(src)
     shutil.copytree(source, src, symlinks=True, ignore=shutil.ignore_patterns(".git"))
-    for package in IGNORED:
+    for package in ignored:
         for xml in src.rglob("package.xml"):
             if f"<name>{package}</name>" in xml.read_text(errors="replace"):
-                (xml.parent / "COLCON_IGNORE").write_text("left out by dynabarn.ros.ros2_build\n")
+                (xml.parent / "COLCON_IGNORE").write_text("left out by dynabarn.ros\n")
     log_path = workspace / "build.log"
     t0 = time.monotonic()
     with log_path.open("w") as log:
-        colcon = _colcon(workspace, log)
-        print(f"building ROS 2 ({SYNC}) with colcon, {jobs} workers: about 11 minutes on 2 cores (log: {log_path})",
-              file=sys.stderr)  # fmt: skip
+        colcon = _colcon(underlay or workspace, log)  # an overlay uses its underlay's colcon
+        print(f"building {what} with colcon, {jobs} workers (log: {log_path})", file=sys.stderr)
         env = {**debian_env(), "PATH": f"{colcon.parent}:/usr/bin:/bin", "MAKEFLAGS": f"-j{jobs}"}
-        run_logged(
-            [
-                str(colcon),
-                "build",
-                "--base-paths",
-                str(src),
-                "--build-base",
-                str(workspace / "build"),
-                "--install-base",
-                str(workspace / "install"),
-                "--merge-install",
-                "--parallel-workers",
-                str(jobs),
-                "--packages-up-to",
-                *CORE_PACKAGES,
-                "--event-handlers",
-                "console_direct-",
-                "--cmake-args",
-                "-DBUILD_TESTING=OFF",
-                "-DTRACETOOLS_DISABLED=ON",
-                "-DCMAKE_BUILD_TYPE=Release",
-                "-DPython3_EXECUTABLE=/usr/bin/python3",
-            ],
-            log,
-            cwd=workspace,
-            env=env,
-        )
+        command = [
+            str(colcon), "build", "--base-paths", str(src), "--build-base", str(workspace / "build"),
+            "--install-base", str(workspace / "install"), "--merge-install", "--parallel-workers", str(jobs),
+            "--packages-up-to", *packages, "--event-handlers", "console_direct-",
+            "--cmake-args", "-DBUILD_TESTING=OFF", "-DTRACETOOLS_DISABLED=ON", "-DCMAKE_BUILD_TYPE=Release",
+            "-DPython3_EXECUTABLE=/usr/bin/python3", *cmake_args,
+        ]  # fmt: skip
+        if underlay is not None:  # the underlay's environment (its packages, libraries) for colcon
+            line = f"source {shlex.quote(str(setup_script(underlay)))} && exec {shlex.join(command)}"
+            command = ["bash", "-c", line]
+        run_logged(command, log, cwd=workspace, env=env)
     if not setup_script(workspace).is_file():
         raise DynabarnError(f"the build ended without {setup_script(workspace)}: see {log_path}")
-    packages = sorted(p.name for p in (workspace / "install" / "share").iterdir() if (p / "package.xml").is_file())
+    share = workspace / "install" / "share"
     info = {
-        "sync": SYNC,
-        "sources": {name: version for name, (_, version) in REPOSITORIES.items()},
+        **record,
         "sources_sha256": digest,
-        "packages": packages,
+        "packages": sorted(p.name for p in share.iterdir() if (p / "package.xml").is_file()),
         "install_bytes": _folder_size(workspace / "install"),
         "jobs": jobs,
     }
-    return {**write_marker(workspace / MARKER, info, t0), "rebuilt": True}
+    return {**write_marker(workspace / marker, info, t0), "rebuilt": True}
+
+
+def build(workspace: Path, source: Path, *, jobs: int = 2) -> dict:
+    """The sources checked, then colcon (about 11 minutes on 2 cores); the description."""
+    return colcon_build(
+        workspace,
+        source,
+        find_sources(source),
+        packages=CORE_PACKAGES,
+        ignored=IGNORED,
+        record={"sync": SYNC, "sources": {name: version for name, (_, version) in REPOSITORIES.items()}},
+        marker=MARKER,
+        what=f"ROS 2 ({SYNC}): about 11 minutes on 2 cores",
+        jobs=jobs,
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,6 +1,7 @@
 """Navigation stacks `dynabarn-ros --stack NAME` starts: ROS 1's move_base, built from
 source by `make ros-nav` (`nav_build`; TEB by `make ros-teb`, `teb_build`), with the launch and parameter files of
-`dynabarn/ros/launch/` (each value with its source in the BARN Challenge's branches)."""
+`dynabarn/ros/launch/` (each value with its source in the BARN Challenge's branches); and ROS 2's Nav2
+(DWB, MPPI), built by `make nav2` (`nav2_build`), with `dynabarn/ros/launch/nav2/`."""
 
 from __future__ import annotations
 
@@ -27,6 +28,8 @@ class Stack:
     """[Hz] move_base's controller_frequency (dyna_barn/move_base.yaml): its loop's timer."""
     teb: bool = False
     """Needs teb_local_planner (`make ros-teb`) in the workspace too."""
+    ros: int = 1
+    """The ROS it runs on: 1 (move_base, `make ros-nav`) or 2 (Nav2, `make nav2`)."""
 
 
 STACKS: Registry[Stack] = Registry(
@@ -49,16 +52,37 @@ STACKS: Registry[Stack] = Registry(
             "(the BARN Challenge's dyna_barn branch; `make ros-teb`)",
             teb=True,
         ),
+        # Nav2's controller server, costmaps and BT navigator run their loops on wall-clock
+        # rates (rclcpp::WallRate), not on ROS time: the bridge takes the first /cmd_vel
+        # after each scan (control_rate 0) rather than holding the clock for a timer.
+        "nav2_dwb": Stack(
+            "nav2/nav2_dynabarn.launch.py",
+            (("controller", "dwb"),),
+            about="Nav2 1.3.4 with DWB configured as our `dwa`, NavFn and the BT navigator replanning at 1 Hz "
+            "(ROS 2; `make nav2`)",
+            control_rate=0.0,
+            ros=2,
+        ),
+        "nav2_mppi": Stack(
+            "nav2/nav2_dynabarn.launch.py",
+            (("controller", "mppi"),),
+            about="Nav2 1.3.4 with MPPI's defaults at the Jackal's limits, NavFn and the BT navigator (ROS 2; "
+            "`make nav2`)",
+            control_rate=0.0,
+            ros=2,
+        ),
     },
     check=instances_of(Stack),
 )
-"""The move_base stacks `--stack` starts by name; `STACKS.register(Stack(...), name=...)` adds one."""
+"""The stacks `--stack` starts by name; `STACKS.register(Stack(...), name=...)` adds one."""
 
 
 def stack_command(name: str, workspace: Path | None = None) -> list[str]:
     """The command that starts stack `name` from the built workspace (one clear error when
-    the stack is unknown or move_base is not built)."""
+    the stack is unknown or move_base or Nav2 is not built)."""
     STACKS.get_item(name)  # one line for an unknown name, with the nearest
+    if STACKS[name].ros == 2:
+        return _nav2_command(STACKS[name], workspace)
     workspace = (workspace or default_workspace()).expanduser()
     if built(workspace) is None:
         raise NotInstalledHere(
@@ -74,4 +98,27 @@ def stack_command(name: str, workspace: Path | None = None) -> list[str]:
     # The workspace's environment (ROS_PACKAGE_PATH, libraries) for roslaunch and move_base.
     setup = shlex.quote(str(workspace / "devel" / "setup.bash"))
     line = f"source {setup} && exec roslaunch {shlex.quote(str(LAUNCH / stack.launch))} {args}".rstrip()
+    return ["bash", "-c", line]
+
+
+def nav2_setup(workspace: Path | None = None) -> Path:
+    """The `setup.bash` of the Nav2 overlay `make nav2` built (over the ROS 2 core), in which
+    the bridge node and a Nav2 stack run; one clear error when there is none."""
+    from dynabarn.ros import nav2_build, ros2_build
+
+    workspace = (workspace or nav2_build.default_workspace()).expanduser()
+    setup = ros2_build.setup_script(workspace)
+    if nav2_build.built(workspace) is None or not setup.is_file():
+        raise NotInstalledHere(
+            f"Nav2 is not built in {workspace}: run `make nav2 NAV2_SRC=<folder of the fetched repositories>` "
+            "(about 35 minutes on 2 cores, over `make ros2-core`)",
+            "make nav2 NAV2_SRC=<folder>",
+        )
+    return setup
+
+
+def _nav2_command(stack: Stack, workspace: Path | None) -> list[str]:
+    args = " ".join(f"{k}:={shlex.quote(v.format(launch=LAUNCH))}" for k, v in stack.args)
+    setup = shlex.quote(str(nav2_setup(workspace)))
+    line = f"source {setup} && exec ros2 launch {shlex.quote(str(LAUNCH / stack.launch))} {args}".rstrip()
     return ["bash", "-c", line]
