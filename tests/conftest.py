@@ -26,6 +26,7 @@ SKIPS_NO_INSTALL_BRINGS = (
     "make ros-nav",  # move_base built from source: fetched from GitHub, which CI does not reach
     "make ros-teb",  # teb_local_planner and g2o built from source: the same
     "make ros2-core",  # ROS 2 Jazzy built from fetched sources: the same
+    "make nav2",  # Nav2 built from fetched sources over it: the same
 )
 
 

@@ -76,9 +76,14 @@ def built(workspace: Path) -> dict | None:
     return ros2_build.read_marker(workspace / MARKER)
 
 
+def find_sources(source: Path) -> dict[str, Path]:
+    """Each repository's folder in `source`, checked as the core's are (`ros2_build.find_sources`)."""
+    return ros2_build.find_sources(source, REPOSITORIES, release=f"Nav2 {NAV2_VERSION}", module="nav2_build")
+
+
 def build(workspace: Path, source: Path, core: Path, *, jobs: int = 2) -> dict:
     """The sources checked, the core found, then colcon over it; the description."""
-    folders = ros2_build.find_sources(source, REPOSITORIES, release=f"Nav2 {NAV2_VERSION}", module="nav2_build")
+    folders = find_sources(source)
     if ros2_build.built(core) is None:
         raise DynabarnError(f"the ROS 2 core is not built in {core}: make ros2-core ROS2_SRC=<folder>")
     return ros2_build.colcon_build(
