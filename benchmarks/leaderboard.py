@@ -31,7 +31,9 @@ SEES = {
     "dagger": "laser + tracker (learned)",
     "oracle_present": "**privileged**: true present state",
     "oracle": "**privileged**: the exact future",
-    "ros": "laser (move_base)",
+    "ros --stack move_base_dwa": "laser (real move_base, ROS 1)",
+    "ros --stack nav2_dwb": "laser (real Nav2 DWB, ROS 2)",
+    "ros --stack nav2_mppi": "laser (real Nav2 MPPI, ROS 2)",
 }
 """What each planner's decisions read (docs/concepts/baselines.md, perception.md)."""
 
@@ -85,17 +87,29 @@ COLUMNS = (
 )
 
 
-def leaderboard_table(folders: dict[str, tuple[list[dict], list[dict]]], names: dict[str, str]) -> str:
+def leaderboard_table(
+    folders: dict[str, tuple[list[dict], list[dict]]],
+    names: dict[str, str],
+    guests: dict[str, tuple[tuple[str, str, str], ...]] | None = None,
+) -> str:
     """A section per world set: one row per planner, success on all difficulties beside the
     BARN score, success per difficulty with 95% Wilson intervals, the floor's success and the
     skill over it; in order of success on all difficulties, sortable by any column (the
-    site's `leaderboard.js`), the planner column kept in view."""
+    site's `leaderboard.js`), the planner column kept in view. `guests[folder]` adds rows
+    swept into folders of their own: (their folder, the planner in its rows, the name shown),
+    each linking its own folder's report."""
     parts = []
     for folder, label in names.items():
         _, summary = folders.get(folder, ([], []))
         if not summary:
             continue
         by = {(s["planner"], s["difficulty"]): s for s in summary}
+        report_of = dict.fromkeys((p for p, _ in by), folder)
+        for guest_folder, planner, shown in (guests or {}).get(folder, ()):
+            for s in folders.get(guest_folder, ([], []))[1]:
+                if s["planner"] == planner:
+                    by[(shown, s["difficulty"])] = {**s, "planner": shown}
+                    report_of[shown] = guest_folder
         planners = sorted({p for p, _ in by}, key=lambda p: (p == FLOOR, -by[(p, "all")]["success"], p))
         head = "".join(f"<th>{html.escape(c)}</th>" for c in COLUMNS)
         rows = []
@@ -119,7 +133,7 @@ def leaderboard_table(folders: dict[str, tuple[list[dict], list[dict]]], names: 
                     html.escape(_skill(everything)) if planner != FLOOR else "-",
                     everything["skill"] if everything.get("skill") is not None else -9,
                 ),
-                _td(f'<a href="{REPORTS}/{folder}.html">report</a>'),
+                _td(f'<a href="{REPORTS}/{report_of[planner]}.html">report</a>'),
             ]
             rows.append("<tr>" + "".join(cells) + "</tr>")
         parts += [

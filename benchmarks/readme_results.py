@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from certified_tables import calibration_table, certification_table, certified_ladder, certified_sets
 from leaderboard import leaderboard_table, tier_ladder_table
 from learning_tables import dagger_curves, dagger_training, generalisation_table, student_ablation, student_table
-from ros_tables import MOVE_BASE_SETS, ablation_table, move_base_table
+from ros_tables import MOVE_BASE_SETS, NAV2_FOLDERS, ablation_table, move_base_table, nav2_table
 from tracker_tables import (
     LADDERS,
     TEB_PADDING,
@@ -83,7 +83,16 @@ LEADERBOARD_SETS = {
         for folder, (preset, world_set) in TRACKER_FOLDERS.items()
     },
 }
-"""The leaderboard's world sets, in its order (the move_base folders compare stacks, not planners)."""
+"""The leaderboard's world sets, in its order."""
+LEADERBOARD_GUESTS = {
+    set_folder: tuple(
+        (f"{stack}_{name}", "ros", f"ros --stack {stack if stack != 'move_base' else 'move_base_dwa'}")
+        for stack in ("nav2_dwb", "nav2_mppi", "move_base")
+    )
+    for set_folder, name in (("paper60_barn", "paper60"), ("original60_barn", "original60"))
+}
+"""Real ROS stacks, swept into folders of their own (their rows' planner is `ros`), listed
+in their world set's section under the stack's name: (folder, planner in its rows, name)."""
 PLANNERS = {
     FLOOR: "Blind floor (`straight`)",
     "dwa": "DWA, our defaults (ROS's DWA biases, 2 m/s)",
@@ -144,7 +153,8 @@ def load(folder: str) -> tuple[list[dict], list[dict]]:
 def load_all() -> tuple[dict, dict]:
     """(folders, summaries): every results folder the pages use as (rows, summary), and the
     summaries of the paper's two world sets and the unseen worlds."""
-    folders = {folder: load(folder) for folder in (*SETS, *OTHER_SETS, *TIER_SETS, *MOVE_BASE_SETS, *TRACKER_FOLDERS)}
+    everything = (*SETS, *OTHER_SETS, *TIER_SETS, *MOVE_BASE_SETS, *NAV2_FOLDERS, *TRACKER_FOLDERS)
+    folders = {folder: load(folder) for folder in everything}
     return folders, {folder: s for folder, (_, s) in folders.items() if folder in SETS}
 
 
@@ -352,10 +362,11 @@ BLOCKS = {
     "dagger-curves": lambda f, s: dagger_curves(),
     "move-base": lambda f, s: move_base_table(f),
     "dwa-ablation": lambda f, s: ablation_table(f),
+    "nav2": lambda f, s: nav2_table(f),
     "certification": lambda f, s: certification_table(certified_sets()),
     "certified-ladder": lambda f, s: certified_ladder(f, certified_sets(), SETS, LADDER),
     "calibration": lambda f, s: calibration_table(),
-    "leaderboard": lambda f, s: leaderboard_table(f, LEADERBOARD_SETS),
+    "leaderboard": lambda f, s: leaderboard_table(f, LEADERBOARD_SETS, LEADERBOARD_GUESTS),
     "tier-ladder": lambda f, s: tier_ladder_table(f, TIER_SETS, LADDER),
     "trackers": lambda f, s: tracker_table(f, _ci, _skill),
     "teb-padding": lambda f, s: tracker_table(f, _ci, _skill, TEB_PADDING, "TEB plans against"),
@@ -383,6 +394,7 @@ PAGES = {
     ),
     DOCS / "tutorials" / "training.md": ("td3-training", "dagger-training"),
     DOCS / "tutorials" / "ros.md": ("move-base", "dwa-ablation"),
+    DOCS / "tutorials" / "ros2.md": ("nav2",),
     DOCS / "concepts" / "difficulty.md": ("calibration",),
     DOCS / "concepts" / "perception.md": (
         "tracker-validation",

@@ -144,3 +144,68 @@ def ablation_table(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
             ]
         lines.append(f"| {title} | {len(rows)} | " + " | ".join(cells + agree) + " |")
     return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class StackRow:
+    """One row of the ROS stacks' table: a planner's rows in a results folder."""
+
+    folder: str
+    planner: str  # its name in the rows ("ros" for a real stack)
+    title: str
+
+
+def _set_rows(set_folder: str, move_base: str, nav2: str) -> tuple[StackRow, ...]:
+    return (
+        StackRow(f"nav2_dwb_{nav2}", "ros", "real Nav2 DWB (`--stack nav2_dwb`, ROS 2)"),
+        StackRow(f"nav2_mppi_{nav2}", "ros", "real Nav2 MPPI (`--stack nav2_mppi`, ROS 2)"),
+        StackRow(move_base, "ros", "real move_base DWA (`--stack move_base_dwa`, ROS 1)"),
+        StackRow(set_folder, "dwa", "our DWA (`dwa`)"),
+        StackRow(set_folder, "predictive", "our predictive planner (`predictive`)"),
+        StackRow(set_folder, FLOOR, "blind floor (`straight`)"),
+    )
+
+
+NAV2_SETS = {
+    "paper60": _set_rows("paper60_barn", "move_base_paper60", "paper60"),
+    "release's 60": _set_rows("original60_barn", "move_base_original60", "original60"),
+}
+"""The ROS stacks' table: per world set, Nav2 and move_base (real, in lockstep) beside ours."""
+NAV2_FOLDERS = tuple(f"nav2_{stack}_{s}" for stack in ("dwb", "mppi") for s in ("paper60", "original60"))
+
+
+def _same_episodes(real: list[dict], ours: list[dict]) -> str:
+    """Success of `ours` on exactly the (world, trial) pairs `real` ran, and how often the
+    two ended them the same way."""
+    mine = {(r["world"], r["seed"]): r["outcome"] for r in ours}
+    pairs = [(r["outcome"], mine[(r["world"], r["seed"])]) for r in real if (r["world"], r["seed"]) in mine]
+    if not pairs:
+        return "-"
+    same = sum(a == b for a, b in pairs)
+    return f"{sum(b == 'success' for _, b in pairs) / len(pairs):.2f} ({same} of {len(pairs)} the same)"
+
+
+def nav2_table(folders: dict[str, tuple[list[dict], list[dict]]]) -> str:
+    """Success [95% interval] per difficulty of real Nav2 (DWB, MPPI) and move_base beside
+    our DWA, our predictive planner and the floor, on each set; each with its trials, the
+    skill over the floor on its own episodes, and, for our planners, their success on the
+    episodes Nav2 DWB ran."""
+    lines = [
+        "| worlds | planner | trials | " + " | ".join(DIFFICULTIES) + " | all | skill over floor, all "
+        "| on Nav2 DWB's episodes |",
+        "|---|---|---|" + "---|" * (len(DIFFICULTIES) + 3),
+    ]
+    for title, rows_of in NAV2_SETS.items():
+        dwb_rows = [r for r in folders.get(rows_of[0].folder, ([], []))[0] if r["planner"] == "ros"]
+        for row in rows_of:
+            rows, summary = folders.get(row.folder, ([], []))
+            by = {(s["planner"], s["difficulty"]): s for s in summary}
+            if (row.planner, "all") not in by:
+                continue
+            mine = [r for r in rows if r["planner"] == row.planner]
+            trials = len({r["seed"] for r in mine})
+            cells = " | ".join(_cell(by.get((row.planner, d))) for d in (*DIFFICULTIES, "all"))
+            paired = "-" if row is rows_of[0] else _same_episodes(dwb_rows, mine)
+            lines.append(f"| {title} | {row.title} | {trials} | {cells} | {skill_text(by[(row.planner, 'all')])} "
+                         f"| {paired} |")  # fmt: skip
+    return "\n".join(lines)
