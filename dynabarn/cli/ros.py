@@ -134,8 +134,9 @@ def _add_timing(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--timeout",
         type=ranged(float, 0.1, 600.0),
-        default=10.0,
-        help="wall seconds without any /cmd_vel (lockstep) before the episode ends as an error (default: 10)",
+        default=None,
+        help="wall seconds without any /cmd_vel (lockstep) before the episode ends as an error (default: 10, or "
+        "the --stack's own: 60 for Nav2, whose recoveries wait in silence)",
     )
     parser.add_argument(
         "--grace",

@@ -90,9 +90,9 @@ class RosPlanner(Planner):
             str(NODE2 if c.ros == 2 else NODE),
             *c.remaps,
             "--timeout",
-            str(c.timeout),
+            str(c.silence_limit),
             "--grace",
-            str(min(c.grace, c.timeout)),
+            str(min(c.grace, c.silence_limit)),
         ]
         cmd += ["--ready", c.ready, "--ready-timeout", str(c.ready_timeout), "--clock-step", repr(c.clock_step)]
         cmd += ["--period", repr(info.control_period), "--rate", repr(c.rate)]
@@ -182,9 +182,9 @@ class RosPlanner(Planner):
             self._answered_at = now
         else:
             self.held += 1
-            if now - self._answered_at > self.cfg.timeout:
+            if now - self._answered_at > self.cfg.silence_limit:
                 self._check_stack()
-                raise RuntimeError(f"the ROS stack did not answer on /cmd_vel within {self.cfg.timeout:g} s")
+                raise RuntimeError(f"the ROS stack did not answer on /cmd_vel within {self.cfg.silence_limit:g} s")
         return v, w
 
     def _boot(self, obs: Observation) -> None:

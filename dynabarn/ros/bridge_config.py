@@ -82,8 +82,9 @@ class BridgeConfig(CheckedConfig):
     """The simulation waits for the stack every control period (see `grace`)."""
     rate: float = 1.0
     """Real-time factor when not in lockstep (1 = real time, as Gazebo runs)."""
-    timeout: float = 10.0
-    """Wall seconds without any /cmd_vel, in lockstep, before the episode ends as an error."""
+    timeout: float | None = None
+    """Wall seconds without any /cmd_vel, in lockstep, before the episode ends as an error
+    (default: 10, or the `stack`'s own: `silence_limit`)."""
     grace: float = 0.5
     """Wall seconds a lockstep period waits for a /cmd_vel after its scan before the last
     command holds for it (a stack that plans, or runs a slower loop, skips periods)."""
@@ -125,6 +126,18 @@ class BridgeConfig(CheckedConfig):
             raise ValueError(f"ros {self.ros!r}: use 1 or 2")
         if not 0.0001 <= self.clock_step <= 0.1:
             raise ValueError(f"clock_step {self.clock_step!r}: use a step in [0.0001, 0.1] s")
+
+    @property
+    def silence_limit(self) -> float:
+        """`timeout`, or the stack's own where it is not given (Nav2's recoveries stay silent
+        for seconds: its Wait), or 10 s."""
+        if self.timeout is not None:
+            return self.timeout
+        if self.stack:
+            from dynabarn.ros.stacks import STACKS
+
+            return STACKS[self.stack].timeout
+        return 10.0
 
     def check(self, what: str) -> None:
         """Across fields (`interfaces.planner.check_relations`): one way to start the stack,

@@ -1,6 +1,7 @@
 """Build what a Nav2 local-planning run needs, from source, as an overlay on the ROS 2 core
 (`ros2_build`): the controller server with DWB and MPPI, the planner server with NavFn,
-costmap_2d, the lifecycle manager and the BT navigator (which serves `navigate_to_pose`).
+costmap_2d, the lifecycle manager, the BT navigator (which serves `navigate_to_pose`) and the
+behaviour server (the recoveries of Nav2's default behaviour tree).
 
 Nav2 1.3.4 (its `jazzy` release of 2024-12-13) is the one that matches the core's sync; the
 packages it needs beyond the core come from their Jazzy releases (where a repository's own
@@ -50,8 +51,10 @@ PACKAGES = (
     "nav2_costmap_2d",
     "nav2_lifecycle_manager",
     "nav2_bt_navigator",
+    "nav2_behaviors",
 )
-"""What a local-planning run starts; colcon builds these and what they depend on."""
+"""What a local-planning run starts (the behaviour server: the recoveries of Nav2's default
+tree); colcon builds these and what they depend on."""
 IGNORED = ("geodesy", "diagnostic_aggregator", "diagnostic_common_diagnostics", "self_test", "test_bond", "bondpy")
 """Packages of the fetched repositories a run never loads (and test packages)."""
 CMAKE_ARGS = (

@@ -30,7 +30,14 @@ class Stack:
     """Needs teb_local_planner (`make ros-teb`) in the workspace too."""
     ros: int = 1
     """The ROS it runs on: 1 (move_base, `make ros-nav`) or 2 (Nav2, `make nav2`)."""
+    timeout: float = 10.0
+    """Wall seconds the stack may send no /cmd_vel before the episode is an error (the
+    bridge's `timeout` where none is given)."""
 
+
+NAV2_SILENCE = 60.0
+"""[s] Nav2's recoveries send no /cmd_vel while they run (its default tree's Wait: 5 s of ROS
+time, which lockstep holds period by period, each after its grace)."""
 
 STACKS: Registry[Stack] = Registry(
     "ROS stack",
@@ -62,6 +69,7 @@ STACKS: Registry[Stack] = Registry(
             "(ROS 2; `make nav2`)",
             control_rate=0.0,
             ros=2,
+            timeout=NAV2_SILENCE,
         ),
         "nav2_mppi": Stack(
             "nav2/nav2_dynabarn.launch.py",
@@ -70,6 +78,7 @@ STACKS: Registry[Stack] = Registry(
             "`make nav2`)",
             control_rate=0.0,
             ros=2,
+            timeout=NAV2_SILENCE,
         ),
     },
     check=instances_of(Stack),

@@ -1,7 +1,9 @@
 """Nav2 1.3.4 for `dynabarn-ros --ros 2 --stack nav2_dwb|nav2_mppi`: the controller server
 (DWB or MPPI), the planner server with NavFn, the BT navigator (which serves
-`navigate_to_pose`, the goal the bridge sends) and the lifecycle manager that brings them
-up, all on the bridge's /clock (`use_sim_time`). No map and no localisation: every frame is
+`navigate_to_pose`, the goal the bridge sends) with Nav2's default behaviour tree (replanning
+at 1 Hz; recoveries: clearing the costmaps, spin, wait, back up), the behaviour server that
+runs those recoveries, and the lifecycle manager that brings them up, all on the bridge's
+/clock (`use_sim_time`). No map and no localisation: every frame is
 `odom`, as in the BARN Challenge's odometry-only configuration. The parameters are in
 `common.yaml` and the controller's file beside this one.
 
@@ -18,7 +20,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-SERVERS = ("controller_server", "planner_server", "bt_navigator")
+SERVERS = ("controller_server", "planner_server", "behavior_server", "bt_navigator")
 
 
 def _nodes(context):
@@ -27,15 +29,17 @@ def _nodes(context):
         raise RuntimeError(f"controller:={controller}: use dwb or mppi")
     extra = LaunchConfiguration("params").perform(context)
     files = [os.path.join(HERE, "common.yaml"), os.path.join(HERE, f"{controller}.yaml"), *([extra] if extra else [])]
-    # Nav2's own behaviour tree that replans at 1 Hz and follows the path (no recovery
-    # behaviours: they need the behaviour server, which a DynaBARN episode does not run).
+    # Nav2's default tree, named: what `nav2_bringup` runs.
     tree = os.path.join(
-        get_package_share_directory("nav2_bt_navigator"), "behavior_trees", "navigate_w_replanning_time.xml"
+        get_package_share_directory("nav2_bt_navigator"),
+        "behavior_trees",
+        "navigate_to_pose_w_replanning_and_recovery.xml",
     )
     sim_time = {"use_sim_time": True}
     nodes = [
         Node(package="nav2_controller", executable="controller_server", output="screen", parameters=[*files, sim_time]),
         Node(package="nav2_planner", executable="planner_server", output="screen", parameters=[*files, sim_time]),
+        Node(package="nav2_behaviors", executable="behavior_server", output="screen", parameters=[*files, sim_time]),
         Node(
             package="nav2_bt_navigator",
             executable="bt_navigator",
