@@ -130,3 +130,24 @@ def test_nav2_drives_world_137_to_an_outcome(stack, tmp_path):
     assert result["n_ticks"] > 20 and log.is_file()
     stack_log = Path(result["stack_log"]).read_text()
     assert "Managed nodes are active" in stack_log  # the lifecycle manager brought Nav2 up
+
+
+def test_a_nav2_stack_may_stay_silent_longer_unless_a_timeout_is_given():
+    """Nav2's recoveries send no /cmd_vel (its Wait: 5 s of ROS time, held period by period):
+    its stacks carry their own silence limit, which an explicit timeout overrides; the
+    bridge's settings are checked against the ranges the command gives them."""
+    from dynabarn.interfaces import config_from_kwargs
+    from dynabarn.ros.bridge_config import BridgeConfig
+    from dynabarn.ros.stacks import NAV2_SILENCE
+
+    assert BridgeConfig().silence_limit == 10.0 and BridgeConfig(stack="move_base_dwa").silence_limit == 10.0
+    assert BridgeConfig(stack="nav2_dwb", ros=2).silence_limit == NAV2_SILENCE == 60.0
+    assert BridgeConfig(stack="nav2_dwb", ros=2, timeout=5.0).silence_limit == 5.0
+    for key, bad, message in (
+        ("timeout", "x", "expected a number"),
+        ("timeout", -1, r"out of range \[0.1, 600\]"),
+        ("grace", 0, r"out of range \[0.001, 600\]"),
+    ):
+        with pytest.raises(TypeError, match=f"ros {key}={bad!r}: {message}"):
+            config_from_kwargs(BridgeConfig, {key: bad}, "ros")
+    assert config_from_kwargs(BridgeConfig, {"timeout": None}, "ros").timeout is None

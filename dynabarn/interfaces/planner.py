@@ -16,6 +16,7 @@ from __future__ import annotations
 import abc
 import copy
 import math
+import types
 import typing
 from dataclasses import fields, is_dataclass
 from typing import ClassVar
@@ -120,7 +121,11 @@ def nested_config(kwargs: dict, key: str, build: typing.Callable[[dict], object]
 
 
 def _checked(name: str, value, kind, limits: tuple[float, float] | None):
-    """`value` as the field's type (float, int, bool, str, or a tuple of floats), in range."""
+    """`value` as the field's type (float, int, bool, str, or a tuple of floats; any of them
+    or None, where the field is optional), in range."""
+    optional = [k for k in typing.get_args(kind) if k is not type(None)] if type(kind) is types.UnionType else []
+    if len(optional) == 1 and type(None) in typing.get_args(kind):
+        return None if value is None else _checked(name, value, optional[0], limits)
     if kind is bool:
         if not isinstance(value, bool):
             raise TypeError(f"{name}={value!r}: expected true or false")

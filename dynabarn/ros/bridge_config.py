@@ -10,6 +10,7 @@ import shlex
 import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 from dynabarn.errors import NotInstalledHere
 from dynabarn.interfaces import CheckedConfig
@@ -77,6 +78,15 @@ def remap_problem(remap: object) -> str | None:
 @dataclass
 class BridgeConfig(CheckedConfig):
     """How the bridge meets the stack."""
+
+    LIMITS: ClassVar[dict[str, tuple[float, float]]] = {
+        "rate": (0.01, 100.0),
+        "timeout": (0.1, 600.0),
+        "grace": (0.001, 600.0),
+        "ready_timeout": (0.1, 600.0),
+        "stack_rate": (0.0, 1000.0),
+    }
+    """The ranges `dynabarn-ros` gives its options, for a configuration from anywhere."""
 
     lockstep: bool = True
     """The simulation waits for the stack every control period (see `grace`)."""
