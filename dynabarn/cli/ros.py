@@ -88,7 +88,11 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FROM:=TO",
         help="rename a bridge topic, e.g. /front/scan:=/scan (repeatable)",
     )
-    add_recording(parser, planner="ros", extra_keys=("bridge_ms_per_tick", "held_periods", "stack_log"))
+    add_recording(
+        parser,
+        planner="ros",
+        extra_keys=("bridge_ms_per_tick", "held_periods", "periods_after_navigation_ended", "stack_log"),
+    )
     return parser
 
 
@@ -281,6 +285,8 @@ def _ros_episode(args: argparse.Namespace) -> int:
     print_result(result, as_json=args.json, recording=log_path, extra=extra)
     if not args.json:
         held_note = f"; {held} control periods without a /cmd_vel (the last command held)" if held else ""
+        ended = report.get("periods_after_navigation_ended") or 0
+        held_note += f"; the stack's navigation ended, the robot stood for {ended} periods" if ended else ""
         cost = "n/a (no control period ran)" if overhead is None else f"{overhead:.2f} ms per control period"
         print(f"bridge overhead {cost}{held_note}", file=sys.stderr)
     return exit_status(result, as_json=args.json)

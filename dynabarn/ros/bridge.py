@@ -29,7 +29,7 @@ from dynabarn.robot import JACKAL
 from dynabarn.ros.bridge_config import BridgeConfig, ros_python
 from dynabarn.ros.domain import Ros2Domain
 from dynabarn.ros.master import RosMaster, stop_process
-from dynabarn.ros.node import COMMAND, GOAL, HEADER, OBSERVATION, READY, write_frame
+from dynabarn.ros.node import COMMAND, ENDED, GOAL, HEADER, OBSERVATION, READY, write_frame
 
 NODE = Path(__file__).resolve().parent / "node.py"
 """The rospy side; its frames (HEADER, OBSERVATION, ...) are the wire format's one definition."""
@@ -59,6 +59,8 @@ class RosPlanner(Planner):
         """Observation out to command back, per control period (the boot and pacing not counted) [ms]."""
         self.held = 0
         """Lockstep periods the stack let pass without a /cmd_vel (the last command held)."""
+        self.ended = 0
+        """Periods after the stack's navigation action ended (Nav2 gave up): the robot stood."""
         self.waited_ms = 0.0
         """Wall time of the last `act` spent on the boot or the pacing (the loop leaves it out
         of the planner's time)."""
@@ -141,7 +143,7 @@ class RosPlanner(Planner):
         self._origin = None
         self._wall0 = None
         self._answered_at = None
-        self.held = 0
+        self.held = self.ended = 0
         self.steady_since = None
         self.t0 = 0.0
 
@@ -178,7 +180,10 @@ class RosPlanner(Planner):
         if self.steady_since is None:
             self.steady_since, self.steady_sim_time = t0, obs.time
         now = time.monotonic()
-        if answered:
+        if answered == ENDED:  # the stack's navigation ended: the robot stands, nothing is awaited
+            self.ended += 1
+            self._answered_at = now
+        elif answered:
             self._answered_at = now
         else:
             self.held += 1
@@ -249,6 +254,7 @@ class RosPlanner(Planner):
         return {
             "bridge_ms_per_tick": None if overhead is None else round(overhead, 3),
             "held_periods": self.held,
+            "periods_after_navigation_ended": self.ended,
         }
 
 
@@ -264,11 +270,17 @@ def ros_planner(*, launch: str | None = None, master: str | None = None, **confi
     if cfg.ros == 2:  # no master: a DDS domain of its own, in the prefix `make ros2-core` built
         if master is not None:
             raise TypeError("ros master: ROS 2 has no master (each bridge takes a DDS domain of its own)")
-        overlay = None
-        if cfg.stack:  # a Nav2 stack: the bridge in its overlay too (nav2_msgs, for `navigate_to_pose`)
-            from dynabarn.ros.stacks import nav2_setup
+        from dynabarn.ros import nav2_build
+        from dynabarn.ros.stacks import nav2_setup
 
+        # The bridge runs in Nav2's overlay where `make nav2` built one (its nav2_msgs: the
+        # goal through `navigate_to_pose`, also for a Nav2 started by --launch); a Nav2
+        # stack of ours needs it.
+        overlay = None
+        if cfg.stack:
             overlay = nav2_setup(Path(cfg.nav_workspace) if cfg.nav_workspace else None)
+        elif nav2_build.built(nav2_build.default_workspace()) is not None:
+            overlay = nav2_setup()
         core = Path(cfg.ros2_workspace) if cfg.ros2_workspace else None
         return RosPlanner(Ros2Domain.start(core, overlay), cfg)
     if master is None:

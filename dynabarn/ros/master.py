@@ -3,6 +3,7 @@ loopback port, and how the processes the bridge starts are stopped."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import signal
@@ -90,16 +91,19 @@ class RosMaster:
 
 
 def stop_process(process: subprocess.Popen, timeout: float = 10.0) -> None:
-    """SIGINT (as roslaunch expects), then SIGTERM, then SIGKILL, to the process group."""
-    if process.poll() is not None:
-        return
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
-        try:
-            os.killpg(process.pid, sig)
-        except (ProcessLookupError, PermissionError):
-            return
-        try:
-            process.wait(timeout=timeout if sig != signal.SIGKILL else None)
-            return
-        except subprocess.TimeoutExpired:
-            continue
+    """SIGINT (as roslaunch and ros2 launch expect), then SIGTERM, then SIGKILL, to the
+    process group; once its leader is gone, SIGKILL to whatever of the group is left (a
+    node that hung in its shutdown after `ros2 launch` gave up on it)."""
+    if process.poll() is None:
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            try:
+                os.killpg(process.pid, sig)
+            except (ProcessLookupError, PermissionError):
+                break
+            try:
+                process.wait(timeout=timeout if sig != signal.SIGKILL else None)
+                break
+            except subprocess.TimeoutExpired:
+                continue
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(process.pid, signal.SIGKILL)  # nothing of the group outlives the episode

@@ -9,7 +9,8 @@ over stdin/stdout in length-prefixed frames (struct-packed, little endian):
                  'O' observation: t, x, y, yaw (odom), v, w, X, Y, YAW (world), n, ranges[n]
                  'E' end: outcome text (published on /collision when it is a collision)
     node -> sim  'R' ready: t0 (the stamp of episode time 0), ready (0/1), what was missing
-                 'C' command: v, w, answered (1 answered, 0 held: the last command again)
+                 'C' command: v, w, answered (1 answered, 0 held: the last command again,
+                 2 the stack's navigation has ended: it stands, with nothing to wait for)
 
 Boot (like Gazebo, which publishes from the moment it starts): from the 'B' frame on, a
 thread publishes a running /clock at real time in steps of `--clock-step` (from one step
@@ -49,6 +50,8 @@ OBSERVATION = struct.Struct("<10d")
 GOAL = struct.Struct("<3d")
 COMMAND = struct.Struct("<ddB")
 READY = struct.Struct("<dB")
+ENDED = 2
+"""'C' answered: the stack's navigation action ended (aborted or done), so no command will come."""
 PROBE = 0.1
 """Wall seconds each tick is held while a timer-driven stack's phase is still unknown."""
 

@@ -22,12 +22,13 @@ from __future__ import annotations
 import math
 import sys
 import threading
+import time
 from pathlib import Path
 
 # `node.py` beside this file, also in safe-path mode (PYTHONSAFEPATH, which the package sets
 # for every Python it starts), where a script's own folder is not on sys.path.
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from node import Node, _arguments, serve
+from node import ENDED, Node, _arguments, serve
 
 URDF = """<?xml version="1.0"?>
 <robot name="jackal">
@@ -110,8 +111,10 @@ class Ros2Node(Node):
 
     def _offer_action_goal(self, goal) -> None:
         """The goal through Nav2's `navigate_to_pose` action too, once a stack offers it
-        (where nav2_msgs is built; otherwise the topics alone)."""
-        if self._no_action:
+        (where nav2_msgs is built; otherwise the topics alone), sent again until the server
+        accepts it: Nav2's lifecycle nodes offer the action from their configuration on but
+        reject every goal (silently) until they are active."""
+        if self._no_action or self.action_client is not None:
             return
         try:
             from nav2_msgs.action import NavigateToPose
@@ -119,12 +122,29 @@ class Ros2Node(Node):
         except ImportError:
             self._no_action = True
             return
-        if self.action_client is None:
-            self._client = getattr(self, "_client", None) or ActionClient(self.ros, NavigateToPose, self.ACTION)
-            if not self._client.server_is_ready():
-                return
-            self._client.send_goal_async(NavigateToPose.Goal(pose=goal))
-            self.action_client = self._client
+        self._client = getattr(self, "_client", None) or ActionClient(self.ros, NavigateToPose, self.ACTION)
+        sent = getattr(self, "_sent", None)
+        if sent is not None and not sent.done():
+            return  # the server's answer is on its way
+        if sent is not None and sent.result() is not None and sent.result().accepted:
+            self.action_client = self._client  # taken: the stack navigates
+            self._navigation = sent.result().get_result_async()
+            return
+        if self._client.server_is_ready() and time.monotonic() >= getattr(self, "_next_try", 0.0):
+            self._next_try = time.monotonic() + 0.25  # a rejected goal is offered again, 4 times a second
+            self._sent = self._client.send_goal_async(NavigateToPose.Goal(pose=goal))
+
+    def period(self, t: float, obs: tuple, ranges) -> tuple[float, float, int]:
+        """As `Node.period`, until the stack's `navigate_to_pose` ends (Nav2 gives up after
+        its recoveries, or thinks the goal reached): from then on the robot stands, as under
+        Gazebo after move_base aborts, and each period runs at once (answered `ENDED`)."""
+        navigation = getattr(self, "_navigation", None)
+        if navigation is None or not navigation.done() or self.args.paced:
+            return super().period(t, obs, ranges)
+        self.publish_state(t, obs, ranges)
+        for k in range(1, self.ticks_per_period):
+            self.tick(t + k * self.args.clock_step)
+        return 0.0, 0.0, ENDED
 
 
 def main(argv: list[str]) -> int:

@@ -274,20 +274,25 @@ def colcon_build(
     jobs: int = 2,
     underlay: Path | None = None,
     cmake_args: tuple[str, ...] = (),
+    package_cmake_args: dict[str, tuple[str, ...]] | None = None,
 ) -> dict:
     """colcon over the checked sources `folders` of `source` into `workspace` (`install/`
     merged, `build/`, `build.log`, the marker written last), over the prefix `underlay`
-    when given (its `setup.bash` sourced first); `record` plus the packages, the sources'
+    when given (its `setup.bash` sourced first), `package_cmake_args` {package: CMake
+    arguments of its own} built alone after the rest; `record` plus the packages, the sources'
     digest, size and seconds, with `rebuilt`. Nothing is built when the marker names the
-    same sources and holds every package asked for."""
+    same sources, holds every package asked for and was built with the same arguments."""
     if not Path("/usr/bin/python3").exists() or shutil.which("cmake") is None:
         raise DynabarnError("Debian's build tools are missing: `sudo make ros2-deps`")
+    package_cmake_args = package_cmake_args or {}
     digest = sources_digest(folders)
     done = read_marker(workspace / marker)
     if (
         done is not None
         and done.get("sources_sha256") == digest
         and set(packages) <= set(done.get("packages", ()))
+        and done.get("cmake_args", []) == list(cmake_args)
+        and done.get("package_cmake_args", {}) == {k: list(v) for k, v in package_cmake_args.items()}
         and setup_script(workspace).is_file()
     ):
         return {**done, "rebuilt": False}
@@ -307,17 +312,23 @@ def colcon_build(
         colcon = _colcon(underlay or workspace, log)  # an overlay uses its underlay's colcon
         print(f"building {what} with colcon, {jobs} workers (log: {log_path})", file=sys.stderr)
         env = {**debian_env(), "PATH": f"{colcon.parent}:/usr/bin:/bin", "MAKEFLAGS": f"-j{jobs}"}
-        command = [
+        common = [
             str(colcon), "build", "--base-paths", str(src), "--build-base", str(workspace / "build"),
             "--install-base", str(workspace / "install"), "--merge-install", "--parallel-workers", str(jobs),
-            "--packages-up-to", *packages, "--event-handlers", "console_direct-",
-            "--cmake-args", "-DBUILD_TESTING=OFF", "-DTRACETOOLS_DISABLED=ON", "-DCMAKE_BUILD_TYPE=Release",
-            "-DPython3_EXECUTABLE=/usr/bin/python3", *cmake_args,
+            "--event-handlers", "console_direct-",
         ]  # fmt: skip
-        if underlay is not None:  # the underlay's environment (its packages, libraries) for colcon
-            line = f"source {shlex.quote(str(setup_script(underlay)))} && exec {shlex.join(command)}"
-            command = ["bash", "-c", line]
-        run_logged(command, log, cwd=workspace, env=env)
+        flags = ["-DBUILD_TESTING=OFF", "-DTRACETOOLS_DISABLED=ON", "-DCMAKE_BUILD_TYPE=Release",
+                 "-DPython3_EXECUTABLE=/usr/bin/python3", *cmake_args]  # fmt: skip
+        # Everything but the packages with flags of their own, then each of those alone.
+        skip = ["--packages-skip", *package_cmake_args] if package_cmake_args else []
+        runs = [[*common, "--packages-up-to", *packages, *skip, "--cmake-args", *flags]]
+        runs += [[*common, "--packages-select", name, "--cmake-args", *flags, *extra]
+                 for name, extra in package_cmake_args.items()]  # fmt: skip
+        for command in runs:
+            if underlay is not None:  # the underlay's environment (its packages, libraries) for colcon
+                line = f"source {shlex.quote(str(setup_script(underlay)))} && exec {shlex.join(command)}"
+                command = ["bash", "-c", line]
+            run_logged(command, log, cwd=workspace, env=env)
     if not setup_script(workspace).is_file():
         raise DynabarnError(f"the build ended without {setup_script(workspace)}: see {log_path}")
     share = workspace / "install" / "share"
@@ -326,6 +337,8 @@ def colcon_build(
         "sources_sha256": digest,
         "packages": sorted(p.name for p in share.iterdir() if (p / "package.xml").is_file()),
         "install_bytes": _folder_size(workspace / "install"),
+        **({"cmake_args": list(cmake_args)} if cmake_args else {}),
+        **({"package_cmake_args": {k: list(v) for k, v in package_cmake_args.items()}} if package_cmake_args else {}),
         "jobs": jobs,
     }
     return {**write_marker(workspace / marker, info, t0), "rebuilt": True}
