@@ -89,7 +89,7 @@ ros2-core: $(STAMP) ros2-deps
 # Nav2 1.3.4 (controller server with DWB and MPPI, planner server with NavFn, costmap_2d,
 # lifecycle manager, BT navigator) as an overlay on the ROS 2 core, from fetched sources
 # (`python -m dynabarn.ros.nav2_build --repos` lists them): `make nav2 NAV2_SRC=DIR`, into
-# DYNABARN_NAV2_WS (default ~/.cache/dynabarn/nav2). About 35 minutes on 2 cores.
+# DYNABARN_NAV2_WS (default ~/.cache/dynabarn/nav2). About 16 minutes on 2 cores.
 nav2-deps: ros2-deps
 	@if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
 	  need=""; for p in $$($(BIN)/python -c 'from dynabarn.ros.nav2_build import BUILD_DEPENDENCIES as d; print(*d)'); do \

@@ -151,3 +151,37 @@ def test_a_nav2_stack_may_stay_silent_longer_unless_a_timeout_is_given():
         with pytest.raises(TypeError, match=f"ros {key}={bad!r}: {message}"):
             config_from_kwargs(BridgeConfig, {key: bad}, "ros")
     assert config_from_kwargs(BridgeConfig, {"timeout": None}, "ros").timeout is None
+
+
+def test_nothing_of_a_stacks_process_group_outlives_it():
+    """A stack's leader that ends on SIGINT while a node of it ignores SIGINT and SIGTERM
+    (as a Nav2 server hung in its shutdown, left by `ros2 launch`): `stop_process` leaves
+    nothing of the group running."""
+    import time
+
+    from dynabarn.processes import die_with_parent
+    from dynabarn.ros.master import stop_process
+
+    leader = subprocess.Popen(
+        ["bash", "-c", "(trap '' INT TERM; exec sleep 300) & echo $!; wait"],
+        stdout=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=die_with_parent(),
+    )
+    child = int(leader.stdout.readline())
+    time.sleep(0.2)  # the child has set its dispositions and exec'd sleep
+    stop_process(leader, timeout=5.0)
+    assert leader.poll() is not None
+    deadline = time.monotonic() + 5.0
+    while _running(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _running(child), f"process {child} of the stack's group outlived it"
+
+
+def _running(pid: int) -> bool:
+    """Whether `pid` runs (a zombie, killed and waiting to be reaped, does not)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return False

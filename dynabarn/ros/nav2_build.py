@@ -114,7 +114,7 @@ def build(workspace: Path, source: Path, core: Path, *, jobs: int = 2) -> dict:
             "core": str(core),
         },
         marker=MARKER,
-        what=f"Nav2 {NAV2_VERSION} over {core}: about 35 minutes on 2 cores",
+        what=f"Nav2 {NAV2_VERSION} over {core}: about 16 minutes on 2 cores",
         jobs=jobs,
         underlay=core,
         cmake_args=CMAKE_ARGS,

@@ -120,7 +120,7 @@ def nav2_setup(workspace: Path | None = None) -> Path:
     if nav2_build.built(workspace) is None or not setup.is_file():
         raise NotInstalledHere(
             f"Nav2 is not built in {workspace}: run `make nav2 NAV2_SRC=<folder of the fetched repositories>` "
-            "(about 35 minutes on 2 cores, over `make ros2-core`)",
+            "(about 16 minutes on 2 cores, over `make ros2-core`)",
             "make nav2 NAV2_SRC=<folder>",
         )
     return setup
