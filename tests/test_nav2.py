@@ -128,6 +128,7 @@ def test_nav2_drives_world_137_to_an_outcome(stack, tmp_path):
     assert result["outcome"] in ("success", "collision"), result
     assert result["planner_config"]["stack"] == stack and result["planner_config"]["ros"] == 2
     assert result["n_ticks"] > 20 and log.is_file()
+    assert result["periods_after_navigation_ended"] >= 0 and result["bridge_ms_per_tick"] > 0
     stack_log = Path(result["stack_log"]).read_text()
     assert "Managed nodes are active" in stack_log  # the lifecycle manager brought Nav2 up
 
