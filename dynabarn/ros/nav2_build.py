@@ -123,46 +123,32 @@ def build(workspace: Path, source: Path, core: Path, *, jobs: int = 2) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
+    def core_argument(parser: argparse.ArgumentParser) -> None:
+        parser.add_argument(
+            "--core",
+            type=Path,
+            default=None,
+            help=f"the ROS 2 core's prefix (default: ${ros2_build.WORKSPACE_ENV} or ~/.cache/dynabarn/ros2)",
+        )
+
+    def run(workspace: Path, source: Path, args: argparse.Namespace) -> dict:
+        core = (args.core or ros2_build.default_workspace()).expanduser().resolve()
+        return build(workspace, source, core, jobs=args.jobs)
+
+    return ros2_build.build_command(
+        argv,
         prog="python -m dynabarn.ros.nav2_build",
         description=f"Build Nav2 {NAV2_VERSION} (controller server with DWB and MPPI, planner server with NavFn, "
-        "costmap_2d, lifecycle manager, BT navigator) from fetched sources, over the ROS 2 core "
-        "(`make ros2-core`), into a prefix outside the package (dependencies: `sudo make nav2-deps`).",
+        "costmap_2d, lifecycle manager, BT navigator, behaviour server) from fetched sources, over the ROS 2 "
+        "core (`make ros2-core`), into a prefix outside the package (dependencies: `sudo make nav2-deps`).",
+        source_variable="NAV2_SRC",
+        workspace_env=WORKSPACE_ENV,
+        default=default_workspace,
+        repositories=REPOSITORIES,
+        build=run,
+        label=f"Nav2 {NAV2_VERSION}",
+        add_arguments=core_argument,
     )
-    parser.add_argument("--source", type=Path, default=None, help="the folder of fetched repositories (NAV2_SRC)")
-    parser.add_argument(
-        "--workspace",
-        type=Path,
-        default=None,
-        help=f"prefix to build in (default: ${WORKSPACE_ENV} or ~/.cache/dynabarn/nav2)",
-    )
-    parser.add_argument(
-        "--core",
-        type=Path,
-        default=None,
-        help=f"the ROS 2 core's prefix (default: ${ros2_build.WORKSPACE_ENV} or ~/.cache/dynabarn/ros2)",
-    )
-    parser.add_argument("--jobs", type=int, default=2, help="packages built at once, and compile jobs (default: 2)")
-    parser.add_argument("--repos", action="store_true", help="print the repositories and versions as a vcstool file")
-    args = parser.parse_args(argv)
-    if args.repos:
-        print(ros2_build.repos_file(REPOSITORIES), end="")
-        return 0
-    if args.source is None:
-        parser.error("--source (NAV2_SRC) is required: the folder of fetched repositories (see --repos)")
-    if args.jobs < 1:
-        parser.error("--jobs must be at least 1")
-    workspace = (args.workspace or default_workspace()).expanduser().resolve()
-    core = (args.core or ros2_build.default_workspace()).expanduser().resolve()
-    try:
-        info = build(workspace, args.source.expanduser().resolve(), core, jobs=args.jobs)
-    except (DynabarnError, OSError) as exc:  # a read-only or full disk: one line too
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    what = f"built in {info['seconds']:.0f} s" if info["rebuilt"] else "already built from these sources"
-    size = f"{len(info['packages'])} packages, {info['install_bytes'] / 1e6:.0f} MB"
-    print(f"Nav2 {NAV2_VERSION}: {size}, {what}: {workspace}")
-    return 0
 
 
 if __name__ == "__main__":

@@ -33,6 +33,7 @@ import shlex
 import shutil
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from dynabarn.errors import DynabarnError
@@ -359,37 +360,69 @@ def build(workspace: Path, source: Path, *, jobs: int = 2) -> dict:
     )
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="python -m dynabarn.ros.ros2_build",
-        description=f"Build the smallest ROS 2 Jazzy ({SYNC}: rclcpp, rclpy over Debian's Cyclone DDS, "
-        "messages, tf2, launch, ros2cli) from fetched sources into a prefix outside the package "
-        "(dependencies: `sudo make ros2-deps`).",
+def build_command(
+    argv: list[str] | None,
+    *,
+    prog: str,
+    description: str,
+    source_variable: str,
+    workspace_env: str,
+    default: Callable[[], Path],
+    repositories: dict[str, tuple[str, str]],
+    build: Callable[[Path, Path, argparse.Namespace], dict],
+    label: str,
+    add_arguments: Callable[[argparse.ArgumentParser], None] | None = None,
+) -> int:
+    """The command line of a colcon build of ours (`ros2_build`, `nav2_build`): --source,
+    --workspace, --jobs, --repos, and what `add_arguments` adds; `build(workspace, source,
+    args)` runs it. One line and exit 2 for bad input, a read-only or a full disk."""
+    parser = argparse.ArgumentParser(prog=prog, description=description)
+    parser.add_argument(
+        "--source", type=Path, default=None, help=f"the folder of fetched repositories ({source_variable})"
     )
-    parser.add_argument("--source", type=Path, default=None, help="the folder of fetched repositories (ROS2_SRC)")
     parser.add_argument(
         "--workspace",
         type=Path,
         default=None,
-        help=f"prefix to build in (default: ${WORKSPACE_ENV} or ~/.cache/dynabarn/ros2)",
+        help=f"prefix to build in (default: ${workspace_env} or {str(default()).replace(str(Path.home()), '~')})",
     )
+    if add_arguments is not None:
+        add_arguments(parser)
     parser.add_argument("--jobs", type=int, default=2, help="packages built at once, and compile jobs (default: 2)")
     parser.add_argument("--repos", action="store_true", help="print the repositories and versions as a vcstool file")
     args = parser.parse_args(argv)
     if args.repos:
-        print(repos_file(), end="")
+        print(repos_file(repositories), end="")
         return 0
     if args.source is None:
-        parser.error("--source (ROS2_SRC) is required: the folder of fetched repositories (see --repos)")
-    workspace = (args.workspace or default_workspace()).expanduser().resolve()
+        parser.error(f"--source ({source_variable}) is required: the folder of fetched repositories (see --repos)")
+    if args.jobs < 1:
+        parser.error("--jobs must be at least 1")
+    workspace = (args.workspace or default()).expanduser().resolve()
     try:
-        info = build(workspace, args.source.expanduser().resolve(), jobs=args.jobs)
+        info = build(workspace, args.source.expanduser().resolve(), args)
     except (DynabarnError, OSError) as exc:  # a read-only or full disk: one line too
         print(f"error: {exc}", file=sys.stderr)
         return 2
     what = f"built in {info['seconds']:.0f} s" if info["rebuilt"] else "already built from these sources"
-    print(f"ROS 2 {SYNC}: {len(info['packages'])} packages, {info['install_bytes'] / 1e6:.0f} MB, {what}: {workspace}")
+    print(f"{label}: {len(info['packages'])} packages, {info['install_bytes'] / 1e6:.0f} MB, {what}: {workspace}")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    return build_command(
+        argv,
+        prog="python -m dynabarn.ros.ros2_build",
+        description=f"Build the smallest ROS 2 Jazzy ({SYNC}: rclcpp, rclpy over Debian's Cyclone DDS, "
+        "messages, tf2, launch, ros2cli) from fetched sources into a prefix outside the package "
+        "(dependencies: `sudo make ros2-deps`).",
+        source_variable="ROS2_SRC",
+        workspace_env=WORKSPACE_ENV,
+        default=default_workspace,
+        repositories=REPOSITORIES,
+        build=lambda workspace, source, args: build(workspace, source, jobs=args.jobs),
+        label=f"ROS 2 {SYNC}",
+    )
 
 
 if __name__ == "__main__":

@@ -35,6 +35,21 @@ class Stack:
     bridge's `timeout` where none is given)."""
 
 
+def _nav2(controller: str, about: str) -> Stack:
+    """A Nav2 stack (`make nav2`) with its controller server running `controller`. Nav2's
+    controller server, costmaps and BT navigator run their loops on wall-clock rates
+    (rclcpp::WallRate), not on ROS time: the bridge takes the first /cmd_vel after each scan
+    (control_rate 0) rather than holding the clock for a timer."""
+    return Stack(
+        "nav2/nav2_dynabarn.launch.py",
+        (("controller", controller),),
+        about=f"{about} (ROS 2; `make nav2`)",
+        control_rate=0.0,
+        ros=2,
+        timeout=NAV2_SILENCE,
+    )
+
+
 NAV2_SILENCE = 60.0
 """[s] Nav2's recoveries send no /cmd_vel while they run (its default tree's Wait: 5 s of ROS
 time, which lockstep holds period by period, each after its grace)."""
@@ -59,26 +74,11 @@ STACKS: Registry[Stack] = Registry(
             "(the BARN Challenge's dyna_barn branch; `make ros-teb`)",
             teb=True,
         ),
-        # Nav2's controller server, costmaps and BT navigator run their loops on wall-clock
-        # rates (rclcpp::WallRate), not on ROS time: the bridge takes the first /cmd_vel
-        # after each scan (control_rate 0) rather than holding the clock for a timer.
-        "nav2_dwb": Stack(
-            "nav2/nav2_dynabarn.launch.py",
-            (("controller", "dwb"),),
-            about="Nav2 1.3.4 with DWB configured as our `dwa`, NavFn and the BT navigator replanning at 1 Hz "
-            "(ROS 2; `make nav2`)",
-            control_rate=0.0,
-            ros=2,
-            timeout=NAV2_SILENCE,
+        "nav2_dwb": _nav2(
+            "dwb", "Nav2 1.3.4 with DWB configured as our `dwa`, NavFn and the BT navigator replanning at 1 Hz"
         ),
-        "nav2_mppi": Stack(
-            "nav2/nav2_dynabarn.launch.py",
-            (("controller", "mppi"),),
-            about="Nav2 1.3.4 with MPPI's defaults at the Jackal's limits, NavFn and the BT navigator (ROS 2; "
-            "`make nav2`)",
-            control_rate=0.0,
-            ros=2,
-            timeout=NAV2_SILENCE,
+        "nav2_mppi": _nav2(
+            "mppi", "Nav2 1.3.4 with MPPI's defaults at the Jackal's limits, NavFn and the BT navigator"
         ),
     },
     check=instances_of(Stack),
