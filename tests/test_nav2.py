@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from dynabarn.errors import DynabarnError, NotInstalledHere
-from dynabarn.ros import nav2_build, ros2_build
+from dynabarn.ros import colcon, nav2_build
 from dynabarn.ros.stacks import STACKS, stack_command
 
 BIN = Path(sys.executable).parent
@@ -29,7 +29,7 @@ def _nav2() -> Path:
 
 
 def test_the_repositories_are_nav2s_jazzy_release_and_a_wrong_folder_is_one_line(tmp_path):
-    text = ros2_build.repos_file(nav2_build.REPOSITORIES)
+    text = colcon.repos_file(nav2_build.REPOSITORIES)
     assert text.count("type: git") == len(nav2_build.REPOSITORIES) == 8
     assert "    url: https://github.com/ros-navigation/navigation2.git\n    version: 1.3.4" in text
     (tmp_path / "navigation2" / "nav2_util").mkdir(parents=True)

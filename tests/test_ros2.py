@@ -171,8 +171,8 @@ def test_ros2_topic_sees_the_bridge_with_nav2s_qos():
     import re
 
     workspace = _prefix()
+    from dynabarn.ros.colcon import setup_script
     from dynabarn.ros.domain import prefix_env
-    from dynabarn.ros.ros2_build import setup_script
 
     proc = subprocess.Popen(
         [str(BIN / "dynabarn-ros"), "--ros", "2", "--world", "137", "--no-log", "--ready-timeout", "300",

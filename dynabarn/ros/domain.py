@@ -40,7 +40,8 @@ def prefix_env(setup: Path) -> dict[str, str]:
 def built_setup(workspace: Path | None = None) -> Path:
     """The `setup.bash` of a finished `make ros2-core` build in `workspace` (default: the
     prefix's default); one clear line naming the command when there is none."""
-    from dynabarn.ros.ros2_build import built, default_workspace, setup_script
+    from dynabarn.ros.colcon import setup_script
+    from dynabarn.ros.ros2_build import built, default_workspace
 
     workspace = workspace or default_workspace()
     if built(workspace) is None or not setup_script(workspace).is_file():

@@ -25,7 +25,7 @@ import sys
 from pathlib import Path
 
 from dynabarn.errors import DynabarnError
-from dynabarn.ros import ros2_build
+from dynabarn.ros import colcon, ros2_build
 
 NAV2_VERSION = "1.3.4"
 REPOSITORIES: dict[str, tuple[str, str]] = {
@@ -89,12 +89,12 @@ def default_workspace() -> Path:
 
 def built(workspace: Path) -> dict | None:
     """The finished overlay's description, or None when there is none."""
-    return ros2_build.read_marker(workspace / MARKER)
+    return colcon.read_marker(workspace / MARKER)
 
 
 def find_sources(source: Path) -> dict[str, Path]:
-    """Each repository's folder in `source`, checked as the core's are (`ros2_build.find_sources`)."""
-    return ros2_build.find_sources(source, REPOSITORIES, release=f"Nav2 {NAV2_VERSION}", module="nav2_build")
+    """Each repository's folder in `source`, checked against its release (`colcon.find_sources`)."""
+    return colcon.find_sources(source, REPOSITORIES, release=f"Nav2 {NAV2_VERSION}", module="nav2_build")
 
 
 def build(workspace: Path, source: Path, core: Path, *, jobs: int = 2) -> dict:
@@ -102,7 +102,7 @@ def build(workspace: Path, source: Path, core: Path, *, jobs: int = 2) -> dict:
     folders = find_sources(source)
     if ros2_build.built(core) is None:
         raise DynabarnError(f"the ROS 2 core is not built in {core}: make ros2-core ROS2_SRC=<folder>")
-    return ros2_build.colcon_build(
+    return colcon.colcon_build(
         workspace,
         source,
         folders,
@@ -135,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
         core = (args.core or ros2_build.default_workspace()).expanduser().resolve()
         return build(workspace, source, core, jobs=args.jobs)
 
-    return ros2_build.build_command(
+    return colcon.build_command(
         argv,
         prog="python -m dynabarn.ros.nav2_build",
         description=f"Build Nav2 {NAV2_VERSION} (controller server with DWB and MPPI, planner server with NavFn, "

@@ -25,19 +25,12 @@ finds that record and builds nothing.
 
 from __future__ import annotations
 
-import argparse
-import hashlib
 import os
-import re
-import shlex
-import shutil
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
 
-from dynabarn.errors import DynabarnError
-from dynabarn.ros.nav_build import debian_env, read_marker, run_logged, write_marker
+from dynabarn.ros import colcon
+from dynabarn.ros.colcon import colcon_build, read_marker
 
 SYNC = "release-jazzy-20241223"
 """The release sync of `ros2/ros2` (its `ros2.repos` at this tag) every version below is from."""
@@ -167,8 +160,6 @@ BUILD_DEPENDENCIES = [
     "liborocos-kdl-dev",
 ]
 """Debian's packages for the build (`make ros2-deps` installs them)."""
-COLCON = "colcon-common-extensions==0.3.0"
-"""colcon from PyPI (Debian has none), in the prefix's own virtual environment."""
 WORKSPACE_ENV = "DYNABARN_ROS2_WS"
 MARKER = "dynabarn-ros2.json"
 
@@ -182,167 +173,14 @@ def built(workspace: Path) -> dict | None:
     return read_marker(workspace / MARKER)
 
 
-def setup_script(workspace: Path) -> Path:
-    """The prefix's `setup.bash`, which a stack's shell sources."""
-    return workspace / "install" / "setup.bash"
+def repos_file() -> str:
+    """`REPOSITORIES` as a vcstool file (`vcs import ROS2_SRC < FILE`)."""
+    return colcon.repos_file(REPOSITORIES)
 
 
-def repos_file(repositories: dict[str, tuple[str, str]] = REPOSITORIES) -> str:
-    """The repositories as a vcstool file (`vcs import SRC < FILE`)."""
-    lines = ["repositories:"]
-    for name, (repository, version) in repositories.items():
-        url = f"https://github.com/{repository}.git"
-        lines += [f"  {name}:", "    type: git", f"    url: {url}", f"    version: {version}"]
-    return "\n".join(lines) + "\n"
-
-
-def _package_versions(tree: Path) -> dict[str, str]:
-    """name -> version of every package.xml under `tree` (the first folder down that has one)."""
-    found = {}
-    for xml in sorted(tree.rglob("package.xml")):
-        text = xml.read_text(errors="replace")
-        name, version = re.search(r"<name>\s*([^<\s]+)", text), re.search(r"<version>\s*([^<\s]+)", text)
-        if name and version:
-            found[name.group(1)] = version.group(1)
-    return found
-
-
-def find_sources(
-    source: Path,
-    repositories: dict[str, tuple[str, str]] = REPOSITORIES,
-    *,
-    release: str = SYNC,
-    module: str = "ros2_build",
-) -> dict[str, Path]:
-    """Each repository's folder in `source` (by its name, or vcstool's ORG/NAME), checked:
-    every one present, each of its packages at the release's version. One line naming what
-    is missing or other."""
-    if not source.is_dir():
-        raise DynabarnError(f"{source}: no such folder (fetch the sources: python -m dynabarn.ros.{module} --repos)")
-    folders, other, missing = {}, [], []
-    for name, (repository, version) in repositories.items():
-        folder = next((p for p in (source / name, source / repository) if p.is_dir()), None)
-        versions = _package_versions(folder) if folder is not None else {}
-        if not versions:
-            missing.append(name)
-            continue
-        found = sorted({v for v in versions.values() if v != version})
-        if found:
-            other.append(f"{name} ({', '.join(found)}, not {version})")
-        folders[name] = folder
-    if other or missing:
-        shown = other[:4] + ([f"{len(missing)} missing ({', '.join(missing[:4])}{', ...' if len(missing) > 4 else ''})"]
-                             if missing else [])  # fmt: skip
-        raise DynabarnError(f"{source}: not the sources of {release}: {'; '.join(shown)}")
-    return folders
-
-
-def sources_digest(folders: dict[str, Path]) -> str:
-    """sha256 over every source file's path and bytes: what decides whether a build is current."""
-    digest = hashlib.sha256()
-    for name, folder in sorted(folders.items()):
-        for path in sorted(p for p in folder.rglob("*") if p.is_file()):
-            digest.update(f"{name}/{path.relative_to(folder)}\0".encode())
-            digest.update(path.read_bytes())
-    return digest.hexdigest()
-
-
-def _colcon(workspace: Path, log) -> Path:
-    """colcon in the prefix's virtual environment over Debian's Python (made once)."""
-    venv = workspace / "tools"
-    colcon = venv / "bin" / "colcon"
-    if not colcon.exists():
-        run_logged(["/usr/bin/python3", "-m", "venv", "--system-site-packages", str(venv)], log, env=debian_env())
-        (venv / "COLCON_IGNORE").write_text("")  # colcon never takes the tools for packages
-        run_logged([str(venv / "bin" / "pip"), "install", "-q", COLCON], log, env=debian_env())
-    return colcon
-
-
-def _folder_size(folder: Path) -> int:
-    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file() and not p.is_symlink())
-
-
-def colcon_build(
-    workspace: Path,
-    source: Path,
-    folders: dict[str, Path],
-    *,
-    packages: tuple[str, ...],
-    ignored: tuple[str, ...],
-    record: dict,
-    marker: str,
-    what: str,
-    jobs: int = 2,
-    underlay: Path | None = None,
-    cmake_args: tuple[str, ...] = (),
-    package_cmake_args: dict[str, tuple[str, ...]] | None = None,
-) -> dict:
-    """colcon over the checked sources `folders` of `source` into `workspace` (`install/`
-    merged, `build/`, `build.log`, the marker written last), over the prefix `underlay`
-    when given (its `setup.bash` sourced first), `package_cmake_args` {package: CMake
-    arguments of its own} built alone after the rest; `record` plus the packages, the sources'
-    digest, size and seconds, with `rebuilt`. Nothing is built when the marker names the
-    same sources, holds every package asked for and was built with the same arguments."""
-    if not Path("/usr/bin/python3").exists() or shutil.which("cmake") is None:
-        raise DynabarnError("Debian's build tools are missing: `sudo make ros2-deps`")
-    package_cmake_args = package_cmake_args or {}
-    digest = sources_digest(folders)
-    done = read_marker(workspace / marker)
-    if (
-        done is not None
-        and done.get("sources_sha256") == digest
-        and set(packages) <= set(done.get("packages", ()))
-        and done.get("cmake_args", []) == list(cmake_args)
-        and done.get("package_cmake_args", {}) == {k: list(v) for k, v in package_cmake_args.items()}
-        and setup_script(workspace).is_file()
-    ):
-        return {**done, "rebuilt": False}
-    workspace.mkdir(parents=True, exist_ok=True)
-    (workspace / marker).unlink(missing_ok=True)
-    src = workspace / "src"
-    if src.exists():
-        shutil.rmtree(src)
-    shutil.copytree(source, src, symlinks=True, ignore=shutil.ignore_patterns(".git"))
-    for package in ignored:
-        for xml in src.rglob("package.xml"):
-            if f"<name>{package}</name>" in xml.read_text(errors="replace"):
-                (xml.parent / "COLCON_IGNORE").write_text("left out by dynabarn.ros\n")
-    log_path = workspace / "build.log"
-    t0 = time.monotonic()
-    with log_path.open("w") as log:
-        colcon = _colcon(underlay or workspace, log)  # an overlay uses its underlay's colcon
-        print(f"building {what} with colcon, {jobs} workers (log: {log_path})", file=sys.stderr)
-        env = {**debian_env(), "PATH": f"{colcon.parent}:/usr/bin:/bin", "MAKEFLAGS": f"-j{jobs}"}
-        common = [
-            str(colcon), "build", "--base-paths", str(src), "--build-base", str(workspace / "build"),
-            "--install-base", str(workspace / "install"), "--merge-install", "--parallel-workers", str(jobs),
-            "--event-handlers", "console_direct-",
-        ]  # fmt: skip
-        flags = ["-DBUILD_TESTING=OFF", "-DTRACETOOLS_DISABLED=ON", "-DCMAKE_BUILD_TYPE=Release",
-                 "-DPython3_EXECUTABLE=/usr/bin/python3", *cmake_args]  # fmt: skip
-        # Everything but the packages with flags of their own, then each of those alone.
-        skip = ["--packages-skip", *package_cmake_args] if package_cmake_args else []
-        runs = [[*common, "--packages-up-to", *packages, *skip, "--cmake-args", *flags]]
-        runs += [[*common, "--packages-select", name, "--cmake-args", *flags, *extra]
-                 for name, extra in package_cmake_args.items()]  # fmt: skip
-        for command in runs:
-            if underlay is not None:  # the underlay's environment (its packages, libraries) for colcon
-                line = f"source {shlex.quote(str(setup_script(underlay)))} && exec {shlex.join(command)}"
-                command = ["bash", "-c", line]
-            run_logged(command, log, cwd=workspace, env=env)
-    if not setup_script(workspace).is_file():
-        raise DynabarnError(f"the build ended without {setup_script(workspace)}: see {log_path}")
-    share = workspace / "install" / "share"
-    info = {
-        **record,
-        "sources_sha256": digest,
-        "packages": sorted(p.name for p in share.iterdir() if (p / "package.xml").is_file()),
-        "install_bytes": _folder_size(workspace / "install"),
-        **({"cmake_args": list(cmake_args)} if cmake_args else {}),
-        **({"package_cmake_args": {k: list(v) for k, v in package_cmake_args.items()}} if package_cmake_args else {}),
-        "jobs": jobs,
-    }
-    return {**write_marker(workspace / marker, info, t0), "rebuilt": True}
+def find_sources(source: Path) -> dict[str, Path]:
+    """Each repository's folder in `source`, checked against the sync (`colcon.find_sources`)."""
+    return colcon.find_sources(source, REPOSITORIES, release=SYNC, module="ros2_build")
 
 
 def build(workspace: Path, source: Path, *, jobs: int = 2) -> dict:
@@ -360,57 +198,8 @@ def build(workspace: Path, source: Path, *, jobs: int = 2) -> dict:
     )
 
 
-def build_command(
-    argv: list[str] | None,
-    *,
-    prog: str,
-    description: str,
-    source_variable: str,
-    workspace_env: str,
-    default: Callable[[], Path],
-    repositories: dict[str, tuple[str, str]],
-    build: Callable[[Path, Path, argparse.Namespace], dict],
-    label: str,
-    add_arguments: Callable[[argparse.ArgumentParser], None] | None = None,
-) -> int:
-    """The command line of a colcon build of ours (`ros2_build`, `nav2_build`): --source,
-    --workspace, --jobs, --repos, and what `add_arguments` adds; `build(workspace, source,
-    args)` runs it. One line and exit 2 for bad input, a read-only or a full disk."""
-    parser = argparse.ArgumentParser(prog=prog, description=description)
-    parser.add_argument(
-        "--source", type=Path, default=None, help=f"the folder of fetched repositories ({source_variable})"
-    )
-    parser.add_argument(
-        "--workspace",
-        type=Path,
-        default=None,
-        help=f"prefix to build in (default: ${workspace_env} or {str(default()).replace(str(Path.home()), '~')})",
-    )
-    if add_arguments is not None:
-        add_arguments(parser)
-    parser.add_argument("--jobs", type=int, default=2, help="packages built at once, and compile jobs (default: 2)")
-    parser.add_argument("--repos", action="store_true", help="print the repositories and versions as a vcstool file")
-    args = parser.parse_args(argv)
-    if args.repos:
-        print(repos_file(repositories), end="")
-        return 0
-    if args.source is None:
-        parser.error(f"--source ({source_variable}) is required: the folder of fetched repositories (see --repos)")
-    if args.jobs < 1:
-        parser.error("--jobs must be at least 1")
-    workspace = (args.workspace or default()).expanduser().resolve()
-    try:
-        info = build(workspace, args.source.expanduser().resolve(), args)
-    except (DynabarnError, OSError) as exc:  # a read-only or full disk: one line too
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    what = f"built in {info['seconds']:.0f} s" if info["rebuilt"] else "already built from these sources"
-    print(f"{label}: {len(info['packages'])} packages, {info['install_bytes'] / 1e6:.0f} MB, {what}: {workspace}")
-    return 0
-
-
 def main(argv: list[str] | None = None) -> int:
-    return build_command(
+    return colcon.build_command(
         argv,
         prog="python -m dynabarn.ros.ros2_build",
         description=f"Build the smallest ROS 2 Jazzy ({SYNC}: rclcpp, rclpy over Debian's Cyclone DDS, "

@@ -113,10 +113,10 @@ def stack_command(name: str, workspace: Path | None = None) -> list[str]:
 def nav2_setup(workspace: Path | None = None) -> Path:
     """The `setup.bash` of the Nav2 overlay `make nav2` built (over the ROS 2 core), in which
     the bridge node and a Nav2 stack run; one clear error when there is none."""
-    from dynabarn.ros import nav2_build, ros2_build
+    from dynabarn.ros import colcon, nav2_build
 
     workspace = (workspace or nav2_build.default_workspace()).expanduser()
-    setup = ros2_build.setup_script(workspace)
+    setup = colcon.setup_script(workspace)
     if nav2_build.built(workspace) is None or not setup.is_file():
         raise NotInstalledHere(
             f"Nav2 is not built in {workspace}: run `make nav2 NAV2_SRC=<folder of the fetched repositories>` "
