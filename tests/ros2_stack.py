@@ -31,6 +31,13 @@ def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--mute", action="store_true")
     parser.add_argument("--delay", type=float, default=0.0, help="seconds of thinking per scan (a slow stack)")
+    parser.add_argument(
+        "--abort-after",
+        type=float,
+        default=None,
+        help="serve Nav2's navigate_to_pose (nav2_msgs) and abort it after S seconds of ROS time, then command "
+        "nothing more: a Nav2 that gives up",
+    )
     args = parser.parse_args(rclpy.utilities.remove_ros_args(sys.argv)[1:])
     node = rclpy.create_node("test_stack", parameter_overrides=[Parameter("use_sim_time", value=True)])
     cmd_pub = node.create_publisher(Twist, "/cmd_vel", 10)
@@ -40,7 +47,7 @@ def main() -> int:
         state["goal"] = (msg.pose.position.x, msg.pose.position.y)
 
     def decide(scan: LaserScan, odom: Odometry) -> None:
-        if args.mute:
+        if args.mute or state.get("gave_up"):
             return
         cmd = Twist()  # before a goal: standing still, but answering
         cmd.linear.x, cmd.angular.z = command(scan, odom, state["goal"], delay=args.delay)
@@ -55,9 +62,37 @@ def main() -> int:
     node.create_subscription(PoseStamped, "/goal_pose", on_goal, latched)
     node.create_subscription(Odometry, "/odometry/filtered", lambda m: pairs.odom(key(m), m), 50)
     node.create_subscription(LaserScan, "/front/scan", lambda m: pairs.scan(key(m), m), qos_profile_sensor_data)
+    executor = rclpy.executors.SingleThreadedExecutor()
+    if args.abort_after is not None:  # the action's execution waits in its own thread while scans come
+        serve_and_abort(node, state, args.abort_after)
+        executor = rclpy.executors.MultiThreadedExecutor()
+    executor.add_node(node)
     with contextlib.suppress(KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        rclpy.spin(node)
+        executor.spin()
     return 0
+
+
+def serve_and_abort(node, state: dict, after: float) -> None:
+    """`navigate_to_pose` as Nav2's BT navigator offers it: the goal accepted and followed
+    (the controller above), then, `after` seconds of ROS time later, aborted, and no command
+    sent again."""
+    import time
+
+    from nav2_msgs.action import NavigateToPose
+    from rclpy.action import ActionServer
+    from rclpy.callback_groups import ReentrantCallbackGroup
+
+    def execute(handle):
+        state["goal"] = (handle.request.pose.pose.position.x, handle.request.pose.pose.position.y)
+        start = node.get_clock().now()
+        while (node.get_clock().now() - start).nanoseconds < after * 1e9:
+            time.sleep(0.01)
+        state["gave_up"] = True
+        handle.abort()
+        return NavigateToPose.Result()
+
+    group = ReentrantCallbackGroup()
+    state["server"] = ActionServer(node, NavigateToPose, "navigate_to_pose", execute, callback_group=group)
 
 
 if __name__ == "__main__":

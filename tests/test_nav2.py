@@ -186,3 +186,22 @@ def _running(pid: int) -> bool:
         return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
     except (OSError, IndexError):
         return False
+
+
+def test_a_navigation_the_stack_aborts_leaves_the_robot_standing(tmp_path):
+    """A stack that serves Nav2's `navigate_to_pose`, follows the goal, then aborts it and
+    commands nothing more (as Nav2 does when its recoveries are spent): the bridge offers
+    the goal through the action, the robot stands from the abort on and the episode runs to
+    its end, never an error for the silence."""
+    _nav2()  # nav2_msgs, for the action
+    out = subprocess.run(
+        [str(BIN / "dynabarn-ros"), "--ros", "2", "--world", "137", "--no-log", "--json", "--timeout", "5",
+         "--launch", f"/usr/bin/python3 {Path(__file__).resolve().parent / 'ros2_stack.py'} --abort-after 3"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )  # fmt: skip
+    result = json.loads(out.stdout)
+    assert result["outcome"] in ("timeout", "collision"), result["reason"]
+    assert result["periods_after_navigation_ended"] > 0, result
+    assert result["sim_time"] > 3.5 and result["path_length"] < 2.0 * 3.5, result  # it stood after 3 s

@@ -126,19 +126,28 @@ class Ros2Node(Node):
         sent = getattr(self, "_sent", None)
         if sent is not None and not sent.done():
             return  # the server's answer is on its way
-        if sent is not None and sent.result() is not None and sent.result().accepted:
-            self.action_client = self._client  # taken: the stack navigates
-            self._navigation = sent.result().get_result_async()
-            return
+        if self._navigation_result() is not None:
+            return  # taken: the stack navigates
         if self._client.server_is_ready() and time.monotonic() >= getattr(self, "_next_try", 0.0):
             self._next_try = time.monotonic() + 0.25  # a rejected goal is offered again, 4 times a second
             self._sent = self._client.send_goal_async(NavigateToPose.Goal(pose=goal))
+
+    def _navigation_result(self):
+        """The future of the navigation's result once the stack accepted the goal, else None.
+        Read here as well as in the boot: the boot ends on the stack's first command, which
+        may come before the acceptance is read."""
+        if getattr(self, "_navigation", None) is None:
+            sent = getattr(self, "_sent", None)
+            if sent is not None and sent.done() and sent.result() is not None and sent.result().accepted:
+                self.action_client = self._client
+                self._navigation = sent.result().get_result_async()
+        return getattr(self, "_navigation", None)
 
     def period(self, t: float, obs: tuple, ranges) -> tuple[float, float, int]:
         """As `Node.period`, until the stack's `navigate_to_pose` ends (Nav2 gives up after
         its recoveries, or thinks the goal reached): from then on the robot stands, as under
         Gazebo after move_base aborts, and each period runs at once (answered `ENDED`)."""
-        navigation = getattr(self, "_navigation", None)
+        navigation = self._navigation_result()
         if navigation is None or not navigation.done() or self.args.paced:
             return super().period(t, obs, ranges)
         self.publish_state(t, obs, ranges)
