@@ -380,7 +380,7 @@ BLOCKS = {
 
 
 PAGES = {
-    README: ("headline", "ladder", "tier-ladder", "trackers", "certification", "generalisation"),
+    README: ("headline", "ladder", "tier-ladder", "trackers", "certification", "generalisation", "nav2"),
     DOCS / "results.md": (
         "fig5",
         "skill",
