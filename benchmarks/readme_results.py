@@ -36,7 +36,7 @@ from certified_tables import calibration_table, certification_table, certified_l
 from leaderboard import leaderboard_table, tier_ladder_table
 from learning_tables import dagger_curves, dagger_training, generalisation_table, student_ablation, student_table
 from ros_speed import table as ros_speed_table
-from ros_tables import MOVE_BASE_SETS, NAV2_FOLDERS, ablation_table, move_base_table, nav2_table
+from ros_tables import MOVE_BASE_SETS, NAV2_FOLDERS, STACK_GUESTS, ablation_table, move_base_table, nav2_table
 from tracker_tables import (
     LADDERS,
     TEB_PADDING,
@@ -85,15 +85,6 @@ LEADERBOARD_SETS = {
     },
 }
 """The leaderboard's world sets, in its order."""
-LEADERBOARD_GUESTS = {
-    set_folder: tuple(
-        (f"{stack}_{name}", "ros", f"ros --stack {stack if stack != 'move_base' else 'move_base_dwa'}")
-        for stack in ("nav2_dwb", "nav2_mppi", "move_base")
-    )
-    for set_folder, name in (("paper60_barn", "paper60"), ("original60_barn", "original60"))
-}
-"""Real ROS stacks, swept into folders of their own (their rows' planner is `ros`), listed
-in their world set's section under the stack's name: (folder, planner in its rows, name)."""
 PLANNERS = {
     FLOOR: "Blind floor (`straight`)",
     "dwa": "DWA, our defaults (ROS's DWA biases, 2 m/s)",
@@ -368,7 +359,7 @@ BLOCKS = {
     "certification": lambda f, s: certification_table(certified_sets()),
     "certified-ladder": lambda f, s: certified_ladder(f, certified_sets(), SETS, LADDER),
     "calibration": lambda f, s: calibration_table(),
-    "leaderboard": lambda f, s: leaderboard_table(f, LEADERBOARD_SETS, LEADERBOARD_GUESTS),
+    "leaderboard": lambda f, s: leaderboard_table(f, LEADERBOARD_SETS, STACK_GUESTS),
     "tier-ladder": lambda f, s: tier_ladder_table(f, TIER_SETS, LADDER),
     "trackers": lambda f, s: tracker_table(f, _ci, _skill),
     "teb-padding": lambda f, s: tracker_table(f, _ci, _skill, TEB_PADDING, "TEB plans against"),

@@ -71,9 +71,7 @@ def _cell(s: dict | None) -> str:
 
 def _agreement(rows: list[dict], ours: str) -> str:
     """How often the real stack and our planner ended the same (world, trial) the same way."""
-    outcome = {(r["planner"], r["world"], r["seed"]): r["outcome"] for r in rows}
-    pairs = [(o, outcome.get((ours, w, s))) for (p, w, s), o in outcome.items() if p == "ros"]
-    pairs = [(a, b) for a, b in pairs if b is not None]
+    pairs = _pairs([r for r in rows if r["planner"] == "ros"], [r for r in rows if r["planner"] == ours])
     if not pairs:
         return "-"
     same = sum(a == b for a, b in pairs)
@@ -153,32 +151,59 @@ class StackRow:
     folder: str
     planner: str  # its name in the rows ("ros" for a real stack)
     title: str
+    stack: str | None = None  # a real stack's name (`--stack`)
 
 
-def _set_rows(set_folder: str, move_base: str, nav2: str) -> tuple[StackRow, ...]:
+def _set_rows(set_folder: str, name: str) -> tuple[StackRow, ...]:
+    """The table's rows for one world set: each real stack from its own sweep (`stack_folder`),
+    our planners and the floor from the set's own folder."""
+    real = (
+        ("nav2_dwb", "real Nav2 DWB (`--stack nav2_dwb`, ROS 2)"),
+        ("nav2_mppi", "real Nav2 MPPI (`--stack nav2_mppi`, ROS 2)"),
+        ("move_base_dwa", "real move_base DWA (`--stack move_base_dwa`, ROS 1)"),
+    )
     return (
-        StackRow(f"nav2_dwb_{nav2}", "ros", "real Nav2 DWB (`--stack nav2_dwb`, ROS 2)"),
-        StackRow(f"nav2_mppi_{nav2}", "ros", "real Nav2 MPPI (`--stack nav2_mppi`, ROS 2)"),
-        StackRow(move_base, "ros", "real move_base DWA (`--stack move_base_dwa`, ROS 1)"),
+        *(StackRow(stack_folder(stack, name), "ros", title, stack) for stack, title in real),
         StackRow(set_folder, "dwa", "our DWA (`dwa`)"),
         StackRow(set_folder, "predictive", "our predictive planner (`predictive`)"),
         StackRow(set_folder, FLOOR, "blind floor (`straight`)"),
     )
 
 
+def stack_folder(stack: str, name: str) -> str:
+    """Where a real stack's sweep of world set `name` is: results/STACK_NAME (move_base's,
+    swept first, as results/move_base_NAME)."""
+    return f"move_base_{name}" if stack == "move_base_dwa" else f"{stack}_{name}"
+
+
 NAV2_SETS = {
-    "paper60": _set_rows("paper60_barn", "move_base_paper60", "paper60"),
-    "release's 60": _set_rows("original60_barn", "move_base_original60", "original60"),
+    "paper60": _set_rows("paper60_barn", "paper60"),
+    "release's 60": _set_rows("original60_barn", "original60"),
 }
 """The ROS stacks' table: per world set, Nav2 and move_base (real, in lockstep) beside ours."""
-NAV2_FOLDERS = tuple(f"nav2_{stack}_{s}" for stack in ("dwb", "mppi") for s in ("paper60", "original60"))
+NAV2_FOLDERS = tuple(
+    r.folder for rows in NAV2_SETS.values() for r in rows if r.stack and r.folder not in MOVE_BASE_SETS
+)
+STACK_GUESTS = {
+    next(r.folder for r in rows if r.stack is None): tuple(
+        (r.folder, r.planner, f"ros --stack {r.stack}") for r in rows if r.stack
+    )
+    for rows in NAV2_SETS.values()
+}
+"""The real stacks listed in their world set's section of the leaderboard (`leaderboard_table`'s
+guests): {the set's folder: (the stack's folder, its rows' planner, the name shown)}."""
+
+
+def _pairs(real: list[dict], ours: list[dict]) -> list[tuple[str, str]]:
+    """(real's outcome, ours) on each (world, trial) both ran, in the order of `real`."""
+    mine = {(r["world"], r["seed"]): r["outcome"] for r in ours}
+    return [(r["outcome"], mine[(r["world"], r["seed"])]) for r in real if (r["world"], r["seed"]) in mine]
 
 
 def _same_episodes(real: list[dict], ours: list[dict]) -> str:
     """Success of `ours` on exactly the (world, trial) pairs `real` ran, and how often the
     two ended them the same way."""
-    mine = {(r["world"], r["seed"]): r["outcome"] for r in ours}
-    pairs = [(r["outcome"], mine[(r["world"], r["seed"])]) for r in real if (r["world"], r["seed"]) in mine]
+    pairs = _pairs(real, ours)
     if not pairs:
         return "-"
     same = sum(a == b for a, b in pairs)

@@ -141,7 +141,7 @@ def on_post_build(config) -> None:
     root = Path(config["config_file_path"]).resolve().parent
     sys.path.insert(0, str(root / "benchmarks"))
     from leaderboard import REPORTS
-    from readme_results import LEADERBOARD_GUESTS, LEADERBOARD_SETS, RESULTS_DIR
+    from readme_results import LEADERBOARD_SETS, RESULTS_DIR, STACK_GUESTS
 
     from dynabarn.bench.report import render_report
     from dynabarn.bench.results import RESULTS, read_results
@@ -149,7 +149,7 @@ def on_post_build(config) -> None:
 
     out = Path(config["site_dir"]) / REPORTS
     out.mkdir(parents=True, exist_ok=True)
-    guests = [folder for rows in LEADERBOARD_GUESTS.values() for folder, _, _ in rows]
+    guests = [folder for rows in STACK_GUESTS.values() for folder, _, _ in rows]
     for folder in (*LEADERBOARD_SETS, *guests):
         rows = read_results(RESULTS_DIR / folder / RESULTS)
         if rows:

@@ -103,21 +103,24 @@ def _folder_size(folder: Path) -> int:
     return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file() and not p.is_symlink())
 
 
-def _current(
-    done: dict,
-    digest: str,
-    packages: tuple[str, ...],
-    cmake_args: tuple[str, ...],
-    package_cmake_args: dict[str, tuple[str, ...]],
-    workspace: Path,
-) -> bool:
+ARGUMENT_KEYS = ("cmake_args", "package_cmake_args")
+"""The record's keys for a build's CMake arguments (each left out when empty, so a record
+written before they were kept still describes a build without any)."""
+
+
+def _arguments(cmake_args: tuple[str, ...], package_cmake_args: dict[str, tuple[str, ...]]) -> dict:
+    """A build's CMake arguments as its record holds them."""
+    given = {"cmake_args": list(cmake_args), "package_cmake_args": {k: list(v) for k, v in package_cmake_args.items()}}
+    return {key: value for key, value in given.items() if value}
+
+
+def _current(done: dict, digest: str, packages: tuple[str, ...], arguments: dict, workspace: Path) -> bool:
     """Whether the finished build `done` is of these sources, holds these packages and was
-    built with these CMake arguments."""
+    built with these CMake arguments (`_arguments`)."""
     return (
         done.get("sources_sha256") == digest
         and set(packages) <= set(done.get("packages", ()))
-        and done.get("cmake_args", []) == list(cmake_args)
-        and done.get("package_cmake_args", {}) == {k: list(v) for k, v in package_cmake_args.items()}
+        and {key: done[key] for key in ARGUMENT_KEYS if key in done} == arguments
         and setup_script(workspace).is_file()
     )
 
@@ -146,9 +149,10 @@ def colcon_build(
     if not Path("/usr/bin/python3").exists() or shutil.which("cmake") is None:
         raise DynabarnError("Debian's build tools are missing: `sudo make ros2-deps`")
     package_cmake_args = package_cmake_args or {}
+    arguments = _arguments(cmake_args, package_cmake_args)
     digest = sources_digest(folders)
     done = read_marker(workspace / marker)
-    if done is not None and _current(done, digest, packages, cmake_args, package_cmake_args, workspace):
+    if done is not None and _current(done, digest, packages, arguments, workspace):
         return {**done, "rebuilt": False}
     workspace.mkdir(parents=True, exist_ok=True)
     (workspace / marker).unlink(missing_ok=True)
@@ -191,8 +195,7 @@ def colcon_build(
         "sources_sha256": digest,
         "packages": sorted(p.name for p in share.iterdir() if (p / "package.xml").is_file()),
         "install_bytes": _folder_size(workspace / "install"),
-        **({"cmake_args": list(cmake_args)} if cmake_args else {}),
-        **({"package_cmake_args": {k: list(v) for k, v in package_cmake_args.items()}} if package_cmake_args else {}),
+        **arguments,
         "jobs": jobs,
     }
     return {**write_marker(workspace / marker, info, t0), "rebuilt": True}
@@ -206,6 +209,7 @@ def build_command(
     source_variable: str,
     workspace_env: str,
     default: Callable[[], Path],
+    default_shown: str,
     repositories: dict[str, tuple[str, str]],
     build: Callable[[Path, Path, argparse.Namespace], dict],
     label: str,
@@ -222,7 +226,7 @@ def build_command(
         "--workspace",
         type=Path,
         default=None,
-        help=f"prefix to build in (default: ${workspace_env} or {str(default()).replace(str(Path.home()), '~')})",
+        help=f"prefix to build in (default: ${workspace_env} or {default_shown})",
     )
     if add_arguments is not None:
         add_arguments(parser)

@@ -144,6 +144,7 @@ def main(argv: list[str] | None = None) -> int:
         source_variable="NAV2_SRC",
         workspace_env=WORKSPACE_ENV,
         default=default_workspace,
+        default_shown="~/.cache/dynabarn/nav2",
         repositories=REPOSITORIES,
         build=run,
         label=f"Nav2 {NAV2_VERSION}",

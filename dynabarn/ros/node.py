@@ -281,7 +281,7 @@ class Node:
         with self.answer:
             seen = self.count
         self.publish_state(t, obs, ranges)
-        ticks = [t + k * a.clock_step for k in range(1, self.ticks_per_period)]
+        ticks = self.ticks_after(t)
         if a.paced:  # the ticks at the simulation's pace, while it runs the period
             self._stop_ticks = threading.Event()
             self._ticker = threading.Thread(target=self._paced_ticks, args=(ticks, self._stop_ticks), daemon=True)
@@ -295,6 +295,10 @@ class Node:
                 answered = self.answer.wait_for(lambda: self.count > seen, timeout=a.grace)
                 return (*self.cmd, 1 if answered else 0)
         return self._timed_period(t, ticks, seen)
+
+    def ticks_after(self, t: float) -> list[float]:
+        """The /clock stamps of the control period from t, after its first."""
+        return [t + k * self.args.clock_step for k in range(1, self.ticks_per_period)]
 
     def _timed_period(self, t: float, ticks: list[float], seen: int) -> tuple[float, float, int]:
         """A stack whose loop runs from a timer at `--stack-rate`: the clock stands still at

@@ -87,6 +87,10 @@ class Ros2Node(Node):
         self._stop_ticks = threading.Event()
         self.action_client = None
         self._no_action = False
+        self._client = None  # the navigate_to_pose client, made once nav2_msgs imports
+        self._sent = None  # the last goal's acceptance, on its way
+        self._next_try = 0.0  # [monotonic s] when a rejected goal is offered again
+        self._navigation = None  # the accepted navigation's result, on its way
         # The Jackal's twist_mux takes /cmd_vel; the challenge's launch files publish straight
         # to the controller's input. Both drive the robot here.
         ros.create_subscription(Twist, "/cmd_vel", self._on_cmd, reliable)
@@ -122,13 +126,12 @@ class Ros2Node(Node):
         except ImportError:
             self._no_action = True
             return
-        self._client = getattr(self, "_client", None) or ActionClient(self.ros, NavigateToPose, self.ACTION)
-        sent = getattr(self, "_sent", None)
-        if sent is not None and not sent.done():
+        self._client = self._client or ActionClient(self.ros, NavigateToPose, self.ACTION)
+        if self._sent is not None and not self._sent.done():
             return  # the server's answer is on its way
         if self._navigation_result() is not None:
             return  # taken: the stack navigates
-        if self._client.server_is_ready() and time.monotonic() >= getattr(self, "_next_try", 0.0):
+        if self._client.server_is_ready() and time.monotonic() >= self._next_try:
             self._next_try = time.monotonic() + 0.25  # a rejected goal is offered again, 4 times a second
             self._sent = self._client.send_goal_async(NavigateToPose.Goal(pose=goal))
 
@@ -136,12 +139,12 @@ class Ros2Node(Node):
         """The future of the navigation's result once the stack accepted the goal, else None.
         Read here as well as in the boot: the boot ends on the stack's first command, which
         may come before the acceptance is read."""
-        if getattr(self, "_navigation", None) is None:
-            sent = getattr(self, "_sent", None)
-            if sent is not None and sent.done() and sent.result() is not None and sent.result().accepted:
-                self.action_client = self._client
-                self._navigation = sent.result().get_result_async()
-        return getattr(self, "_navigation", None)
+        sent = self._sent
+        accepted = sent is not None and sent.done() and sent.result() is not None and sent.result().accepted
+        if self._navigation is None and accepted:
+            self.action_client = self._client
+            self._navigation = sent.result().get_result_async()
+        return self._navigation
 
     def period(self, t: float, obs: tuple, ranges) -> tuple[float, float, int]:
         """As `Node.period`, until the stack's `navigate_to_pose` ends (Nav2 gives up after
@@ -151,8 +154,8 @@ class Ros2Node(Node):
         if navigation is None or not navigation.done() or self.args.paced:
             return super().period(t, obs, ranges)
         self.publish_state(t, obs, ranges)
-        for k in range(1, self.ticks_per_period):
-            self.tick(t + k * self.args.clock_step)
+        for tick in self.ticks_after(t):
+            self.tick(tick)
         return 0.0, 0.0, ENDED
 
 

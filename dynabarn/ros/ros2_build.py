@@ -208,6 +208,7 @@ def main(argv: list[str] | None = None) -> int:
         source_variable="ROS2_SRC",
         workspace_env=WORKSPACE_ENV,
         default=default_workspace,
+        default_shown="~/.cache/dynabarn/ros2",
         repositories=REPOSITORIES,
         build=lambda workspace, source, args: build(workspace, source, jobs=args.jobs),
         label=f"ROS 2 {SYNC}",

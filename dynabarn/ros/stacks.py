@@ -91,7 +91,7 @@ def stack_command(name: str, workspace: Path | None = None) -> list[str]:
     the stack is unknown or move_base or Nav2 is not built)."""
     STACKS.get_item(name)  # one line for an unknown name, with the nearest
     if STACKS[name].ros == 2:
-        return _nav2_command(STACKS[name], workspace)
+        return _launch_command(STACKS[name], nav2_setup(workspace), "ros2 launch")
     workspace = (workspace or default_workspace()).expanduser()
     if built(workspace) is None:
         raise NotInstalledHere(
@@ -103,11 +103,8 @@ def stack_command(name: str, workspace: Path | None = None) -> list[str]:
             f"teb_local_planner is not built in {workspace}: run `make ros-teb` (about 20 minutes on 2 cores)",
             "make ros-teb",
         )
-    args = " ".join(f"{k}:={shlex.quote(v.format(launch=LAUNCH))}" for k, v in stack.args)
     # The workspace's environment (ROS_PACKAGE_PATH, libraries) for roslaunch and move_base.
-    setup = shlex.quote(str(workspace / "devel" / "setup.bash"))
-    line = f"source {setup} && exec roslaunch {shlex.quote(str(LAUNCH / stack.launch))} {args}".rstrip()
-    return ["bash", "-c", line]
+    return _launch_command(stack, workspace / "devel" / "setup.bash", "roslaunch")
 
 
 def nav2_setup(workspace: Path | None = None) -> Path:
@@ -126,8 +123,9 @@ def nav2_setup(workspace: Path | None = None) -> Path:
     return setup
 
 
-def _nav2_command(stack: Stack, workspace: Path | None) -> list[str]:
+def _launch_command(stack: Stack, setup: Path, launcher: str) -> list[str]:
+    """`launcher` (roslaunch, ros2 launch) on the stack's launch file with its arguments, in
+    the environment `setup` gives."""
     args = " ".join(f"{k}:={shlex.quote(v.format(launch=LAUNCH))}" for k, v in stack.args)
-    setup = shlex.quote(str(nav2_setup(workspace)))
-    line = f"source {setup} && exec ros2 launch {shlex.quote(str(LAUNCH / stack.launch))} {args}".rstrip()
-    return ["bash", "-c", line]
+    line = f"source {shlex.quote(str(setup))} && exec {launcher} {shlex.quote(str(LAUNCH / stack.launch))} {args}"
+    return ["bash", "-c", line.rstrip()]
