@@ -71,10 +71,10 @@ ros-deps:
 	fi
 
 # ROS 2 Jazzy's core (rclcpp, rclpy over Debian's Cyclone DDS, messages, tf2, launch,
-# ros2cli) built from fetched sources with colcon into a prefix outside the package
+# ros2cli, rosbag2) built from fetched sources with colcon into a prefix outside the package
 # (DYNABARN_ROS2_WS, default ~/.cache/dynabarn/ros2): `make ros2-core ROS2_SRC=DIR`, DIR a
 # folder of the repositories `python -m dynabarn.ros.ros2_build --repos` lists (vcstool:
-# `vcs import DIR < FILE`). About 11 minutes on 2 cores; a second run builds nothing.
+# `vcs import DIR < FILE`). About 14 minutes on 2 cores; a second run builds nothing.
 ros2-deps:
 	@if command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" = 0 ]; then \
 	  need=""; for p in $$($(BIN)/python -c 'from dynabarn.ros.ros2_build import BUILD_DEPENDENCIES as d; print(*d)'); do \

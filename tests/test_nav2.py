@@ -133,21 +133,28 @@ def test_nav2_drives_world_137_to_an_outcome(stack, tmp_path):
     assert "Managed nodes are active" in stack_log  # the lifecycle manager brought Nav2 up
 
 
-def test_a_nav2_stack_may_stay_silent_longer_unless_a_timeout_is_given():
-    """Nav2's recoveries send no /cmd_vel (its Wait: 5 s of ROS time, held period by period):
-    its stacks carry their own silence limit, which an explicit timeout overrides; the
-    bridge's settings are checked against the ranges the command gives them."""
+def test_a_nav2_stack_may_boot_and_stay_silent_longer_unless_limits_are_given():
+    """Nav2's recoveries send no /cmd_vel (its Wait: 5 s of ROS time, held period by period),
+    and it brings up its servers one by one before its first: its stacks carry their own
+    silence and boot limits, which explicit ones override; the bridge's settings are checked
+    against the ranges the command gives them."""
     from dynabarn.interfaces import config_from_kwargs
     from dynabarn.ros.bridge_config import BridgeConfig
-    from dynabarn.ros.stacks import NAV2_SILENCE
+    from dynabarn.ros.stacks import NAV2_BOOT, NAV2_SILENCE
 
     assert BridgeConfig().silence_limit == 10.0 and BridgeConfig(stack="move_base_dwa").silence_limit == 10.0
     assert BridgeConfig(stack="nav2_dwb", ros=2).silence_limit == NAV2_SILENCE == 60.0
     assert BridgeConfig(stack="nav2_dwb", ros=2, timeout=5.0).silence_limit == 5.0
+    assert BridgeConfig().boot_limit == 30.0 and BridgeConfig(stack="move_base_teb").boot_limit == 30.0
+    assert BridgeConfig(stack="nav2_mppi", ros=2).boot_limit == NAV2_BOOT == 90.0
+    assert BridgeConfig(stack="nav2_mppi", ros=2, ready_timeout=5.0).boot_limit == 5.0
+    with pytest.raises(ValueError, match="ros2_bag"):
+        BridgeConfig(ros2_bag="/tmp/x")  # rosbag2 is ROS 2's
     for key, bad, message in (
         ("timeout", "x", "expected a number"),
         ("timeout", -1, r"out of range \[0.1, 600\]"),
         ("grace", 0, r"out of range \[0.001, 600\]"),
+        ("ready_timeout", 0, r"out of range \[0.1, 600\]"),
     ):
         with pytest.raises(TypeError, match=f"ros {key}={bad!r}: {message}"):
             config_from_kwargs(BridgeConfig, {key: bad}, "ros")

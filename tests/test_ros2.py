@@ -31,8 +31,13 @@ def test_the_repositories_are_one_release_sync_and_a_wrong_folder_is_one_line(tm
     """The vcstool file lists every repository at its version; sources of another version,
     or none, are refused naming them, before anything is built."""
     text = ros2_build.repos_file()
-    assert text.startswith("repositories:\n") and text.count("type: git") == len(ros2_build.REPOSITORIES)
+    every = len(ros2_build.REPOSITORIES) + len(ros2_build.DOWNLOADS)
+    assert text.startswith("repositories:\n") and text.count("type: git") == every
     assert "    url: https://github.com/ros2/rclpy.git\n    version: 7.1.3" in text
+    assert (
+        "  mcap:\n    type: git\n    url: https://github.com/foxglove/mcap.git\n    version: releases/cpp/v1.3.0"
+        in text
+    )
     with pytest.raises(DynabarnError, match="no such folder"):
         ros2_build.find_sources(tmp_path / "nowhere")
     (tmp_path / "rclpy" / "rclpy").mkdir(parents=True)
@@ -42,6 +47,12 @@ def test_the_repositories_are_one_release_sync_and_a_wrong_folder_is_one_line(tm
     with pytest.raises(
         DynabarnError, match=r"not the sources of release-jazzy-20241223: .*rclpy \(9\.9\.9, not 7\.1\.3\)"
     ):
+        ros2_build.find_sources(tmp_path)
+    # A download (not a ROS package) is checked by its version line: MCAP of another release.
+    header = tmp_path / "mcap" / "cpp" / "mcap" / "include" / "mcap" / "types.hpp"
+    header.parent.mkdir(parents=True)
+    header.write_text('#define MCAP_LIBRARY_VERSION "2.1.3"\n')
+    with pytest.raises(DynabarnError, match=r"mcap \(not releases/cpp/v1\.3\.0: .*types\.hpp lacks"):
         ros2_build.find_sources(tmp_path)
     out = subprocess.run(
         [
@@ -210,3 +221,58 @@ def test_ros2_topic_sees_the_bridge_with_nav2s_qos():
     finally:
         proc.kill()
         proc.communicate()
+
+
+def _rosbag2(workspace: Path) -> None:
+    if "ros2bag" not in ros2_build.built(workspace)["packages"]:
+        pytest.skip(f"rosbag2 is not in the ROS 2 core in {workspace}: make ros2-core ROS2_SRC=<folder>")
+
+
+def test_ros2_bag_records_the_whole_episode_in_the_bridges_domain(tmp_path):
+    """--ros2-bag: rosbag2's own `ros2 bag record` in the bridge's domain, on its clock. The
+    episode waits for its subscriptions, so the bag holds every control period (a scan,
+    odometry and transform each, every /clock tick of the bursts) and the stack's commands;
+    read back by rosbag2 (`ros2 bag info`) and by MCAP's own reader. A folder that exists,
+    or --ros2-bag on ROS 1, is one line and exit 2."""
+    workspace = _prefix()
+    _rosbag2(workspace)
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    from dynabarn.ros.colcon import setup_script
+    from dynabarn.ros.domain import prefix_env
+
+    bag = tmp_path / "graph"
+    command = [str(BIN / "dynabarn-ros"), "--world", "137", "--no-log", "--json", "--grace", "5",
+               "--launch", f"/usr/bin/python3 {HERE / 'ros2_stack.py'}"]  # fmt: skip
+    out = subprocess.run([*command, "--ros", "2", "--ros2-bag", str(bag)], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    result = json.loads(out.stdout)
+    assert result["outcome"] == "success" and result["ros2_bag"] == str(bag), result
+    info = subprocess.run(
+        ["ros2", "bag", "info", str(bag)],
+        env={**prefix_env(setup_script(workspace)), "HOME": str(Path.home())},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert info.returncode == 0 and "Storage id:        mcap" in info.stdout, info.stderr
+    counts: dict[str, int] = {}
+    last_clock = 0.0
+    with (bag / "graph_0.mcap").open("rb") as f:
+        for _, channel, _, msg in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            if channel.topic == "/clock":
+                last_clock = max(last_clock, msg.clock.sec + msg.clock.nanosec * 1e-9)
+    for topic in ("/front/scan", "/odometry/filtered", "/tf", "/dynabarn/ground_truth", "/cmd_vel"):
+        assert counts[topic] >= result["n_ticks"], (topic, counts)
+    assert counts["/tf_static"] == 1 and counts["/goal_pose"] == 1 and counts["/robot_description"] == 1
+    # Every 5 ms tick from the boot to the end: none lost from the bursts of a period.
+    assert counts["/clock"] >= round(result["sim_time"] / 0.005), counts["/clock"]
+    assert last_clock >= result["sim_time"]
+    for extra, why in (
+        (["--ros", "2", "--ros2-bag", str(bag)], "exists"),
+        (["--ros", "1", "--ros2-bag", str(tmp_path / "x")], "--ros 2"),
+    ):
+        out = subprocess.run([*command, *extra], capture_output=True, text=True, timeout=120)
+        assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1 and why in out.stderr, out.stderr

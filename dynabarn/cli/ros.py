@@ -55,6 +55,16 @@ def build_parser() -> argparse.ArgumentParser:
         "off by default",
     )
     parser.add_argument(
+        "--ros2-bag",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="ROS 2: also record the run live with rosbag2 (`ros2 bag record --all-topics`, MCAP storage) into the "
+        "new folder DIR: every topic the bridge and the stack publish (its plans and costmaps too) on the "
+        "bridge's clock, from the boot on; the episode starts once the recorder has subscribed to each of the "
+        "bridge's topics (needs rosbag2 in the core: make ros2-core); off by default",
+    )
+    parser.add_argument(
         "--ros2-workspace",
         type=Path,
         default=None,
@@ -159,9 +169,9 @@ def _add_timing(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--ready-timeout",
         type=ranged(float, 0.1, 600.0),
-        default=30.0,
+        default=None,
         help="wall seconds the stack may take to start before the episode ends as an error naming what never "
-        "happened (default: 30)",
+        "happened (default: 30, or the --stack's own: 90 for Nav2, which brings up its servers one by one)",
     )
     parser.add_argument(
         "--stack-rate",
@@ -210,14 +220,54 @@ def _bridge_config(args: argparse.Namespace, workspace: Path | None, stack_log: 
         "announce": True,
         **({"ros": 2} if args.ros == 2 else {}),
         **({"ros2_workspace": str(args.ros2_workspace.expanduser().resolve())} if args.ros2_workspace else {}),
+        **({"ros2_bag": str(args.ros2_bag)} if args.ros2_bag is not None else {}),
     }
+
+
+def _check_ros(args: argparse.Namespace) -> None:
+    """--ros (the --stack's where not given) and what it needs, built: one line otherwise."""
+    from dynabarn.ros.bridge_config import ros_python
+
+    stack_ros = STACKS[args.stack].ros if args.stack else None
+    if args.ros is None:
+        args.ros = stack_ros or 1
+    if stack_ros is not None and stack_ros != args.ros:
+        raise DynabarnError(f"--stack {args.stack} runs on ROS {stack_ros}: leave out --ros {args.ros}")
+    if args.ros == 2:
+        if args.master:
+            raise DynabarnError("--ros 2: --master is ROS 1's (each ROS 2 bridge takes a DDS domain of its own)")
+        from dynabarn.ros.domain import built_setup
+
+        built_setup(args.ros2_workspace)  # one clear line when ROS 2 is not built
+        if args.ros2_bag is not None:
+            _check_ros2_bag(args)
+    elif args.ros2_bag is not None:
+        raise DynabarnError("--ros2-bag records with ROS 2's rosbag2: it needs --ros 2 (ROS 1: --bag)")
+    else:
+        ros_python()  # one clear line when ROS is missing, before a master is started
+
+
+def _check_ros2_bag(args: argparse.Namespace) -> None:
+    """--ros2-bag: a new folder, and rosbag2 in the core; one line otherwise."""
+    from dynabarn.ros import ros2_build
+
+    args.ros2_bag = args.ros2_bag.expanduser().resolve()
+    if args.ros2_bag.exists():
+        raise DynabarnError(
+            f"--ros2-bag {args.ros2_bag}: exists (rosbag2 writes a new folder; move it or name another)"
+        )
+    core = args.ros2_workspace.expanduser().resolve() if args.ros2_workspace else ros2_build.default_workspace()
+    record = ros2_build.built(core) or {}
+    if "ros2bag" not in record.get("packages", ()):
+        raise DynabarnError("--ros2-bag: rosbag2 is not in the ROS 2 core; build it: make ros2-core ROS2_SRC=DIR")
+    args.ros2_bag.parent.mkdir(parents=True, exist_ok=True)
 
 
 def _ros_episode(args: argparse.Namespace) -> int:
     from dynabarn.mjcf import read_world
     from dynabarn.protocol import get_protocol
     from dynabarn.recording import default_run_path
-    from dynabarn.ros.bridge_config import remap_problem, ros_python
+    from dynabarn.ros.bridge_config import remap_problem
     from dynabarn.ros.stacks import stack_command
     from dynabarn.runner import EpisodeSpec, run_spec
     from dynabarn.worldset import resolve_world
@@ -235,19 +285,7 @@ def _ros_episode(args: argparse.Namespace) -> int:
     world_path = resolve_world(args.world, args.set)
     world_name = read_world(world_path).name  # parsed and checked; compiled by run_spec
     protocol = get_protocol(args.protocol)
-    stack_ros = STACKS[args.stack].ros if args.stack else None
-    if args.ros is None:
-        args.ros = stack_ros or 1
-    if stack_ros is not None and stack_ros != args.ros:
-        raise DynabarnError(f"--stack {args.stack} runs on ROS {stack_ros}: leave out --ros {args.ros}")
-    if args.ros == 2:
-        if args.master:
-            raise DynabarnError("--ros 2: --master is ROS 1's (each ROS 2 bridge takes a DDS domain of its own)")
-        from dynabarn.ros.domain import built_setup
-
-        built_setup(args.ros2_workspace)  # one clear line when ROS 2 is not built
-    else:
-        ros_python()  # one clear line when ROS is missing, before a master is started
+    _check_ros(args)
     workspace = args.nav_workspace.expanduser().resolve() if args.nav_workspace else None
     if args.stack:
         stack_command(args.stack, workspace)  # one clear line when move_base is not built
@@ -275,6 +313,8 @@ def _ros_episode(args: argparse.Namespace) -> int:
     result, report = run.result, run.planner_report
     overhead, held = report["bridge_ms_per_tick"], report["held_periods"]
     extra = {**report, "stack_log": str(stack_log) if stack_log else None}
+    if args.ros2_bag is not None:
+        extra["ros2_bag"] = str(args.ros2_bag)
     if args.bag and run.recording is not None:  # the stack's own ROS reads it: rosbag, ros2 bag
         from dynabarn.recording import read_recording
         from dynabarn.ros.export import export_bag

@@ -23,6 +23,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from dynabarn.errors import DynabarnError
 from dynabarn.interfaces import EpisodeInfo, Observation, Planner
 from dynabarn.processes import die_with_parent
 from dynabarn.robot import JACKAL
@@ -45,6 +46,7 @@ class RosPlanner(Planner):
         "launch": "a program it runs (the stack)",
         "nav_workspace": "a workspace whose setup script it runs",
         "stack_log": "a file it writes",
+        "ros2_bag": "a folder it writes",
         "master": "a ROS master it connects to",
     }
 
@@ -53,6 +55,8 @@ class RosPlanner(Planner):
         self.cfg = config or BridgeConfig()
         self.node: subprocess.Popen | None = None
         self.stack: subprocess.Popen | None = None
+        self.recorder: subprocess.Popen | None = None
+        """`ros2 bag record` in the domain (`BridgeConfig.ros2_bag`)."""
         self.tick_ms: list[float] = []
         """The bridge's own time per control period [ms] (packing, pipe, publishing)."""
         self.round_trip_ms: list[float] = []
@@ -96,7 +100,7 @@ class RosPlanner(Planner):
             "--grace",
             str(min(c.grace, c.silence_limit)),
         ]
-        cmd += ["--ready", c.ready, "--ready-timeout", str(c.ready_timeout), "--clock-step", repr(c.clock_step)]
+        cmd += ["--ready", c.ready, "--ready-timeout", str(c.boot_limit), "--clock-step", repr(c.clock_step)]
         cmd += ["--period", repr(info.control_period), "--rate", repr(c.rate)]
         cmd += ["--angle-min", repr(float(angles[0])), "--angle-max", repr(float(angles[-1]))]
         cmd += ["--range-min", repr(float(info.laser_range[0])), "--range-max", repr(float(info.laser_range[1]))]
@@ -115,6 +119,9 @@ class RosPlanner(Planner):
             where = f"; stack output: {c.stack_log}" if c.stack_log and launch else ""
             where_ros = f"ROS master {self.master.uri}" if c.ros == 1 else f"ROS 2 in {self.master.uri}"
             print(f"{where_ros}; {mode}{where}", file=sys.stderr, flush=True)
+        if c.ros2_bag:
+            self.recorder = start_recorder(Path(c.ros2_bag), env)
+            cmd += ["--recorder", RECORDER]
         self.node = subprocess.Popen(
             cmd,
             env=env,
@@ -196,13 +203,13 @@ class RosPlanner(Planner):
         self._origin = tuple(float(v) for v in obs.pose)
         gx, gy, _ = self._to_odom(float(obs.goal_in_world[0]), float(obs.goal_in_world[1]), 0.0)
         self._send(b"B", self._observation(obs) + GOAL.pack(gx, gy, 0.0))
-        body = self._receive(b"R", self.cfg.ready_timeout + 30)
+        body = self._receive(b"R", self.cfg.boot_limit + 30)
         self.t0, ready = READY.unpack_from(body)
         if not ready:
             self._check_stack()
             missing = body[READY.size :].decode(errors="replace")
             raise RuntimeError(
-                f"the ROS stack was not ready ({self.cfg.ready}) within {self.cfg.ready_timeout:g} s: {missing}"
+                f"the ROS stack was not ready ({self.cfg.ready}) within {self.cfg.boot_limit:g} s: {missing}"
             )
         self._wall0 = self._answered_at = time.monotonic()
 
@@ -241,10 +248,12 @@ class RosPlanner(Planner):
                 self.node.stdin.close()
             except RuntimeError:
                 pass
-        for process in (self.stack, self.node):
+        # The recorder after the stack (its last messages in the bag), SIGINT first: rosbag2
+        # then writes the MCAP's summary and metadata.yaml.
+        for process in (self.stack, self.recorder, self.node):
             if process is not None:
-                stop_process(process, timeout=5.0)
-        self.stack = self.node = None
+                stop_process(process, timeout=5.0 if process is not self.recorder else 30.0)
+        self.stack = self.recorder = self.node = None
         self.master.close()
 
     def report(self) -> dict:
@@ -256,6 +265,33 @@ class RosPlanner(Planner):
             "held_periods": self.held,
             "periods_after_navigation_ended": self.ended,
         }
+
+
+RECORDER = "dynabarn_recorder"
+"""The node name `ros2 bag record` runs under: the bridge node waits for its subscriptions."""
+RECORDER_QOS = Path(__file__).resolve().parent / "launch" / "rosbag2" / "qos_overrides.yaml"
+"""Its QoS where rosbag2's default would lose messages (/clock's bursts)."""
+
+
+def start_recorder(folder: Path, env: dict[str, str]) -> subprocess.Popen:
+    """`ros2 bag record` of every topic (services left out) into `folder` (MCAP storage), on
+    the bridge's clock, in its process group; the bridge node's boot waits until it has
+    subscribed to each of the bridge's topics. rosbag2 refuses a folder that exists."""
+    if folder.exists():
+        raise DynabarnError(f"{folder}: exists (ros2 bag record writes a new folder; move it or name another)")
+    if not folder.parent.is_dir():
+        raise DynabarnError(f"{folder.parent}: no such folder for the ROS 2 bag")
+    cmd = ["ros2", "bag", "record", "--all-topics", "--use-sim-time", "--storage", "mcap"]
+    cmd += ["--node-name", RECORDER, "--qos-profile-overrides-path", str(RECORDER_QOS), "--output", str(folder)]
+    return subprocess.Popen(
+        cmd,
+        env=env,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+        preexec_fn=die_with_parent(),
+    )
 
 
 def ros_planner(*, launch: str | None = None, master: str | None = None, **config) -> RosPlanner:

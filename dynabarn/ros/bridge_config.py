@@ -100,8 +100,9 @@ class BridgeConfig(CheckedConfig):
     command holds for it (a stack that plans, or runs a slower loop, skips periods)."""
     ready: str = "command"
     """When the boot ends: `command` (a /cmd_vel after the goal) or `subscribed` (the scan)."""
-    ready_timeout: float = 30.0
-    """Wall seconds the boot may take before the episode ends as an error naming what is missing."""
+    ready_timeout: float | None = None
+    """Wall seconds the boot may take before the episode ends as an error naming what is
+    missing (default: 30, or the `stack`'s own: `boot_limit`)."""
     stack_rate: float = 0.0
     """[Hz] of the stack's control loop when it runs from a timer (move_base:
     controller_frequency); 0: the stack answers each scan. Our stacks know theirs."""
@@ -125,6 +126,10 @@ class BridgeConfig(CheckedConfig):
     """Where `make ros2-core` built ROS 2 (default: `$DYNABARN_ROS2_WS` or ~/.cache/dynabarn/ros2)."""
     stack_log: str | None = None
     """File for the stack's output (default: this process's stderr; never its stdout)."""
+    ros2_bag: str | None = None
+    """A folder for `ros2 bag record` (rosbag2, MCAP) in the bridge's domain (ROS 2 only):
+    every topic the bridge and the stack publish, from the boot to the end; the episode
+    starts once the recorder has subscribed to each of the bridge's topics."""
     announce: bool = False
     """Say on stderr, as the episode starts, where the master is and where the stack's
     output goes (`dynabarn-ros`: a user who wants to `rostopic echo` the run needs it)."""
@@ -134,6 +139,8 @@ class BridgeConfig(CheckedConfig):
             raise ValueError(f"ready {self.ready!r}: use one of {', '.join(READY_WHEN)}")
         if self.ros not in (1, 2):
             raise ValueError(f"ros {self.ros!r}: use 1 or 2")
+        if self.ros2_bag is not None and self.ros != 2:
+            raise ValueError("ros2_bag: `ros2 bag record` runs on ROS 2 (ros 2) only")
         if not 0.0001 <= self.clock_step <= 0.1:
             raise ValueError(f"clock_step {self.clock_step!r}: use a step in [0.0001, 0.1] s")
 
@@ -148,6 +155,18 @@ class BridgeConfig(CheckedConfig):
 
             return STACKS[self.stack].timeout
         return 10.0
+
+    @property
+    def boot_limit(self) -> float:
+        """`ready_timeout`, or the stack's own where it is not given (Nav2 brings up its
+        servers one by one), or 30 s."""
+        if self.ready_timeout is not None:
+            return self.ready_timeout
+        if self.stack:
+            from dynabarn.ros.stacks import STACKS
+
+            return STACKS[self.stack].boot
+        return 30.0
 
     def check(self, what: str) -> None:
         """Across fields (`interfaces.planner.check_relations`): one way to start the stack,

@@ -14,6 +14,7 @@ import shutil
 import sys
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from dynabarn.errors import DynabarnError
@@ -28,10 +29,27 @@ def setup_script(workspace: Path) -> Path:
     return workspace / "install" / "setup.bash"
 
 
-def repos_file(repositories: dict[str, tuple[str, str]]) -> str:
-    """The repositories as a vcstool file (`vcs import SRC < FILE`)."""
+@dataclass(frozen=True)
+class Download:
+    """A source that a package's CMake would download (FetchContent), fetched with the rest
+    instead: the build points `FETCHCONTENT_SOURCE_DIR_<CONTENT>` at its folder, so nothing
+    is downloaded while building. Not a ROS package (no package.xml): its version is checked
+    by a line of one of its files."""
+
+    repository: str
+    version: str
+    content: str
+    """FetchContent's name for it (`fetchcontent_declare(NAME ...)`)."""
+    version_file: str
+    version_text: str
+    """Text `version_file` holds at this version."""
+
+
+def repos_file(repositories: dict[str, tuple[str, str]], downloads: dict[str, Download] | None = None) -> str:
+    """The repositories (and the downloads) as a vcstool file (`vcs import SRC < FILE`)."""
     lines = ["repositories:"]
-    for name, (repository, version) in repositories.items():
+    every = {**repositories, **{name: (d.repository, d.version) for name, d in (downloads or {}).items()}}
+    for name, (repository, version) in every.items():
         url = f"https://github.com/{repository}.git"
         lines += [f"  {name}:", "    type: git", f"    url: {url}", f"    version: {version}"]
     return "\n".join(lines) + "\n"
@@ -54,13 +72,23 @@ def find_sources(
     *,
     release: str,
     module: str,
+    downloads: dict[str, Download] | None = None,
 ) -> dict[str, Path]:
     """Each repository's folder in `source` (by its name, or vcstool's ORG/NAME), checked:
-    every one present, each of its packages at the release's version. One line naming what
-    is missing or other."""
+    every one present, each of its packages at the release's version, each download's
+    version line in place. One line naming what is missing or other."""
     if not source.is_dir():
         raise DynabarnError(f"{source}: no such folder (fetch the sources: python -m dynabarn.ros.{module} --repos)")
     folders, other, missing = {}, [], []
+    for name, download in (downloads or {}).items():
+        folder = next((p for p in (source / name, source / download.repository) if p.is_dir()), None)
+        marker = folder / download.version_file if folder is not None else None
+        if marker is None or not marker.is_file():
+            missing.append(name)
+        elif download.version_text not in marker.read_text(errors="replace"):
+            other.append(f"{name} (not {download.version}: {download.version_file} lacks {download.version_text!r})")
+        else:
+            folders[name] = folder
     for name, (repository, version) in repositories.items():
         folder = next((p for p in (source / name, source / repository) if p.is_dir()), None)
         versions = _package_versions(folder) if folder is not None else {}
@@ -103,15 +131,66 @@ def _folder_size(folder: Path) -> int:
     return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file() and not p.is_symlink())
 
 
-ARGUMENT_KEYS = ("cmake_args", "package_cmake_args")
-"""The record's keys for a build's CMake arguments (each left out when empty, so a record
-written before they were kept still describes a build without any)."""
+@dataclass(frozen=True)
+class SourceEdit:
+    """One change to a fetched file before it is built, where a release and Debian's
+    libraries disagree; each says why, and the build's record holds it."""
+
+    repository: str
+    """The folder's name in the sources (a key of the repositories)."""
+    file: str
+    old: str
+    new: str
+    why: str
 
 
-def _arguments(cmake_args: tuple[str, ...], package_cmake_args: dict[str, tuple[str, ...]]) -> dict:
-    """A build's CMake arguments as its record holds them."""
-    given = {"cmake_args": list(cmake_args), "package_cmake_args": {k: list(v) for k, v in package_cmake_args.items()}}
+ARGUMENT_KEYS = ("cmake_args", "package_cmake_args", "source_edits")
+"""The record's keys for a build's CMake arguments and source edits (each left out when
+empty, so a record written before they were kept still describes a build without any)."""
+
+
+def _arguments(
+    cmake_args: tuple[str, ...], package_cmake_args: dict[str, tuple[str, ...]], edits: tuple[SourceEdit, ...]
+) -> dict:
+    """A build's CMake arguments and source edits as its record holds them."""
+    given = {
+        "cmake_args": list(cmake_args),
+        "package_cmake_args": {k: list(v) for k, v in package_cmake_args.items()},
+        "source_edits": [[f"{e.repository}/{e.file}", e.old, e.new] for e in edits],
+    }
     return {key: value for key, value in given.items() if value}
+
+
+def _prepare_sources(
+    source: Path,
+    src: Path,
+    folders: dict[str, Path],
+    ignored: tuple[str, ...],
+    downloads: dict[str, Download],
+    edits: tuple[SourceEdit, ...],
+) -> list[str]:
+    """`source` copied to the build's `src` (without .git), the `ignored` packages and the
+    downloads hidden from colcon, the edits made; the CMake flags that give the downloads."""
+    if src.exists():
+        shutil.rmtree(src)
+    shutil.copytree(source, src, symlinks=True, ignore=shutil.ignore_patterns(".git"))
+    for package in ignored:
+        for xml in src.rglob("package.xml"):
+            if f"<name>{package}</name>" in xml.read_text(errors="replace"):
+                (xml.parent / "COLCON_IGNORE").write_text("left out by dynabarn.ros\n")
+    for edit in edits:
+        path = src / folders[edit.repository].relative_to(source) / edit.file
+        text = path.read_text()
+        if edit.old not in text:
+            raise DynabarnError(f"{edit.repository}/{edit.file}: the text to change is not there ({edit.old!r})")
+        path.write_text(text.replace(edit.old, edit.new))
+    # A download is CMake's source, not colcon's packages (mcap's tree holds Python ones).
+    fetched = []
+    for name, download in downloads.items():
+        folder = src / folders[name].relative_to(source)
+        (folder / "COLCON_IGNORE").write_text("a download, given to CMake by dynabarn.ros\n")
+        fetched.append(f"-DFETCHCONTENT_SOURCE_DIR_{download.content.upper()}={folder}")
+    return fetched
 
 
 def _current(done: dict, digest: str, packages: tuple[str, ...], arguments: dict, workspace: Path) -> bool:
@@ -139,17 +218,21 @@ def colcon_build(
     underlay: Path | None = None,
     cmake_args: tuple[str, ...] = (),
     package_cmake_args: dict[str, tuple[str, ...]] | None = None,
+    downloads: dict[str, Download] | None = None,
+    edits: tuple[SourceEdit, ...] = (),
 ) -> dict:
     """colcon over the checked sources `folders` of `source` into `workspace` (`install/`
     merged, `build/`, `build.log`, the marker written last), over the prefix `underlay`
     when given (its `setup.bash` sourced first), `package_cmake_args` {package: CMake
-    arguments of its own} built alone after the rest; `record` plus the packages, the sources'
-    digest, size and seconds, with `rebuilt`. Nothing is built when the marker names the
-    same sources, holds every package asked for and was built with the same arguments."""
+    arguments of its own} built alone after the rest, each of `downloads` given to CMake
+    from its folder, the `edits` made to the copy that is built; `record` plus the packages,
+    the sources' digest, size and seconds, with `rebuilt`. Nothing is built when the marker
+    names the same sources, holds every package asked for and was built with the same
+    arguments and edits."""
     if not Path("/usr/bin/python3").exists() or shutil.which("cmake") is None:
         raise DynabarnError("Debian's build tools are missing: `sudo make ros2-deps`")
     package_cmake_args = package_cmake_args or {}
-    arguments = _arguments(cmake_args, package_cmake_args)
+    arguments = _arguments(cmake_args, package_cmake_args, edits)
     digest = sources_digest(folders)
     done = read_marker(workspace / marker)
     if done is not None and _current(done, digest, packages, arguments, workspace):
@@ -157,13 +240,7 @@ def colcon_build(
     workspace.mkdir(parents=True, exist_ok=True)
     (workspace / marker).unlink(missing_ok=True)
     src = workspace / "src"
-    if src.exists():
-        shutil.rmtree(src)
-    shutil.copytree(source, src, symlinks=True, ignore=shutil.ignore_patterns(".git"))
-    for package in ignored:
-        for xml in src.rglob("package.xml"):
-            if f"<name>{package}</name>" in xml.read_text(errors="replace"):
-                (xml.parent / "COLCON_IGNORE").write_text("left out by dynabarn.ros\n")
+    fetched = _prepare_sources(source, src, folders, ignored, downloads or {}, edits)
     log_path = workspace / "build.log"
     t0 = time.monotonic()
     with log_path.open("w") as log:
@@ -176,7 +253,7 @@ def colcon_build(
             "--event-handlers", "console_direct-",
         ]  # fmt: skip
         flags = ["-DBUILD_TESTING=OFF", "-DTRACETOOLS_DISABLED=ON", "-DCMAKE_BUILD_TYPE=Release",
-                 "-DPython3_EXECUTABLE=/usr/bin/python3", *cmake_args]  # fmt: skip
+                 "-DPython3_EXECUTABLE=/usr/bin/python3", *fetched, *cmake_args]  # fmt: skip
         # Everything but the packages with flags of their own, then each of those alone.
         skip = ["--packages-skip", *package_cmake_args] if package_cmake_args else []
         runs = [[*common, "--packages-up-to", *packages, *skip, "--cmake-args", *flags]]
@@ -214,6 +291,7 @@ def build_command(
     build: Callable[[Path, Path, argparse.Namespace], dict],
     label: str,
     add_arguments: Callable[[argparse.ArgumentParser], None] | None = None,
+    downloads: dict[str, Download] | None = None,
 ) -> int:
     """The command line of a colcon build of ours (`ros2_build`, `nav2_build`): --source,
     --workspace, --jobs, --repos, and what `add_arguments` adds; `build(workspace, source,
@@ -234,7 +312,7 @@ def build_command(
     parser.add_argument("--repos", action="store_true", help="print the repositories and versions as a vcstool file")
     args = parser.parse_args(argv)
     if args.repos:
-        print(repos_file(repositories), end="")
+        print(repos_file(repositories, downloads), end="")
         return 0
     if args.source is None:
         parser.error(f"--source ({source_variable}) is required: the folder of fetched repositories (see --repos)")

@@ -78,6 +78,7 @@ def _arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--grace", type=float, default=0.5)
     parser.add_argument("--ready", choices=["subscribed", "command"], default="command")
     parser.add_argument("--ready-timeout", type=float, default=30.0)
+    parser.add_argument("--recorder", default="")  # a recorder node the boot waits for (ROS 2's)
     parser.add_argument("--clock-step", type=float, default=0.005)
     parser.add_argument("--stack-rate", type=float, default=0.0)
     parser.add_argument("--period", type=float, default=0.1)
@@ -231,6 +232,7 @@ class Node:
         self.goal_pub.publish(msg)
         deadline = time.monotonic() + a.ready_timeout
         ready = False
+        waiting = ""
         while time.monotonic() < deadline and not ready:
             time.sleep(0.02)
             subscribed = self.subscribers(self.scan_pub) > 0
@@ -239,10 +241,14 @@ class Node:
             with self.answer:
                 commanded = self.count > seen
             ready = subscribed if a.ready == "subscribed" else commanded
+            waiting = self.not_ready() if ready else ""
+            ready = ready and not waiting
         stop.set()
         thread.join()
         missing = ""
-        if not ready:
+        if waiting:
+            missing = waiting
+        elif not ready:
             if self.subscribers(self.scan_pub) == 0:
                 missing = "nothing subscribed to the scan"
             else:
@@ -252,6 +258,10 @@ class Node:
         # The episode starts at the next whole control period after the boot's clock.
         t0 = (math.floor(self.clock_now / a.period + 1e-9) + 1) * a.period
         return t0, ready, missing
+
+    def not_ready(self) -> str:
+        """What else the boot waits for once the stack is ready ("" for nothing)."""
+        return ""
 
     def _offer_action_goal(self, goal) -> None:
         """The goal through the `move_base` action too, as the challenge's run.py gives it,

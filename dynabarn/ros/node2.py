@@ -100,7 +100,28 @@ class Ros2Node(Node):
         self.tf_static.publish(TFMessage(transforms=[static]))
 
     def subscribers(self, publisher) -> int:
-        return publisher.get_subscription_count()
+        """Subscriptions to `publisher`'s topic, a recorder's (`--recorder`) not counted: it is not the stack."""
+        if not self.args.recorder:
+            return publisher.get_subscription_count()
+        found = self.ros.get_subscriptions_info_by_topic(publisher.topic_name)
+        return sum(info.node_name != self.args.recorder for info in found)
+
+    def not_ready(self) -> str:
+        """The recorder (`--recorder`: `ros2 bag record`) must have subscribed to every topic
+        the bridge publishes, and to each it takes that the stack publishes (/cmd_vel),
+        before the episode starts: the bag holds it whole."""
+        if not self.args.recorder:
+            return ""
+        topics = {publisher.topic_name for publisher in self.ros.publishers}
+        topics |= {s.topic_name for s in self.ros.subscriptions if self.ros.count_publishers(s.topic_name) > 0}
+        missing = sorted(
+            topic
+            for topic in topics
+            if not topic.startswith("/rosout")
+            and not topic.endswith("parameter_events")
+            and all(info.node_name != self.args.recorder for info in self.ros.get_subscriptions_info_by_topic(topic))
+        )
+        return f"the recorder {self.args.recorder} never subscribed to {', '.join(missing)}" if missing else ""
 
     def _stamp(self, t: float):
         return self.Time(sec=int(t), nanosec=round((t - int(t)) * 1e9) % 1_000_000_000)

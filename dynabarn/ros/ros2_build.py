@@ -1,6 +1,6 @@
 """Build the smallest ROS 2 Jazzy a navigation stack and the bridge need, from source,
 outside the package: rclcpp and rclpy over Debian's Cyclone DDS, the message packages, tf2,
-launch and the `ros2` command line.
+launch, the `ros2` command line and rosbag2 (`ros2 bag`, MCAP storage).
 
 ROS 2 is not packaged for current Debian (no `rclpy` on PyPI or in Debian), but its
 sources are public repositories and Debian packs what they build on (Cyclone DDS 0.10,
@@ -48,6 +48,7 @@ REPOSITORIES: dict[str, tuple[str, str]] = {
     "console_bridge_vendor": ("ros2/console_bridge_vendor", "1.7.1"),
     "eigen3_cmake_module": ("ros2/eigen3_cmake_module", "0.3.0"),
     "geometry2": ("ros2/geometry2", "0.36.7"),
+    "keyboard_handler": ("ros-tooling/keyboard_handler", "0.3.1"),
     "launch": ("ros2/launch", "3.4.3"),
     "launch_ros": ("ros2/launch_ros", "0.26.6"),
     "libstatistics_collector": ("ros-tooling/libstatistics_collector", "1.7.4"),
@@ -70,6 +71,7 @@ REPOSITORIES: dict[str, tuple[str, str]] = {
     "rmw_dds_common": ("ros2/rmw_dds_common", "3.1.0"),
     "rmw_implementation": ("ros2/rmw_implementation", "2.15.4"),
     "ros2_tracing": ("ros2/ros2_tracing", "8.2.3"),
+    "rosbag2": ("ros2/rosbag2", "0.26.6"),
     "ros2cli": ("ros2/ros2cli", "0.32.2"),
     "ros_environment": ("ros/ros_environment", "4.2.1"),
     "rosidl": ("ros2/rosidl", "4.6.5"),
@@ -86,6 +88,43 @@ REPOSITORIES: dict[str, tuple[str, str]] = {
     "yaml_cpp_vendor": ("ros2/yaml_cpp_vendor", "9.0.1"),
 }
 """Every repository the core is built from, with its version in the sync (`SYNC`)."""
+DOWNLOADS = {
+    # mcap_vendor's CMake downloads MCAP's C++ library (this tag's tarball) at build time.
+    "mcap": colcon.Download(
+        "foxglove/mcap",
+        "releases/cpp/v1.3.0",
+        content="mcap",
+        version_file="cpp/mcap/include/mcap/types.hpp",
+        version_text='#define MCAP_LIBRARY_VERSION "1.3.0"',
+    ),
+}
+"""Sources a package's CMake would download, fetched with the repositories instead."""
+_YAML_CPP_07 = (
+    "Debian has yaml-cpp 0.7 and yaml_cpp_vendor asks for 0.8, else it clones 0.8 with vcstool while "
+    "building (no network here); rosbag2, its only user in the core, builds and runs on 0.7"
+)
+EDITS = (
+    colcon.SourceEdit(
+        "yaml_cpp_vendor",
+        "CMakeLists.txt",
+        "find_package(yaml-cpp 0.8.0 QUIET",
+        "find_package(yaml-cpp 0.7.0 QUIET",
+        why=_YAML_CPP_07,
+    ),
+    colcon.SourceEdit(
+        "yaml_cpp_vendor",
+        "yaml_cpp_vendor-extras.cmake.in",
+        "message(STATUS \"Setting yaml-cpp_DIR to: '${yaml-cpp_DIR}'\")",
+        "message(STATUS \"Setting yaml-cpp_DIR to: '${yaml-cpp_DIR}'\")\n"
+        "find_package(yaml-cpp REQUIRED)\n"
+        "if(TARGET yaml-cpp AND NOT TARGET yaml-cpp::yaml-cpp)\n"
+        "  add_library(yaml-cpp::yaml-cpp INTERFACE IMPORTED)\n"
+        "  set_target_properties(yaml-cpp::yaml-cpp PROPERTIES INTERFACE_LINK_LIBRARIES yaml-cpp)\n"
+        "endif()",
+        why=_YAML_CPP_07 + " (0.7 names its target yaml-cpp; 0.8 yaml-cpp::yaml-cpp, which rosbag2 links)",
+    ),
+)
+"""Changes to the fetched sources before they are built (`colcon.SourceEdit`)."""
 
 CORE_PACKAGES = (
     "rclpy",
@@ -123,6 +162,9 @@ CORE_PACKAGES = (
     "tf2_sensor_msgs",
     "sensor_msgs_py",
     "ros_environment",
+    # `ros2 bag record` / `play` against the bridge, in MCAP (rosbag2's default storage)
+    "ros2bag",
+    "rosbag2_storage_mcap",
 )
 """What the bridge and a navigation stack use; colcon builds these and what they depend on."""
 IGNORED = (
@@ -134,6 +176,8 @@ IGNORED = (
     "tf2_eigen_kdl",
     "tf2_bullet",
     "python_orocos_kdl_vendor",
+    "rosbag2_test_common",
+    "rosbag2_test_msgdefs",
 )
 """Packages left out (test interfaces that `--packages-up-to` would follow; tf2's Python
 KDL and Bullet bindings, which need libraries a navigation stack does not)."""
@@ -158,6 +202,8 @@ BUILD_DEPENDENCIES = [
     "libeigen3-dev",
     "libacl1-dev",
     "liborocos-kdl-dev",
+    "libzstd-dev",  # rosbag2's zstd_vendor and liblz4_vendor take Debian's (MCAP's compression)
+    "liblz4-dev",
 ]
 """Debian's packages for the build (`make ros2-deps` installs them)."""
 WORKSPACE_ENV = "DYNABARN_ROS2_WS"
@@ -175,25 +221,33 @@ def built(workspace: Path) -> dict | None:
 
 def repos_file() -> str:
     """`REPOSITORIES` as a vcstool file (`vcs import ROS2_SRC < FILE`)."""
-    return colcon.repos_file(REPOSITORIES)
+    return colcon.repos_file(REPOSITORIES, DOWNLOADS)
 
 
 def find_sources(source: Path) -> dict[str, Path]:
     """Each repository's folder in `source`, checked against the sync (`colcon.find_sources`)."""
-    return colcon.find_sources(source, REPOSITORIES, release=SYNC, module="ros2_build")
+    return colcon.find_sources(source, REPOSITORIES, release=SYNC, module="ros2_build", downloads=DOWNLOADS)
 
 
 def build(workspace: Path, source: Path, *, jobs: int = 2) -> dict:
-    """The sources checked, then colcon (about 11 minutes on 2 cores); the description."""
+    """The sources checked, then colcon (about 14 minutes on 2 cores); the description."""
     return colcon_build(
         workspace,
         source,
         find_sources(source),
         packages=CORE_PACKAGES,
         ignored=IGNORED,
-        record={"sync": SYNC, "sources": {name: version for name, (_, version) in REPOSITORIES.items()}},
+        record={
+            "sync": SYNC,
+            "sources": {
+                **{name: version for name, (_, version) in REPOSITORIES.items()},
+                **{name: download.version for name, download in DOWNLOADS.items()},
+            },
+        },
         marker=MARKER,
-        what=f"ROS 2 ({SYNC}): about 11 minutes on 2 cores",
+        downloads=DOWNLOADS,
+        edits=EDITS,
+        what=f"ROS 2 ({SYNC}): about 14 minutes on 2 cores",
         jobs=jobs,
     )
 
@@ -210,6 +264,7 @@ def main(argv: list[str] | None = None) -> int:
         default=default_workspace,
         default_shown="~/.cache/dynabarn/ros2",
         repositories=REPOSITORIES,
+        downloads=DOWNLOADS,
         build=lambda workspace, source, args: build(workspace, source, jobs=args.jobs),
         label=f"ROS 2 {SYNC}",
     )

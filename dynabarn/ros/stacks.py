@@ -33,6 +33,9 @@ class Stack:
     timeout: float = 10.0
     """Wall seconds the stack may send no /cmd_vel before the episode is an error (the
     bridge's `timeout` where none is given)."""
+    boot: float = 30.0
+    """Wall seconds the stack may take to start (the bridge's `ready_timeout` where none is
+    given)."""
 
 
 def _nav2(controller: str, about: str) -> Stack:
@@ -47,12 +50,18 @@ def _nav2(controller: str, about: str) -> Stack:
         control_rate=0.0,
         ros=2,
         timeout=NAV2_SILENCE,
+        boot=NAV2_BOOT,
     )
 
 
 NAV2_SILENCE = 60.0
 """[s] Nav2's recoveries send no /cmd_vel while they run (its default tree's Wait: 5 s of ROS
 time, which lockstep holds period by period, each after its grace)."""
+
+NAV2_BOOT = 90.0
+"""[s] Nav2 brings up five lifecycle servers, a BT navigator's plugins and two costmaps
+before its first /cmd_vel: about 8 s here when idle, over 30 s on this machine under two
+other Nav2 runs (one episode of the sweeps ended as an error at 30)."""
 
 STACKS: Registry[Stack] = Registry(
     "ROS stack",
