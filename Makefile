@@ -10,7 +10,7 @@ TEST_STAMP := $(VENV)/.installed-test
 DOCS_STAMP := $(VENV)/.installed-docs
 LOCK := requirements.lock
 # The extras the tests exercise; the lock covers the package and all of them.
-EXTRAS := test,ray,learn,ros,docs
+EXTRAS := test,ray,learn,ros,docs,gpu
 
 .PHONY: install demo worlds test test-fast docs docs-serve lint format bench clean system-deps ros-deps ros-nav-deps ros-nav ros-teb-deps ros-teb ros2-deps ros2-core nav2-deps nav2 lock verify-golden readme
 

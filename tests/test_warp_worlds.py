@@ -1,0 +1,98 @@
+"""The Warp backend's worlds (`learn.warp_worlds`) against MuJoCo's C engine, on Warp's CPU
+device: the same commands give the same robot, obstacles, scans and contacts, within
+float32's reach (not bit for bit: another solver path). Warp compiles its kernels on first
+use (about 40 s on an idle 2-core machine) and keeps them in its kernel cache."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dynabarn.protocol import get_protocol
+from dynabarn.sim.episode import Episode
+from dynabarn.sim.simulation import Simulation
+
+pytest.importorskip("warp", reason="the Warp backend needs MuJoCo Warp: pip install 'dynabarn[gpu]'")
+pytest.importorskip("mujoco_warp", reason="the Warp backend needs MuJoCo Warp: pip install 'dynabarn[gpu]'")
+
+from dynabarn.learn.warp_worlds import WarpWorlds
+
+WORLD = "generated_worlds/world_137.xml"
+POSE_M = 1e-3
+"""[m, rad] the largest pose difference allowed (measured: 0.044 mm over a 112-period episode)."""
+SCAN_M = 1.5e-3
+"""[m] a beam may differ by one step of the laser's 1 mm grid (float32 rounding near a half)."""
+OBSTACLE_M = 1e-4
+"""[m] scheduled obstacles (measured: about 1 um in float32)."""
+
+
+def _c_episode(seed: int = 0) -> tuple[Simulation, Episode]:
+    sim = Simulation(WORLD)
+    return sim, Episode(sim, get_protocol("barn"), seed=seed)
+
+
+def _c_ranges(sim: Simulation) -> np.ndarray:
+    ranges = sim.laser.cast(sim.model, sim.data, float(sim.data.qpos[2]))
+    return np.clip(np.rint(ranges / 1e-3) * 1e-3, 0.1, 30.0)
+
+
+def test_the_batch_follows_the_c_engine_through_a_planners_episode():
+    """`predictive` drives world 137 on the C engine to the goal; the same commands in two
+    Warp worlds give the same poses, obstacles and scans every period, and no contact."""
+    from dynabarn.planners.registry import get_planner
+
+    sim, episode = _c_episode()
+    batch = WarpWorlds(WORLD, 2, device="cpu")
+    batch.reset(np.ones(2, bool), np.tile(sim.data.qpos[:3], (2, 1)), np.full(2, episode.clock_offset))
+    planner = get_planner("predictive")
+    planner.reset(episode.info)
+    periods = 0
+    while episode.outcome is None:
+        v, w = planner.act(episode.observe())
+        assert np.abs(batch.pose.numpy()[:, :3] - sim.data.qpos[:3]).max() <= POSE_M, periods
+        mocap = batch.d.mocap_pos.numpy()[:, : batch.n_obstacles, :2]
+        assert np.abs(mocap - sim.data.mocap_pos[: batch.n_obstacles, :2]).max() <= OBSTACLE_M, periods
+        assert np.abs(batch.scan.numpy() - _c_ranges(sim)).max() <= SCAN_M, periods
+        episode.apply(v, w)
+        batch.step(np.tile([v, w], (2, 1)))
+        periods += 1
+    assert episode.outcome.value == "success" and periods > 100
+    assert not batch.touched.numpy().any()
+
+
+def test_a_contact_is_seen_in_the_period_the_c_engine_ends_with_it():
+    """Full speed on a weaving line into world 137's obstacles: the C engine ends the
+    episode with a collision, and the Warp worlds touch in that same period, not before."""
+    sim, episode = _c_episode()
+    batch = WarpWorlds(WORLD, 2, device="cpu")
+    batch.reset(np.ones(2, bool), np.tile(sim.data.qpos[:3], (2, 1)), np.full(2, episode.clock_offset))
+    for period in range(100):
+        episode.observe()
+        command = (1.0, 0.3 * np.sin(period / 8.0))
+        episode.apply(*command)
+        batch.step(np.tile(command, (2, 1)))
+        touched = batch.touched.numpy()
+        if episode.outcome is not None:
+            assert episode.outcome.value == "collision" and touched.all(), (period, touched)
+            return
+        assert not touched.any(), period
+    pytest.fail("the C engine's episode did not collide")
+
+
+def test_a_reset_mask_restarts_its_worlds_and_leaves_the_others_going():
+    sim, episode = _c_episode()
+    spawn = np.tile(sim.data.qpos[:3], (2, 1))
+    batch = WarpWorlds(WORLD, 2, device="cpu")
+    batch.reset(np.ones(2, bool), spawn, np.full(2, episode.clock_offset))
+    for _ in range(5):
+        batch.step(np.tile([0.8, 0.0], (2, 1)))
+    before = batch.pose.numpy()[:, :3].copy()
+    assert np.all(np.hypot(*(before[:, :2] - spawn[:, :2]).T) > 0.3)  # both drove on
+    batch.reset(np.array([False, True]), spawn, np.full(2, episode.clock_offset + 1.0))
+    after = batch.pose.numpy()[:, :3]
+    assert np.array_equal(after[0], before[0]) and np.allclose(after[1], spawn[1], atol=1e-6)
+    assert list(batch.steps.numpy()) == [5 * batch.k, 0]
+    assert batch.clock_offset.numpy()[0] == pytest.approx(episode.clock_offset)
+    batch.step(np.tile([0.8, 0.0], (2, 1)))  # world 1 starts from rest: the acceleration limit again
+    moved = np.hypot(*(batch.pose.numpy()[:, :2] - np.stack([before[0, :2], spawn[1, :2]])).T)
+    assert moved[0] > moved[1] > 0.0
