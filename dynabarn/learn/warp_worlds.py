@@ -12,14 +12,19 @@ through the host:
 2. `k` physics steps, each after the obstacles are placed at that step's time from their
    keyframe schedules (linear or Catmull-Rom Hermite, loop or hold, each world's own clock
    offset), the kernel `_place_obstacles`, as `worlds.schedule` evaluates them;
-3. whether a step touched (any contact of a world: in these worlds every contact is the
-   robot's), kept until the world is reset;
+3. after each step, the protocol's checks in the C engine's order (`Episode._judge`): a
+   contact (any of the world's: in these worlds every contact is the robot's) ends it as a
+   collision; else the clock starts once the robot has left its spawn, the goal region
+   ends it as a success, the time limit as a timeout; the outcome and its step are kept
+   until the world is reset (a world that ended goes on stepping, judged no more);
 4. the obstacles placed at the next period's start, then the scan: the model's 720
-   rangefinders (the static field included), no return read as the range's end, clipped
-   to the laser's range and put on its 1 mm grid, as `sim.laser` does.
+   rangefinders (the static field included), no return read as the range's end, the
+   laser's Gaussian noise (each world's own seed and period: Warp's counter-based random
+   numbers, not numpy's stream), clipped to the laser's range and put on its 1 mm grid, as
+   `sim.laser` does.
 
-Not yet on the device (named departures): obstacles that react to the robot (`yield`,
-`avoid`) are refused, and the laser's noise is not added.
+Not yet on the device (a named departure): obstacles that react to the robot (`yield`,
+`avoid`) are refused.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ import numpy as np
 from dynabarn.determinism import COMMAND_RESOLUTION, LASER_RESOLUTION
 from dynabarn.errors import DynabarnError, NotInstalledHere
 from dynabarn.mjcf import load_model, read_world
+from dynabarn.protocol import EvalProtocol, GoalRegion, get_protocol
 from dynabarn.robot import JACKAL
 from dynabarn.sim_config import SimConfig
 from dynabarn.worlds.schedule import keyframes_of
@@ -42,6 +48,11 @@ try:
     import warp as wp
 except ImportError:  # the `gpu` extra; the module's kernels are defined only with it
     mjw = wp = None
+
+
+OUTCOMES = ("running", "success", "collision", "timeout")
+"""`WarpWorlds.outcome`'s codes: 0 while a world runs, then how it ended (`Outcome`'s names)."""
+RUNNING, SUCCESS, COLLISION, TIMEOUT = range(4)
 
 
 def _require_warp() -> None:
@@ -55,7 +66,6 @@ if wp is not None:
     def _place_obstacles(
         steps: wp.array(dtype=int),
         dt: float,
-        lead: int,
         clock_offset: wp.array(dtype=float),
         durations: wp.array(dtype=float),
         seg_lo: wp.array(dtype=int),
@@ -67,9 +77,9 @@ if wp is not None:
         spline: int,
         mocap_pos: wp.array2d(dtype=wp.vec3),
     ):
-        """Obstacle i of world w at the time of that world's step `steps[w] + lead`."""
+        """Obstacle i of world w at the time of that world's step `steps[w]`."""
         w, i = wp.tid()
-        tl = wp.float32(steps[w] + lead) * dt + clock_offset[w]
+        tl = wp.float32(steps[w]) * dt + clock_offset[w]
         span = durations[i]
         if loop != 0:  # noqa: SIM108 (a Warp kernel: plain branches)
             tl = tl - span * wp.floor(tl / span)
@@ -121,55 +131,133 @@ if wp is not None:
         steps[wp.tid()] += 1
 
     @wp.kernel
-    def _note_contacts(nacon: wp.array(dtype=int), worldid: wp.array(dtype=int), touched: wp.array(dtype=int)):
+    def _note_contacts(
+        nacon: wp.array(dtype=int),
+        worldid: wp.array(dtype=int),
+        contact_now: wp.array(dtype=int),
+        touched: wp.array(dtype=int),
+    ):
         c = wp.tid()
         if c < nacon[0]:
+            contact_now[worldid[c]] = 1
             touched[worldid[c]] = 1
+
+    @wp.kernel
+    def _judge(
+        qpos: wp.array2d(dtype=float),
+        steps: wp.array(dtype=int),
+        contact_now: wp.array(dtype=int),
+        spawn: wp.array(dtype=wp.vec3),
+        goal: wp.vec2,
+        rules: wp.vec4,
+        square: int,
+        dt: float,
+        outcome: wp.array(dtype=int),
+        t_start: wp.array(dtype=float),
+        end_step: wp.array(dtype=int),
+    ):
+        """The step just taken, judged as `Episode._judge` judges it. rules: the goal's
+        tolerance, the time limit, the distance that starts the clock, unused."""
+        w = wp.tid()
+        contact_now_w = contact_now[w]
+        contact_now[w] = 0
+        if outcome[w] != RUNNING:
+            return
+        if contact_now_w != 0:
+            outcome[w] = COLLISION
+            end_step[w] = steps[w]
+            return
+        x = qpos[w, 0]
+        y = qpos[w, 1]
+        t = wp.float32(steps[w]) * dt
+        moved = wp.vec2(x - spawn[w][0], y - spawn[w][1])
+        if t_start[w] < 0.0 and wp.dot(moved, moved) >= rules[2] * rules[2]:
+            t_start[w] = t
+        off = wp.vec2(x - goal[0], y - goal[1])
+        inside = wp.dot(off, off) < rules[0] * rules[0]
+        if square != 0:
+            inside = wp.abs(off[0]) < rules[0] and wp.abs(off[1]) < rules[0]
+        if inside:
+            outcome[w] = SUCCESS
+            end_step[w] = steps[w]
+        elif t - wp.max(t_start[w], 0.0) >= rules[1]:
+            outcome[w] = TIMEOUT
+            end_step[w] = steps[w]
 
     @wp.kernel
     def _scan(
         sensordata: wp.array2d(dtype=float),
         first: int,
-        range_min: float,
-        range_max: float,
+        laser: wp.vec3,
         grid: float,
+        seed: wp.array(dtype=int),
+        steps: wp.array(dtype=int),
         scan: wp.array2d(dtype=float),
     ):
-        """A rangefinder's distance (-1: no return) as `sim.laser` reads a beam."""
+        """A rangefinder's distance (-1: no return) as `sim.laser` reads a beam. laser: the
+        range's ends and the noise's standard deviation (0: none)."""
         w, b = wp.tid()
+        nbeam = scan.shape[1]
         r = sensordata[w, first + b]
         if r < 0.0:
-            r = range_max
-        scan[w, b] = wp.rint(wp.clamp(r, range_min, range_max) / grid) * grid
+            r = laser[1]
+        if laser[2] > 0.0:  # each world's seed, each period and beam its own number
+            state = wp.rand_init(seed[w], steps[w] * nbeam + b)
+            r = r + laser[2] * wp.randn(state)
+        scan[w, b] = wp.rint(wp.clamp(r, laser[0], laser[1]) / grid) * grid
 
     @wp.kernel
     def _reset_worlds(
         mask: wp.array(dtype=int),
-        spawn: wp.array(dtype=wp.vec3),
+        new_spawn: wp.array(dtype=wp.vec3),
+        new_seed: wp.array(dtype=int),
+        new_offset: wp.array(dtype=float),
         qpos: wp.array2d(dtype=float),
+        spawn: wp.array(dtype=wp.vec3),
+        seed: wp.array(dtype=int),
+        clock_offset: wp.array(dtype=float),
         steps: wp.array(dtype=int),
         previous: wp.array(dtype=wp.vec2),
         touched: wp.array(dtype=int),
+        outcome: wp.array(dtype=int),
+        t_start: wp.array(dtype=float),
+        end_step: wp.array(dtype=int),
     ):
         w = wp.tid()
         if mask[w] != 0:
-            qpos[w, 0] = spawn[w][0]
-            qpos[w, 1] = spawn[w][1]
-            qpos[w, 2] = spawn[w][2]
+            for j in range(3):
+                qpos[w, j] = new_spawn[w][j]
+            spawn[w] = new_spawn[w]
+            seed[w] = new_seed[w]
+            clock_offset[w] = new_offset[w]
             steps[w] = 0
             previous[w] = wp.vec2(0.0, 0.0)
             touched[w] = 0
+            outcome[w] = RUNNING
+            t_start[w] = -1.0
+            end_step[w] = 0
 
 
 class WarpWorlds:
     """`nworld` copies of one world on a Warp device (`"cpu"`, `"cuda"`, `"cuda:1"`): the
-    robot, the scheduled obstacles, the scan and the contacts of each, stepped together.
+    robot, the scheduled obstacles, the scan, the contacts and the protocol's judgement of
+    each, stepped together.
 
-    State lives on the device; `scan`, `pose` and `touched` are Warp arrays there (hand
-    them to PyTorch with `wp.to_torch`, no copy). Every world starts where `reset` puts it
-    and ends when its caller says (a reset mask), without stopping the others."""
+    State lives on the device; `scan`, `pose`, `outcome` and the rest are Warp arrays there
+    (hand them to PyTorch with `wp.to_torch`, no copy). Every world starts where `reset`
+    puts it and ends as the protocol says (`outcome`, `end_step`); its caller restarts the
+    worlds it chooses with a mask, without stopping the others."""
 
-    def __init__(self, world_path: Path | str, nworld: int, *, device: str = "cpu", config: SimConfig = SimConfig()):
+    def __init__(
+        self,
+        world_path: Path | str,
+        nworld: int,
+        *,
+        device: str = "cpu",
+        protocol: EvalProtocol | str = "barn",
+        laser_noise: bool = True,
+        config: SimConfig = SimConfig(),
+    ):
         _require_warp()
         if nworld < 1:
             raise DynabarnError(f"nworld {nworld}: at least 1")
@@ -179,55 +267,69 @@ class WarpWorlds:
             raise DynabarnError(
                 f"{world_path}: obstacles that react to the robot ({', '.join(reactive)}) are not on the Warp backend"
             )
+        self.protocol = get_protocol(protocol) if isinstance(protocol, str) else protocol
         self.config, self.nworld, self.device = config, nworld, device
         self.k = config.steps_per_tick
         model = load_model(world_path, beam_sensors=True)  # the Jackal with its 720 rangefinders
         model.opt.timestep = config.dt
         model.sensor_interval[:, 0] = 0.0  # every beam read whenever the sensors are computed
-        self.model_c = model
         rangefinders = np.flatnonzero(model.sensor_type == mujoco.mjtSensor.mjSENS_RANGEFINDER)
         self.n_beams = len(rangefinders)
         self._first_beam = int(model.sensor_adr[rangefinders[0]])
         keys = keyframes_of(self.world)
+        self.n_obstacles = keys.n
         with wp.ScopedDevice(device):
             self.m = mjw.put_model(model)
             self.d = mjw.make_data(model, nworld=nworld)
             self.steps = wp.zeros(nworld, dtype=int)
+            """Physics steps since each world's reset."""
             self.clock_offset = wp.zeros(nworld, dtype=float)
+            self.seed = wp.zeros(nworld, dtype=int)
+            self.spawn = wp.zeros(nworld, dtype=wp.vec3)
             self.previous = wp.zeros(nworld, dtype=wp.vec2)
             self.touched = wp.zeros(nworld, dtype=int)
+            self.contact_now = wp.zeros(nworld, dtype=int)
+            self.outcome = wp.zeros(nworld, dtype=int)
+            """`OUTCOMES`' code of each world: 0 while it runs."""
+            self.t_start = wp.full(nworld, -1.0, dtype=float)
+            self.end_step = wp.zeros(nworld, dtype=int)
+            """The physics step each world's episode ended at (0 while it runs)."""
             self.scan = wp.zeros((nworld, self.n_beams), dtype=float)
-            self.n_obstacles = keys.n
             if keys.n:
-                self._keys = (
+                self._keys = [
                     wp.array(keys.durations, dtype=float),
                     wp.array(keys.seg_lo, dtype=int),
                     wp.array(keys.seg_hi, dtype=int),
                     wp.array(keys.flat_t, dtype=float),
                     wp.array(keys.flat_p, dtype=wp.vec2),
                     wp.array(keys.flat_m, dtype=wp.vec2),
-                )
+                ]
         self._loop = int(EndBehavior(self.world.end_behavior) is EndBehavior.LOOP)
         self._spline = int(Interpolation(self.world.interpolation) is Interpolation.SPLINE)
-        period = self.k * config.dt
-        self._limits = wp.vec3(JACKAL.v_min, JACKAL.v_max, JACKAL.w_max)
+        period, p, rules = self.k * config.dt, JACKAL, self.protocol
+        self._limits = wp.vec3(p.v_min, p.v_max, p.w_max)
         self._change = wp.vec2(config.max_linear_accel * period, config.max_angular_accel * period)
+        self._laser = wp.vec3(p.laser_range_min, p.laser_range_max, p.laser_noise_std if laser_noise else 0.0)
+        self._goal = wp.vec2(*self.world.layout.goal[:2])
+        self._rules = wp.vec4(rules.goal_tolerance, rules.time_limit, rules.timer_start_distance, 0.0)
+        self._square = int(rules.goal_region == GoalRegion.SQUARE)
 
-    def reset(self, mask: np.ndarray, spawn: np.ndarray, clock_offset: np.ndarray) -> None:
+    def reset(self, mask, spawn, clock_offset, seed) -> None:
         """Worlds where `mask` (nworld,) is set start again: the robot at `spawn` (nworld, 3)
-        at rest, time 0, the obstacles' clocks at `clock_offset` (nworld,) [s]; the others
-        go on untouched. Then the scan of every world is current."""
+        at rest, time 0, the obstacles' clocks at `clock_offset` (nworld,) [s], the laser's
+        noise from `seed` (nworld,); the rows of the others are not read, and those worlds
+        go on untouched. Then every world's scan is current."""
         with wp.ScopedDevice(self.device):
             mask_d = wp.array(np.asarray(mask, dtype=np.int32))
             mjw.reset_data(self.m, self.d, reset=mask_d)
-            offsets = np.where(mask, clock_offset, self.clock_offset.numpy())
-            wp.copy(self.clock_offset, wp.array(offsets, dtype=float))
-            spawn_d = wp.array(np.asarray(spawn, dtype=np.float32), dtype=wp.vec3)
-            wp.launch(
-                _reset_worlds,
-                self.nworld,
-                inputs=[mask_d, spawn_d, self.d.qpos, self.steps, self.previous, self.touched],
-            )
+            new = [
+                wp.array(np.asarray(spawn, dtype=np.float32), dtype=wp.vec3),
+                wp.array(np.asarray(seed, dtype=np.int32), dtype=int),
+                wp.array(np.asarray(clock_offset, dtype=np.float32), dtype=float),
+            ]
+            state = [self.spawn, self.seed, self.clock_offset, self.steps, self.previous, self.touched]
+            state += [self.outcome, self.t_start, self.end_step]
+            wp.launch(_reset_worlds, self.nworld, inputs=[mask_d, *new, self.d.qpos, *state])
             self._observe()
 
     def step(self, commands) -> None:
@@ -241,36 +343,39 @@ class WarpWorlds:
                 self.nworld,
                 inputs=[commands, self.previous, self._limits, self._change, COMMAND_RESOLUTION, self.d.ctrl],
             )
+            judged = [self.d.qpos, self.steps, self.contact_now, self.spawn, self._goal, self._rules, self._square]
+            judged += [self.config.dt, self.outcome, self.t_start, self.end_step]
             for _ in range(self.k):
-                self._place(0)
+                self._place()
                 mjw.step(self.m, self.d)
                 wp.launch(
                     _note_contacts,
                     self.d.naconmax,
-                    inputs=[self.d.nacon, self.d.contact.worldid, self.touched],
+                    inputs=[self.d.nacon, self.d.contact.worldid, self.contact_now, self.touched],
                 )
                 wp.launch(_advance, self.nworld, inputs=[self.steps])
+                wp.launch(_judge, self.nworld, inputs=judged)
             self._observe()
 
-    def _place(self, lead: int) -> None:
+    def _place(self) -> None:
+        """Each world's obstacles at the time of its current step."""
         if self.n_obstacles:
             wp.launch(
                 _place_obstacles,
                 (self.nworld, self.n_obstacles),
-                inputs=[self.steps, self.config.dt, lead, self.clock_offset, *self._keys, self._loop, self._spline],
+                inputs=[self.steps, self.config.dt, self.clock_offset, *self._keys, self._loop, self._spline],
                 outputs=[self.d.mocap_pos],
             )
 
     def _observe(self) -> None:
         """The obstacles where the next period starts, the kinematics, then the scan."""
-        self._place(0)
+        self._place()
         mjw.kinematics(self.m, self.d)
         mjw.sensor_pos(self.m, self.d)
-        p = JACKAL
         wp.launch(
             _scan,
             (self.nworld, self.n_beams),
-            inputs=[self.d.sensordata, self._first_beam, p.laser_range_min, p.laser_range_max, LASER_RESOLUTION],
+            inputs=[self.d.sensordata, self._first_beam, self._laser, LASER_RESOLUTION, self.seed, self.steps],
             outputs=[self.scan],
         )
 
