@@ -155,6 +155,7 @@ if wp is not None:
         outcome: wp.array(dtype=int),
         t_start: wp.array(dtype=float),
         end_step: wp.array(dtype=int),
+        end_pose: wp.array(dtype=wp.vec3),
     ):
         """The step just taken, judged as `Episode._judge` judges it. rules: the goal's
         tolerance, the time limit, the distance that starts the clock, unused."""
@@ -163,6 +164,7 @@ if wp is not None:
         contact_now[w] = 0
         if outcome[w] != RUNNING:
             return
+        end_pose[w] = wp.vec3(qpos[w, 0], qpos[w, 1], qpos[w, 2])  # kept once it ends
         if contact_now_w != 0:
             outcome[w] = COLLISION
             end_step[w] = steps[w]
@@ -294,6 +296,8 @@ class WarpWorlds:
             self.t_start = wp.full(nworld, -1.0, dtype=float)
             self.end_step = wp.zeros(nworld, dtype=int)
             """The physics step each world's episode ended at (0 while it runs)."""
+            self.end_pose = wp.zeros(nworld, dtype=wp.vec3)
+            """The robot's pose at that step (where the episode's final observation is made)."""
             self.scan = wp.zeros((nworld, self.n_beams), dtype=float)
             if keys.n:
                 self._keys = [
@@ -320,21 +324,26 @@ class WarpWorlds:
         noise from `seed` (nworld,); the rows of the others are not read, and those worlds
         go on untouched. Then every world's scan is current."""
         with wp.ScopedDevice(self.device):
-            mask_d = wp.array(np.asarray(mask, dtype=np.int32))
-            mjw.reset_data(self.m, self.d, reset=mask_d)
-            new = [
+            self.restart(
+                wp.array(np.asarray(mask, dtype=np.int32)),
                 wp.array(np.asarray(spawn, dtype=np.float32), dtype=wp.vec3),
-                wp.array(np.asarray(seed, dtype=np.int32), dtype=int),
                 wp.array(np.asarray(clock_offset, dtype=np.float32), dtype=float),
-            ]
-            state = [self.spawn, self.seed, self.clock_offset, self.steps, self.previous, self.touched]
-            state += [self.outcome, self.t_start, self.end_step]
-            wp.launch(_reset_worlds, self.nworld, inputs=[mask_d, *new, self.d.qpos, *state])
+                wp.array(np.asarray(seed, dtype=np.int32), dtype=int),
+            )
             self._observe()
 
-    def step(self, commands) -> None:
+    def restart(self, mask, spawn, clock_offset, seed) -> None:
+        """`reset`'s restart from arrays on the device (no trip through the host), without
+        the scan: a vector environment resets the worlds that ended, then observes all."""
+        mjw.reset_data(self.m, self.d, reset=mask)
+        state = [self.spawn, self.seed, self.clock_offset, self.steps, self.previous, self.touched]
+        state += [self.outcome, self.t_start, self.end_step]
+        wp.launch(_reset_worlds, self.nworld, inputs=[mask, spawn, seed, clock_offset, self.d.qpos, *state])
+
+    def step(self, commands, *, observe: bool = True) -> None:
         """One control period of every world: `commands` (nworld, 2) [v m/s, w rad/s], a
-        Warp array of vec2 on the device (or anything `wp.array` takes)."""
+        Warp array of vec2 on the device (or anything `wp.array` takes); `observe=False`
+        leaves the period's first scan in `scan` (a caller that observes later)."""
         with wp.ScopedDevice(self.device):
             if not isinstance(commands, wp.array):
                 commands = wp.array(np.asarray(commands, dtype=np.float32), dtype=wp.vec2)
@@ -344,7 +353,7 @@ class WarpWorlds:
                 inputs=[commands, self.previous, self._limits, self._change, COMMAND_RESOLUTION, self.d.ctrl],
             )
             judged = [self.d.qpos, self.steps, self.contact_now, self.spawn, self._goal, self._rules, self._square]
-            judged += [self.config.dt, self.outcome, self.t_start, self.end_step]
+            judged += [self.config.dt, self.outcome, self.t_start, self.end_step, self.end_pose]
             for _ in range(self.k):
                 self._place()
                 mjw.step(self.m, self.d)
@@ -355,7 +364,8 @@ class WarpWorlds:
                 )
                 wp.launch(_advance, self.nworld, inputs=[self.steps])
                 wp.launch(_judge, self.nworld, inputs=judged)
-            self._observe()
+            if observe:
+                self._observe()
 
     def _place(self) -> None:
         """Each world's obstacles at the time of its current step."""
@@ -366,6 +376,11 @@ class WarpWorlds:
                 inputs=[self.steps, self.config.dt, self.clock_offset, *self._keys, self._loop, self._spline],
                 outputs=[self.d.mocap_pos],
             )
+
+    def observe(self) -> None:
+        """Every world's scan, where its obstacles are at its current step (after `restart`)."""
+        with wp.ScopedDevice(self.device):
+            self._observe()
 
     def _observe(self) -> None:
         """The obstacles where the next period starts, the kinematics, then the scan."""

@@ -1,0 +1,325 @@
+"""`WarpVectorEnv`: DynaBARN-v0's episodes of one world, thousands at once on a Warp device.
+
+The same task as `DynaBARNEnv` (its observation, action, rewards and ends; `learn.env`'s
+docstring defines them), with every world's step on the device (`learn.warp_worlds`)
+and PyTorch tensors in and out, so a learner on the same GPU never copies through the host:
+
+- the action (num_envs, 2) in [-1, 1] -> the command (`action_to_command`'s arithmetic);
+- one control period of every world, judged by the protocol;
+- the rewards: progress along the static map's cost-to-go, time, collision, success;
+- worlds that ended restart in the same step (mjlab's and MuJoCo Playground's autoreset):
+  `info["final_observation"]` holds their last observation (the final pose's local goal
+  with the period's scan, as `DynaBARNEnv.final_observation`), the observation returned
+  is the new episode's first;
+- the observation: the 720 ranges, then the local goal `lookahead` metres along the
+  world's Dijkstra plan in the robot frame. The plan's first cells from every cell of the
+  map are tabled once on the host (`GlobalPlanner._plan_suffix`: a local goal depends on
+  the robot's cell and its position), so the walk along them is one kernel.
+
+Each environment's episodes draw their trial seeds from its own generator (a seed
+sequence spawned per environment), tabled `TRIALS` at a time on the device: the clock
+offset and the laser's noise of each trial come from it, as `Episode`'s do. For training
+only; evaluation stays on the C engine.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dynabarn.errors import DynabarnError
+from dynabarn.learn.env import REWARD_COLLISION, REWARD_PROGRESS, REWARD_SUCCESS, REWARD_TIME
+from dynabarn.learn.shared_worlds import shared_world
+from dynabarn.learn.warp_worlds import COLLISION, SUCCESS, TIMEOUT, WarpWorlds, _require_warp
+from dynabarn.planners.global_planner import BOUNDS
+from dynabarn.robot import JACKAL
+from dynabarn.sim_config import draw_clock_offset, episode_rng
+
+try:
+    import warp as wp
+except ImportError:
+    wp = None
+
+TRIALS = 256
+"""Trials tabled per environment; its episodes go round them (a new table: `reset(seed=...)`)."""
+
+if wp is not None:
+
+    @wp.func
+    def _local_goal(
+        pose: wp.vec3,
+        table: wp.array3d(dtype=float),
+        grid: wp.vec4,
+        nx: int,
+        ny: int,
+        lookahead: float,
+    ) -> wp.vec2:
+        """The point `lookahead` metres along the plan from the pose (`points_along`), in
+        the robot frame. grid: the map's lower-left corner, its resolution, unused."""
+        i = wp.clamp(int((pose[1] - grid[1]) / grid[2]), 0, ny - 1)
+        j = wp.clamp(int((pose[0] - grid[0]) / grid[2]), 0, nx - 1)
+        c = i * nx + j
+        cells = table.shape[1]
+        prev = wp.vec2(pose[0], pose[1])
+        out = wp.vec2(table[c, cells - 1, 0], table[c, cells - 1, 1])
+        along = wp.float32(0.0)  # a variable the loop changes (Warp: declared by its type)
+        found = wp.int32(0)
+        for k in range(cells):
+            p = wp.vec2(table[c, k, 0], table[c, k, 1])
+            seg = wp.length(p - prev)
+            if found == 0 and along + seg >= lookahead:
+                out = prev + (p - prev) * ((lookahead - along) / wp.max(seg, 1.0e-12))
+                found = 1
+            along = along + seg
+            prev = p
+        d = out - wp.vec2(pose[0], pose[1])
+        cy = wp.cos(pose[2])
+        sy = wp.sin(pose[2])
+        return wp.vec2(cy * d[0] + sy * d[1], -sy * d[0] + cy * d[1])
+
+    @wp.func
+    def _cost(pose: wp.vec3, cost: wp.array(dtype=float), grid: wp.vec4, nx: int, ny: int) -> float:
+        i = wp.clamp(int((pose[1] - grid[1]) / grid[2]), 0, ny - 1)
+        j = wp.clamp(int((pose[0] - grid[0]) / grid[2]), 0, nx - 1)
+        return cost[i * nx + j]
+
+    @wp.kernel
+    def _commands(actions: wp.array2d(dtype=float), limits: wp.vec3, commands: wp.array(dtype=wp.vec2)):
+        """`action_to_command`: [-1, 1]^2 -> (v, w)."""
+        w = wp.tid()
+        a0 = wp.clamp(actions[w, 0], -1.0, 1.0)
+        a1 = wp.clamp(actions[w, 1], -1.0, 1.0)
+        commands[w] = wp.vec2(limits[0] + 0.5 * (a0 + 1.0) * (limits[1] - limits[0]), limits[2] * a1)
+
+    @wp.kernel
+    def _conclude(
+        outcome: wp.array(dtype=int),
+        end_pose: wp.array(dtype=wp.vec3),
+        qpos: wp.array2d(dtype=float),
+        scan: wp.array2d(dtype=float),
+        table: wp.array3d(dtype=float),
+        cost: wp.array(dtype=float),
+        grid: wp.vec4,
+        nx: int,
+        ny: int,
+        lookahead: float,
+        last_cost: wp.array(dtype=float),
+        reward: wp.array(dtype=float),
+        terminated: wp.array(dtype=int),
+        truncated: wp.array(dtype=int),
+        final: wp.array2d(dtype=float),
+        episodes: wp.array(dtype=int),
+    ):
+        """A period's reward and end (`DynaBARNEnv.conclude`); a world that ended gets its
+        final observation (this period's scan, the final pose's local goal) and its next trial."""
+        w = wp.tid()
+        done = outcome[w]
+        pose = wp.vec3(qpos[w, 0], qpos[w, 1], qpos[w, 2])
+        if done != 0:
+            pose = end_pose[w]
+        ctg = _cost(pose, cost, grid, nx, ny)
+        progress = wp.float32(0.0)
+        if wp.isfinite(ctg) and wp.isfinite(last_cost[w]):
+            progress = last_cost[w] - ctg
+        r = REWARD_PROGRESS * progress + REWARD_TIME
+        if done == COLLISION:
+            r = r + REWARD_COLLISION
+        if done == SUCCESS:
+            r = r + REWARD_SUCCESS
+        reward[w] = r
+        last_cost[w] = ctg
+        terminated[w] = int(done == SUCCESS or done == COLLISION)  # noqa: SIM109 (no tuples in a kernel)
+        truncated[w] = int(done == TIMEOUT)
+        if done != 0:
+            nbeam = scan.shape[1]
+            for b in range(nbeam):
+                final[w, b] = scan[w, b]
+            g = _local_goal(pose, table, grid, nx, ny, lookahead)
+            final[w, nbeam] = g[0]
+            final[w, nbeam + 1] = g[1]
+            episodes[w] += 1
+
+    @wp.kernel
+    def _next_trials(
+        done: wp.array(dtype=int),
+        episodes: wp.array(dtype=int),
+        offsets: wp.array2d(dtype=float),
+        seeds: wp.array2d(dtype=int),
+        mask: wp.array(dtype=int),
+        offset: wp.array(dtype=float),
+        seed: wp.array(dtype=int),
+    ):
+        w = wp.tid()
+        mask[w] = int(done[w] != 0)
+        k = episodes[w] % offsets.shape[1]
+        offset[w] = offsets[w, k]
+        seed[w] = seeds[w, k]
+
+    @wp.kernel
+    def _observation(
+        qpos: wp.array2d(dtype=float),
+        scan: wp.array2d(dtype=float),
+        table: wp.array3d(dtype=float),
+        cost: wp.array(dtype=float),
+        grid: wp.vec4,
+        nx: int,
+        ny: int,
+        lookahead: float,
+        restarted: wp.array(dtype=int),
+        last_cost: wp.array(dtype=float),
+        obs: wp.array2d(dtype=float),
+    ):
+        w = wp.tid()
+        nbeam = scan.shape[1]
+        for b in range(nbeam):
+            obs[w, b] = scan[w, b]
+        pose = wp.vec3(qpos[w, 0], qpos[w, 1], qpos[w, 2])
+        g = _local_goal(pose, table, grid, nx, ny, lookahead)
+        obs[w, nbeam] = g[0]
+        obs[w, nbeam + 1] = g[1]
+        if restarted[w] != 0:  # a new episode: its progress counts from its spawn
+            last_cost[w] = _cost(pose, cost, grid, nx, ny)
+
+
+def _device_actions(actions):
+    """Actions as a Warp array: a PyTorch tensor shared (no copy when float32 and
+    contiguous on the device), anything else copied in."""
+    try:
+        import torch
+    except ImportError:
+        torch = None
+    if torch is not None and isinstance(actions, torch.Tensor):
+        return wp.from_torch(actions.detach().to(torch.float32).contiguous())
+    return wp.array(np.asarray(actions, dtype=np.float32))
+
+
+def plan_table(planner, lookahead: float) -> np.ndarray:
+    """(nx * ny, cells, 2) float32: from each cell of the map, the first cells of the plan
+    a local goal `lookahead` away walks (`GlobalPlanner._plan_suffix`, padded by its end)."""
+    f = planner.field
+    cells = int(np.floor(lookahead / planner.resolution)) + 3
+    table = np.empty((f.nx * f.ny, cells, 2), dtype=np.float32)
+    for c in range(f.nx * f.ny):
+        i, j = divmod(c, f.nx)
+        x = BOUNDS[0] + (j + 0.5) * planner.resolution
+        y = BOUNDS[2] + (i + 0.5) * planner.resolution
+        suffix = planner._plan_suffix(x, y, lookahead)
+        n = min(len(suffix), cells)
+        table[c, :n] = suffix[:n]
+        table[c, n:] = suffix[n - 1]
+    return table
+
+
+class WarpVectorEnv:
+    """`num_envs` episodes of one world's DynaBARN-v0 on a Warp device, with PyTorch
+    tensors in and out (see the module docstring)."""
+
+    def __init__(
+        self,
+        world_file: str,
+        num_envs: int,
+        *,
+        device: str = "cpu",
+        lookahead: float = 2.0,
+        protocol: str = "barn",
+        laser_noise: bool = True,
+        seed: int = 0,
+    ) -> None:
+        _require_warp()
+        if not 0.1 <= lookahead <= 30.0:
+            raise DynabarnError(f"lookahead {lookahead!r}: a number of metres in [0.1, 30]")
+        self.num_envs, self.device, self.lookahead = num_envs, device, float(lookahead)
+        self.worlds = WarpWorlds(world_file, num_envs, device=device, protocol=protocol, laser_noise=laser_noise)
+        _, planner = shared_world(str(world_file))
+        f = planner.field
+        self._nx, self._ny = f.nx, f.ny
+        self._grid = wp.vec4(BOUNDS[0], BOUNDS[2], planner.resolution, 0.0)
+        self._spawn = np.asarray(self.worlds.protocol.spawn, dtype=np.float32)
+        n = num_envs
+        with wp.ScopedDevice(device):
+            self._table = wp.array(plan_table(planner, self.lookahead), dtype=float)
+            self._cost = wp.array(f.cost.ravel().astype(np.float32), dtype=float)
+            self._spawns = wp.array(np.tile(self._spawn, (n, 1)), dtype=wp.vec3)
+            self._last_cost = wp.zeros(n, dtype=float)
+            self._episodes = wp.zeros(n, dtype=int)
+            self._mask, self._offset, self._seed = (
+                wp.zeros(n, dtype=int),
+                wp.zeros(n, dtype=float),
+                wp.zeros(n, dtype=int),
+            )
+            self._commands = wp.zeros(n, dtype=wp.vec2)
+            self.reward = wp.zeros(n, dtype=float)
+            self.terminated, self.truncated = wp.zeros(n, dtype=int), wp.zeros(n, dtype=int)
+            self.obs = wp.zeros((n, self.worlds.n_beams + 2), dtype=float)
+            self.final_obs = wp.zeros((n, self.worlds.n_beams + 2), dtype=float)
+        self._limits = wp.vec3(JACKAL.v_min, JACKAL.v_max, JACKAL.w_max)
+        self._new_trials(seed)
+
+    def _new_trials(self, seed: int) -> None:
+        """Each environment's next `TRIALS` trial seeds from its own generator, and their
+        clock offsets (`draw_clock_offset(episode_rng(trial))`, as an `Episode` draws it)."""
+        streams = np.random.SeedSequence(seed).spawn(self.num_envs)
+        trials = np.stack([np.random.default_rng(s).integers(2**31, size=TRIALS) for s in streams])
+        offsets = np.vectorize(lambda t: draw_clock_offset(episode_rng(int(t))))(trials)
+        self.trials = trials
+        with wp.ScopedDevice(self.device):
+            self._trial_offsets = wp.array(offsets.astype(np.float32), dtype=float)
+            self._trial_seeds = wp.array(trials.astype(np.int32), dtype=int)
+
+    def reset(self, seed: int | None = None):
+        """Every environment's first episode (its trials drawn anew from `seed` when given);
+        the observations (num_envs, 722) as a PyTorch tensor on the device."""
+        if seed is not None:
+            self._new_trials(seed)
+        with wp.ScopedDevice(self.device):
+            self._episodes.zero_()
+            self.worlds.outcome.fill_(1)  # every world "ended": all restart on their first trial
+            self._restart_ended()
+        return wp.to_torch(self.obs)
+
+    def step(self, actions):
+        """One control period of every environment: `actions` (num_envs, 2) in [-1, 1] (a
+        PyTorch tensor on the device, or anything `wp.array` takes); returns observations,
+        rewards, terminated, truncated (PyTorch tensors) and `info` with the final
+        observations of the environments that ended (rows valid where either is set)."""
+        with wp.ScopedDevice(self.device):
+            wp.launch(
+                _commands, self.num_envs, inputs=[_device_actions(actions), self._limits], outputs=[self._commands]
+            )
+            self.worlds.step(self._commands, observe=False)  # the final observations take this period's scan
+            wp.launch(_conclude, self.num_envs, inputs=[*self._ended_inputs()])
+            self._restart_ended()
+        info = {"final_observation": wp.to_torch(self.final_obs)}
+        return (
+            wp.to_torch(self.obs),
+            wp.to_torch(self.reward),
+            wp.to_torch(self.terminated).bool(),
+            wp.to_torch(self.truncated).bool(),
+            info,
+        )
+
+    def _ended_inputs(self) -> list:
+        w = self.worlds
+        return [
+            w.outcome, w.end_pose, w.d.qpos, w.scan, self._table, self._cost, self._grid, self._nx, self._ny,
+            self.lookahead, self._last_cost, self.reward, self.terminated, self.truncated, self.final_obs,
+            self._episodes,
+        ]  # fmt: skip
+
+    def _restart_ended(self) -> None:
+        """Worlds whose episode ended start their next trial; then every observation."""
+        w = self.worlds
+        wp.launch(
+            _next_trials,
+            self.num_envs,
+            inputs=[w.outcome, self._episodes, self._trial_offsets, self._trial_seeds],
+            outputs=[self._mask, self._offset, self._seed],
+        )
+        w.restart(self._mask, self._spawns, self._offset, self._seed)
+        w.observe()
+        wp.launch(
+            _observation,
+            self.num_envs,
+            inputs=[w.d.qpos, w.scan, self._table, self._cost, self._grid, self._nx, self._ny, self.lookahead,
+                    self._mask, self._last_cost],
+            outputs=[self.obs],
+        )  # fmt: skip
