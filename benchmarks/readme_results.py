@@ -36,6 +36,8 @@ from certified_tables import calibration_table, certification_table, certified_l
 from leaderboard import leaderboard_table, tier_ladder_table
 from learning_tables import dagger_curves, dagger_training, generalisation_table, student_ablation, student_table
 from ros_speed import table as ros_speed_table
+from warp_speed import read_records as warp_speed_records
+from warp_speed import table as warp_speed_table
 from ros_tables import MOVE_BASE_SETS, NAV2_FOLDERS, STACK_GUESTS, ablation_table, move_base_table, nav2_table
 from tracker_tables import (
     LADDERS,
@@ -356,6 +358,7 @@ BLOCKS = {
     "dwa-ablation": lambda f, s: ablation_table(f),
     "nav2": lambda f, s: nav2_table(f),
     "ros-speed": lambda f, s: ros_speed_table(_record("ros_speed/world137.json")),
+    "warp-speed": lambda f, s: warp_speed_table(warp_speed_records()),
     "certification": lambda f, s: certification_table(certified_sets()),
     "certified-ladder": lambda f, s: certified_ladder(f, certified_sets(), SETS, LADDER),
     "calibration": lambda f, s: calibration_table(),
@@ -388,7 +391,7 @@ PAGES = {
     DOCS / "tutorials" / "training.md": ("td3-training", "dagger-training"),
     DOCS / "tutorials" / "ros.md": ("move-base", "dwa-ablation"),
     DOCS / "tutorials" / "ros2.md": ("nav2",),
-    DOCS / "speed.md": ("ros-speed",),
+    DOCS / "speed.md": ("ros-speed", "warp-speed"),
     DOCS / "concepts" / "difficulty.md": ("calibration",),
     DOCS / "concepts" / "perception.md": (
         "tracker-validation",

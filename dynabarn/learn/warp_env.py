@@ -223,6 +223,7 @@ class WarpVectorEnv:
         protocol: str = "barn",
         laser_noise: bool = True,
         seed: int = 0,
+        graph: bool | None = None,
     ) -> None:
         _require_warp()
         if not 0.1 <= lookahead <= 30.0:
@@ -247,11 +248,16 @@ class WarpVectorEnv:
                 wp.zeros(n, dtype=int),
             )
             self._commands = wp.zeros(n, dtype=wp.vec2)
+            self._actions = wp.zeros((n, 2), dtype=float)
             self.reward = wp.zeros(n, dtype=float)
             self.terminated, self.truncated = wp.zeros(n, dtype=int), wp.zeros(n, dtype=int)
             self.obs = wp.zeros((n, self.worlds.n_beams + 2), dtype=float)
             self.final_obs = wp.zeros((n, self.worlds.n_beams + 2), dtype=float)
         self._limits = wp.vec3(JACKAL.v_min, JACKAL.v_max, JACKAL.w_max)
+        self.graph = wp.get_device(device).is_cuda if graph is None else bool(graph)
+        """A period replayed as a CUDA graph (default on a GPU): Python launches dozens of
+        kernels per physics step, which a graph replaces with one launch per period."""
+        self._graph = None
         self._new_trials(seed)
 
     def _new_trials(self, seed: int) -> None:
@@ -282,12 +288,15 @@ class WarpVectorEnv:
         rewards, terminated, truncated (PyTorch tensors) and `info` with the final
         observations of the environments that ended (rows valid where either is set)."""
         with wp.ScopedDevice(self.device):
-            wp.launch(
-                _commands, self.num_envs, inputs=[_device_actions(actions), self._limits], outputs=[self._commands]
-            )
-            self.worlds.step(self._commands, observe=False)  # the final observations take this period's scan
-            wp.launch(_conclude, self.num_envs, inputs=[*self._ended_inputs()])
-            self._restart_ended()
+            wp.copy(self._actions, _device_actions(actions))
+            if not self.graph:
+                self._period()
+            else:  # CUDA: the whole period recorded once as a graph, then replayed in one launch
+                if self._graph is None:
+                    with wp.ScopedCapture() as capture:
+                        self._period()
+                    self._graph = capture.graph
+                wp.capture_launch(self._graph)
         info = {"final_observation": wp.to_torch(self.final_obs)}
         return (
             wp.to_torch(self.obs),
@@ -296,6 +305,13 @@ class WarpVectorEnv:
             wp.to_torch(self.truncated).bool(),
             info,
         )
+
+    def _period(self) -> None:
+        """A control period's launches, on fixed buffers (what a CUDA graph records)."""
+        wp.launch(_commands, self.num_envs, inputs=[self._actions, self._limits], outputs=[self._commands])
+        self.worlds.step(self._commands, observe=False)  # the final observations take this period's scan
+        wp.launch(_conclude, self.num_envs, inputs=[*self._ended_inputs()])
+        self._restart_ended()
 
     def _ended_inputs(self) -> list:
         w = self.worlds
