@@ -36,8 +36,6 @@ from certified_tables import calibration_table, certification_table, certified_l
 from leaderboard import leaderboard_table, tier_ladder_table
 from learning_tables import dagger_curves, dagger_training, generalisation_table, student_ablation, student_table
 from ros_speed import table as ros_speed_table
-from warp_speed import read_records as warp_speed_records
-from warp_speed import table as warp_speed_table
 from ros_tables import MOVE_BASE_SETS, NAV2_FOLDERS, STACK_GUESTS, ablation_table, move_base_table, nav2_table
 from tracker_tables import (
     LADDERS,
@@ -49,6 +47,8 @@ from tracker_tables import (
     tracker_table,
     validation_table,
 )
+from warp_speed import read_records as warp_speed_records
+from warp_speed import table as warp_speed_table
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS_DIR = ROOT / "results"

@@ -163,7 +163,7 @@ def test_local_goal_paths_kept_along_the_plan_are_the_plans_own():
     for x, y in np.concatenate([on_plan, anywhere, on_plan[::-1]]):
         for lookahead in (0.5, 2.0, 3.0):
             max_cells = math.floor(lookahead / g.resolution) + 3  # as the planner counts
-            np.testing.assert_array_equal(g._plan_suffix(x, y, lookahead), g.plan(x, y, max_cells=max_cells)[1:])
+            np.testing.assert_array_equal(g.plan_suffix(x, y, lookahead), g.plan(x, y, max_cells=max_cells)[1:])
     assert len(g._suffixes) > len(on_plan)  # the walk kept more than the cells asked for
 
 

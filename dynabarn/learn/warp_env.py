@@ -13,7 +13,7 @@ and PyTorch tensors in and out, so a learner on the same GPU never copies throug
   is the new episode's first;
 - the observation: the 720 ranges, then the local goal `lookahead` metres along the
   world's Dijkstra plan in the robot frame. The plan's first cells from every cell of the
-  map are tabled once on the host (`GlobalPlanner._plan_suffix`: a local goal depends on
+  map are tabled once on the host (`GlobalPlanner.plan_suffix`: a local goal depends on
   the robot's cell and its position), so the walk along them is one kernel.
 
 Each environment's episodes draw their trial seeds from its own generator (a seed
@@ -29,7 +29,7 @@ import numpy as np
 from dynabarn.errors import DynabarnError
 from dynabarn.learn.env import REWARD_COLLISION, REWARD_PROGRESS, REWARD_SUCCESS, REWARD_TIME
 from dynabarn.learn.shared_worlds import shared_world
-from dynabarn.learn.warp_worlds import COLLISION, SUCCESS, TIMEOUT, WarpWorlds, _require_warp
+from dynabarn.learn.warp_worlds import COLLISION, SUCCESS, TIMEOUT, WarpWorlds, require_warp
 from dynabarn.planners.global_planner import BOUNDS
 from dynabarn.robot import JACKAL
 from dynabarn.sim_config import draw_clock_offset, episode_rng
@@ -194,7 +194,7 @@ def _device_actions(actions):
 
 def plan_table(planner, lookahead: float) -> np.ndarray:
     """(nx * ny, cells, 2) float32: from each cell of the map, the first cells of the plan
-    a local goal `lookahead` away walks (`GlobalPlanner._plan_suffix`, padded by its end)."""
+    a local goal `lookahead` away walks (`GlobalPlanner.plan_suffix`, padded by its end)."""
     f = planner.field
     cells = int(np.floor(lookahead / planner.resolution)) + 3
     table = np.empty((f.nx * f.ny, cells, 2), dtype=np.float32)
@@ -202,7 +202,7 @@ def plan_table(planner, lookahead: float) -> np.ndarray:
         i, j = divmod(c, f.nx)
         x = BOUNDS[0] + (j + 0.5) * planner.resolution
         y = BOUNDS[2] + (i + 0.5) * planner.resolution
-        suffix = planner._plan_suffix(x, y, lookahead)
+        suffix = planner.plan_suffix(x, y, lookahead)
         n = min(len(suffix), cells)
         table[c, :n] = suffix[:n]
         table[c, n:] = suffix[n - 1]
@@ -225,7 +225,7 @@ class WarpVectorEnv:
         seed: int = 0,
         graph: bool | None = None,
     ) -> None:
-        _require_warp()
+        require_warp()
         if not 0.1 <= lookahead <= 30.0:
             raise DynabarnError(f"lookahead {lookahead!r}: a number of metres in [0.1, 30]")
         self.num_envs, self.device, self.lookahead = num_envs, device, float(lookahead)

@@ -55,7 +55,7 @@ OUTCOMES = ("running", "success", "collision", "timeout")
 RUNNING, SUCCESS, COLLISION, TIMEOUT = range(4)
 
 
-def _require_warp() -> None:
+def require_warp() -> None:
     if wp is None:
         raise NotInstalledHere("the Warp backend needs MuJoCo Warp: pip install 'dynabarn[gpu]'")
 
@@ -260,7 +260,7 @@ class WarpWorlds:
         laser_noise: bool = True,
         config: SimConfig = SimConfig(),
     ):
-        _require_warp()
+        require_warp()
         if nworld < 1:
             raise DynabarnError(f"nworld {nworld}: at least 1")
         self.world = read_world(world_path)

@@ -229,10 +229,10 @@ class GlobalPlanner:
         walked: consecutive cells are at least a resolution apart, so the point lies among
         them, and a cumulative sum's prefix is the prefix of the whole one (the same bits)."""
         if path is None:
-            path = np.vstack([[x, y], self._plan_suffix(x, y, lookahead)])
+            path = np.vstack([[x, y], self.plan_suffix(x, y, lookahead)])
         return points_along(path[None], lookahead)[0], path
 
-    def _plan_suffix(self, x: float, y: float, lookahead: float) -> np.ndarray:
+    def plan_suffix(self, x: float, y: float, lookahead: float) -> np.ndarray:
         """`plan(x, y, max_cells)[1:]` for a local goal `lookahead` away: it depends on the
         robot's cell only, so it is kept per cell (a robot crosses a cell in several ticks)."""
         max_cells = math.floor(lookahead / self.resolution) + 3
@@ -272,7 +272,7 @@ def local_goals_in_robot(planners: list[GlobalPlanner], poses: np.ndarray, looka
     """(W, 2) each pose (x, y, yaw) of (W, 3)'s local goal on its own planner, in its robot
     frame: `local_goal_in_robot` for many worlds in one pass (the same bits: every step is
     elementwise, each row's cumulative sum runs in order, paths padded by their last point)."""
-    suffixes = [pl._plan_suffix(float(p[0]), float(p[1]), lookahead) for pl, p in zip(planners, poses, strict=True)]
+    suffixes = [pl.plan_suffix(float(p[0]), float(p[1]), lookahead) for pl, p in zip(planners, poses, strict=True)]
     longest = max(len(s) for s in suffixes)
     paths = np.empty((len(planners), longest + 1, 2))
     paths[:, 0] = poses[:, :2]
