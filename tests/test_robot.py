@@ -87,7 +87,7 @@ for info in pkgutil.walk_packages(planners.__path__, "dynabarn.planners."):
 from dynabarn.planners.registry import available_planners, planner_factory
 from dynabarn.sim.behaviors import BEHAVIORS
 for name in available_planners():
-    if name not in ("ros", "bc", "td3", "dagger"):  # ROS's bridge; PyTorch's policies (the learn extra)
+    if name not in ("ros", "bc", "td3", "dagger", "ppo"):  # ROS's bridge; PyTorch's policies (the learn extra)
         planner_factory(name)()
 for name in BEHAVIORS.names():
     BEHAVIORS.get_item(name)

@@ -53,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--policy",
         type=Path,
         default=None,
-        help="weights for bc, td3 or dagger (default: the policy shipped in the package)",
+        help="weights for bc, td3, dagger or ppo (default: the policy shipped in the package; ppo ships none)",
     )
     add_protocol(parser)
     add_trial_seed(parser)

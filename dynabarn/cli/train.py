@@ -51,7 +51,42 @@ def build_parser() -> argparse.ArgumentParser:
     _add_options(td, TD3Config)
     td.add_argument("--out", type=Path, required=True, help="folder for checkpoints, policy.pt and the learning curve")
     _add_dagger(sub)
+    _add_ppo(sub)
     return parser
+
+
+def _add_ppo(sub) -> None:
+    """`dynabarn-train ppo`: PPO on the Warp backend (`learn.ppo`)."""
+    from dynabarn.learn.ppo import PPOConfig
+
+    pp = sub.add_parser(
+        "ppo",
+        help="PPO on the Warp backend: thousands of episodes of one world on a GPU (the gpu extra; "
+        "resumes from --out's checkpoint when run again)",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    pp.add_argument("--world", default="137", help="the world trained in: an id of the 300, or a world file")
+    pp.add_argument(
+        "--env-backend",
+        choices=("warp",),
+        default="warp",
+        help="where the worlds are stepped: warp (MuJoCo Warp on --device); the C engine's vector environment "
+        "takes Stable-Baselines3's PPO as any Gymnasium environment does",
+    )
+    pp.add_argument(
+        "--device",
+        default="auto",
+        help="Warp and PyTorch device: cuda, cuda:N, cpu (Warp's CPU device: for checking, slow), or auto (cuda "
+        "when Warp sees one)",
+    )
+    pp.add_argument("--envs", type=ranged(int, 1, 1 << 20), default=PPOConfig.num_envs, help="worlds stepped at once")
+    pp.add_argument("--rollout", type=ranged(int, 1, 10_000), default=PPOConfig.rollout, help="periods per rollout")
+    pp.add_argument("--iterations", type=ranged(int, 1, 1_000_000), default=PPOConfig.iterations, help="rollouts")
+    pp.add_argument("--epochs", type=ranged(int, 1, 100), default=PPOConfig.epochs, help="passes per rollout")
+    pp.add_argument("--minibatches", type=ranged(int, 1, 10_000), default=PPOConfig.minibatches, help="per pass")
+    pp.add_argument("--lr", type=ranged(float, 1e-8, 1.0), default=PPOConfig.lr, help="Adam learning rate")
+    pp.add_argument("--seed", type=ranged(int, 0, MAX_SEED), default=0, help="torch seed and the trials' seed")
+    pp.add_argument("--out", type=Path, required=True, help="folder for policy.pt, checkpoint.pt and history.json")
 
 
 def _add_dagger(sub) -> None:
@@ -159,6 +194,8 @@ def _train(args: argparse.Namespace) -> int:
         return 0
     if args.command == "dagger":
         return _train_dagger(args, tqdm)
+    if args.command == "ppo":
+        return _train_ppo(args, tqdm)
     from dynabarn.learn.configs import TD3Config, cli_options
     from dynabarn.learn.td3 import train_td3
     from dynabarn.worlds.profiles import Difficulty
@@ -211,5 +248,42 @@ def _train_dagger(args: argparse.Namespace, tqdm) -> int:
         f"wrote {args.out / 'policy.pt'} after {len(report.iterations)} iterations ({last['dataset']} labelled "
         f"states, {len(set(report.fingerprints))} training worlds) in {report.seconds:.0f} s; validation success "
         f"{validation:.2f}{' after the final fit' if report.final else ''}; curve: {args.out / 'learning_curve.png'}"
+    )
+    return 0
+
+
+def _train_ppo(args: argparse.Namespace, tqdm) -> int:
+    from dynabarn.learn.ppo import PPOConfig, train_ppo
+    from dynabarn.learn.warp_worlds import require_warp
+    from dynabarn.worldset import resolve_world
+
+    require_warp()
+    import warp as wp
+
+    device = args.device
+    if device == "auto":
+        device = "cuda" if wp.is_cuda_available() else "cpu"
+    try:
+        wp.get_device(device)
+    except (RuntimeError, ValueError):
+        raise DynabarnError(
+            f"--device {args.device}: Warp has no such device (it has: cpu{', cuda' * wp.is_cuda_available()})"
+        ) from None
+    world = resolve_world(args.world, None)
+    cfg = PPOConfig(
+        num_envs=args.envs, rollout=args.rollout, iterations=args.iterations, epochs=args.epochs,
+        minibatches=args.minibatches, lr=args.lr, seed=args.seed, notes={"world": str(world), "device": device},
+    )  # fmt: skip
+    report = train_ppo(
+        str(world),
+        args.out,
+        cfg,
+        device=device,
+        progress=lambda total, initial=0: tqdm(total=total, initial=initial, desc="iterations"),
+    )
+    last = report["history"][-1]
+    print(
+        f"wrote {report['policy']} after {last['iteration']} iterations ({last['steps']:,} control steps) on "
+        f"{device}; last rollout: {last['episodes']} episodes ended, {last['successes']} at the goal"
     )
     return 0

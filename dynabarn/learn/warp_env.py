@@ -106,6 +106,7 @@ if wp is not None:
         reward: wp.array(dtype=float),
         terminated: wp.array(dtype=int),
         truncated: wp.array(dtype=int),
+        success: wp.array(dtype=int),
         final: wp.array2d(dtype=float),
         episodes: wp.array(dtype=int),
     ):
@@ -129,6 +130,7 @@ if wp is not None:
         last_cost[w] = ctg
         terminated[w] = int(done == SUCCESS or done == COLLISION)  # noqa: SIM109 (no tuples in a kernel)
         truncated[w] = int(done == TIMEOUT)
+        success[w] = int(done == SUCCESS)
         if done != 0:
             nbeam = scan.shape[1]
             for b in range(nbeam):
@@ -251,6 +253,7 @@ class WarpVectorEnv:
             self._actions = wp.zeros((n, 2), dtype=float)
             self.reward = wp.zeros(n, dtype=float)
             self.terminated, self.truncated = wp.zeros(n, dtype=int), wp.zeros(n, dtype=int)
+            self.success = wp.zeros(n, dtype=int)
             self.obs = wp.zeros((n, self.worlds.n_beams + 2), dtype=float)
             self.final_obs = wp.zeros((n, self.worlds.n_beams + 2), dtype=float)
         self._limits = wp.vec3(JACKAL.v_min, JACKAL.v_max, JACKAL.w_max)
@@ -286,7 +289,8 @@ class WarpVectorEnv:
         """One control period of every environment: `actions` (num_envs, 2) in [-1, 1] (a
         PyTorch tensor on the device, or anything `wp.array` takes); returns observations,
         rewards, terminated, truncated (PyTorch tensors) and `info` with the final
-        observations of the environments that ended (rows valid where either is set)."""
+        observations of the environments that ended (rows valid where either is set) and
+        which of them reached the goal (`success`)."""
         with wp.ScopedDevice(self.device):
             wp.copy(self._actions, _device_actions(actions))
             if not self.graph:
@@ -297,7 +301,7 @@ class WarpVectorEnv:
                         self._period()
                     self._graph = capture.graph
                 wp.capture_launch(self._graph)
-        info = {"final_observation": wp.to_torch(self.final_obs)}
+        info = {"final_observation": wp.to_torch(self.final_obs), "success": wp.to_torch(self.success).bool()}
         return (
             wp.to_torch(self.obs),
             wp.to_torch(self.reward),
@@ -317,7 +321,7 @@ class WarpVectorEnv:
         w = self.worlds
         return [
             w.outcome, w.end_pose, w.d.qpos, w.scan, self._table, self._cost, self._grid, self._nx, self._ny,
-            self.lookahead, self._last_cost, self.reward, self.terminated, self.truncated, self.final_obs,
+            self.lookahead, self._last_cost, self.reward, self.terminated, self.truncated, self.success, self.final_obs,
             self._episodes,
         ]  # fmt: skip
 

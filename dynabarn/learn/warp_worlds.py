@@ -11,8 +11,8 @@ through the host:
    speed limits, the acceleration over one period) into the actuators' controls;
 2. `k` physics steps, each after the obstacles are placed at that step's time from their
    keyframe schedules (linear or Catmull-Rom Hermite, loop or hold, each world's own clock
-   offset), the kernel `_place_obstacles`, as `worlds.schedule` evaluates them;
-3. after each step, the protocol's checks in the C engine's order (`Episode._judge`): a
+   offset), the kernel `place_obstacles`, as `worlds.schedule` evaluates them;
+3. after each step, the protocol's checks in the C engine's order (`Episode.judge_step`): a
    contact (any of the world's: in these worlds every contact is the robot's) ends it as a
    collision; else the clock starts once the robot has left its spawn, the goal region
    ends it as a success, the time limit as a timeout; the outcome and its step are kept
@@ -35,7 +35,24 @@ import mujoco
 import numpy as np
 
 from dynabarn.determinism import COMMAND_RESOLUTION, LASER_RESOLUTION
-from dynabarn.errors import DynabarnError, NotInstalledHere
+from dynabarn.errors import DynabarnError
+from dynabarn.learn.warp_kernels import (
+    COLLISION,
+    OUTCOMES,
+    RUNNING,
+    SUCCESS,
+    TIMEOUT,
+    advance_steps,
+    judge_step,
+    limit_commands,
+    mjw,
+    note_contacts,
+    place_obstacles,
+    require_warp,
+    reset_worlds,
+    scan_beams,
+    wp,
+)
 from dynabarn.mjcf import load_model, read_world
 from dynabarn.protocol import EvalProtocol, GoalRegion, get_protocol
 from dynabarn.robot import JACKAL
@@ -43,201 +60,7 @@ from dynabarn.sim_config import SimConfig
 from dynabarn.worlds.schedule import keyframes_of
 from dynabarn.worlds.spec import EndBehavior, Interpolation
 
-try:
-    import mujoco_warp as mjw
-    import warp as wp
-except ImportError:  # the `gpu` extra; the module's kernels are defined only with it
-    mjw = wp = None
-
-
-OUTCOMES = ("running", "success", "collision", "timeout")
-"""`WarpWorlds.outcome`'s codes: 0 while a world runs, then how it ended (`Outcome`'s names)."""
-RUNNING, SUCCESS, COLLISION, TIMEOUT = range(4)
-
-
-def require_warp() -> None:
-    if wp is None:
-        raise NotInstalledHere("the Warp backend needs MuJoCo Warp: pip install 'dynabarn[gpu]'")
-
-
-if wp is not None:
-
-    @wp.kernel
-    def _place_obstacles(
-        steps: wp.array(dtype=int),
-        dt: float,
-        clock_offset: wp.array(dtype=float),
-        durations: wp.array(dtype=float),
-        seg_lo: wp.array(dtype=int),
-        seg_hi: wp.array(dtype=int),
-        key_t: wp.array(dtype=float),
-        key_p: wp.array(dtype=wp.vec2),
-        key_m: wp.array(dtype=wp.vec2),
-        loop: int,
-        spline: int,
-        mocap_pos: wp.array2d(dtype=wp.vec3),
-    ):
-        """Obstacle i of world w at the time of that world's step `steps[w]`."""
-        w, i = wp.tid()
-        tl = wp.float32(steps[w]) * dt + clock_offset[w]
-        span = durations[i]
-        if loop != 0:  # noqa: SIM108 (a Warp kernel: plain branches)
-            tl = tl - span * wp.floor(tl / span)
-        else:
-            tl = wp.min(tl, span)
-        seg = seg_lo[i]  # the last keyframe at or before tl, within the obstacle's segments
-        for s in range(seg_lo[i] + 1, seg_hi[i] + 1):
-            if key_t[s] <= tl:
-                seg = s
-        t0 = key_t[seg]
-        u = wp.clamp((tl - t0) / (key_t[seg + 1] - t0), 0.0, 1.0)
-        p0 = key_p[seg]
-        p1 = key_p[seg + 1]
-        p = p0 + (p1 - p0) * u
-        if spline != 0:
-            u2 = u * u
-            u3 = u2 * u
-            p = (
-                (2.0 * u3 - 3.0 * u2 + 1.0) * p0
-                + (u3 - 2.0 * u2 + u) * key_m[seg]
-                + (-2.0 * u3 + 3.0 * u2) * p1
-                + (u3 - u2) * key_m[seg + 1]
-            )
-        mocap_pos[w, i] = wp.vec3(p[0], p[1], mocap_pos[w, i][2])
-
-    @wp.kernel
-    def _limit_commands(
-        commands: wp.array(dtype=wp.vec2),
-        previous: wp.array(dtype=wp.vec2),
-        limits: wp.vec3,
-        change: wp.vec2,
-        grid: float,
-        ctrl: wp.array2d(dtype=float),
-    ):
-        """`Episode.apply`'s limits: the command's grid, the speed limits, then at most
-        `change` (v, w) from the last period's command; into the actuators (v, slip, w)."""
-        w = wp.tid()
-        v = wp.clamp(wp.rint(commands[w][0] / grid) * grid, limits[0], limits[1])
-        yaw_rate = wp.clamp(wp.rint(commands[w][1] / grid) * grid, -limits[2], limits[2])
-        v = wp.clamp(v, previous[w][0] - change[0], previous[w][0] + change[0])
-        yaw_rate = wp.clamp(yaw_rate, previous[w][1] - change[1], previous[w][1] + change[1])
-        previous[w] = wp.vec2(v, yaw_rate)
-        ctrl[w, 0] = v
-        ctrl[w, 1] = 0.0
-        ctrl[w, 2] = yaw_rate
-
-    @wp.kernel
-    def _advance(steps: wp.array(dtype=int)):
-        steps[wp.tid()] += 1
-
-    @wp.kernel
-    def _note_contacts(
-        nacon: wp.array(dtype=int),
-        worldid: wp.array(dtype=int),
-        contact_now: wp.array(dtype=int),
-        touched: wp.array(dtype=int),
-    ):
-        c = wp.tid()
-        if c < nacon[0]:
-            contact_now[worldid[c]] = 1
-            touched[worldid[c]] = 1
-
-    @wp.kernel
-    def _judge(
-        qpos: wp.array2d(dtype=float),
-        steps: wp.array(dtype=int),
-        contact_now: wp.array(dtype=int),
-        spawn: wp.array(dtype=wp.vec3),
-        goal: wp.vec2,
-        rules: wp.vec4,
-        square: int,
-        dt: float,
-        outcome: wp.array(dtype=int),
-        t_start: wp.array(dtype=float),
-        end_step: wp.array(dtype=int),
-        end_pose: wp.array(dtype=wp.vec3),
-    ):
-        """The step just taken, judged as `Episode._judge` judges it. rules: the goal's
-        tolerance, the time limit, the distance that starts the clock, unused."""
-        w = wp.tid()
-        contact_now_w = contact_now[w]
-        contact_now[w] = 0
-        if outcome[w] != RUNNING:
-            return
-        end_pose[w] = wp.vec3(qpos[w, 0], qpos[w, 1], qpos[w, 2])  # kept once it ends
-        if contact_now_w != 0:
-            outcome[w] = COLLISION
-            end_step[w] = steps[w]
-            return
-        x = qpos[w, 0]
-        y = qpos[w, 1]
-        t = wp.float32(steps[w]) * dt
-        moved = wp.vec2(x - spawn[w][0], y - spawn[w][1])
-        if t_start[w] < 0.0 and wp.dot(moved, moved) >= rules[2] * rules[2]:
-            t_start[w] = t
-        off = wp.vec2(x - goal[0], y - goal[1])
-        inside = wp.dot(off, off) < rules[0] * rules[0]
-        if square != 0:
-            inside = wp.abs(off[0]) < rules[0] and wp.abs(off[1]) < rules[0]
-        if inside:
-            outcome[w] = SUCCESS
-            end_step[w] = steps[w]
-        elif t - wp.max(t_start[w], 0.0) >= rules[1]:
-            outcome[w] = TIMEOUT
-            end_step[w] = steps[w]
-
-    @wp.kernel
-    def _scan(
-        sensordata: wp.array2d(dtype=float),
-        first: int,
-        laser: wp.vec3,
-        grid: float,
-        seed: wp.array(dtype=int),
-        steps: wp.array(dtype=int),
-        scan: wp.array2d(dtype=float),
-    ):
-        """A rangefinder's distance (-1: no return) as `sim.laser` reads a beam. laser: the
-        range's ends and the noise's standard deviation (0: none)."""
-        w, b = wp.tid()
-        nbeam = scan.shape[1]
-        r = sensordata[w, first + b]
-        if r < 0.0:
-            r = laser[1]
-        if laser[2] > 0.0:  # each world's seed, each period and beam its own number
-            state = wp.rand_init(seed[w], steps[w] * nbeam + b)
-            r = r + laser[2] * wp.randn(state)
-        scan[w, b] = wp.rint(wp.clamp(r, laser[0], laser[1]) / grid) * grid
-
-    @wp.kernel
-    def _reset_worlds(
-        mask: wp.array(dtype=int),
-        new_spawn: wp.array(dtype=wp.vec3),
-        new_seed: wp.array(dtype=int),
-        new_offset: wp.array(dtype=float),
-        qpos: wp.array2d(dtype=float),
-        spawn: wp.array(dtype=wp.vec3),
-        seed: wp.array(dtype=int),
-        clock_offset: wp.array(dtype=float),
-        steps: wp.array(dtype=int),
-        previous: wp.array(dtype=wp.vec2),
-        touched: wp.array(dtype=int),
-        outcome: wp.array(dtype=int),
-        t_start: wp.array(dtype=float),
-        end_step: wp.array(dtype=int),
-    ):
-        w = wp.tid()
-        if mask[w] != 0:
-            for j in range(3):
-                qpos[w, j] = new_spawn[w][j]
-            spawn[w] = new_spawn[w]
-            seed[w] = new_seed[w]
-            clock_offset[w] = new_offset[w]
-            steps[w] = 0
-            previous[w] = wp.vec2(0.0, 0.0)
-            touched[w] = 0
-            outcome[w] = RUNNING
-            t_start[w] = -1.0
-            end_step[w] = 0
+__all__ = ["COLLISION", "OUTCOMES", "RUNNING", "SUCCESS", "TIMEOUT", "WarpWorlds", "require_warp"]
 
 
 class WarpWorlds:
@@ -338,7 +161,7 @@ class WarpWorlds:
         mjw.reset_data(self.m, self.d, reset=mask)
         state = [self.spawn, self.seed, self.clock_offset, self.steps, self.previous, self.touched]
         state += [self.outcome, self.t_start, self.end_step]
-        wp.launch(_reset_worlds, self.nworld, inputs=[mask, spawn, seed, clock_offset, self.d.qpos, *state])
+        wp.launch(reset_worlds, self.nworld, inputs=[mask, spawn, seed, clock_offset, self.d.qpos, *state])
 
     def step(self, commands, *, observe: bool = True) -> None:
         """One control period of every world: `commands` (nworld, 2) [v m/s, w rad/s], a
@@ -348,7 +171,7 @@ class WarpWorlds:
             if not isinstance(commands, wp.array):
                 commands = wp.array(np.asarray(commands, dtype=np.float32), dtype=wp.vec2)
             wp.launch(
-                _limit_commands,
+                limit_commands,
                 self.nworld,
                 inputs=[commands, self.previous, self._limits, self._change, COMMAND_RESOLUTION, self.d.ctrl],
             )
@@ -358,12 +181,12 @@ class WarpWorlds:
                 self._place()
                 mjw.step(self.m, self.d)
                 wp.launch(
-                    _note_contacts,
+                    note_contacts,
                     self.d.naconmax,
                     inputs=[self.d.nacon, self.d.contact.worldid, self.contact_now, self.touched],
                 )
-                wp.launch(_advance, self.nworld, inputs=[self.steps])
-                wp.launch(_judge, self.nworld, inputs=judged)
+                wp.launch(advance_steps, self.nworld, inputs=[self.steps])
+                wp.launch(judge_step, self.nworld, inputs=judged)
             if observe:
                 self._observe()
 
@@ -371,7 +194,7 @@ class WarpWorlds:
         """Each world's obstacles at the time of its current step."""
         if self.n_obstacles:
             wp.launch(
-                _place_obstacles,
+                place_obstacles,
                 (self.nworld, self.n_obstacles),
                 inputs=[self.steps, self.config.dt, self.clock_offset, *self._keys, self._loop, self._spline],
                 outputs=[self.d.mocap_pos],
@@ -388,7 +211,7 @@ class WarpWorlds:
         mjw.kinematics(self.m, self.d)
         mjw.sensor_pos(self.m, self.d)
         wp.launch(
-            _scan,
+            scan_beams,
             (self.nworld, self.n_beams),
             inputs=[self.d.sensordata, self._first_beam, self._laser, LASER_RESOLUTION, self.seed, self.steps],
             outputs=[self.scan],

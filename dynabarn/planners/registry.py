@@ -14,7 +14,7 @@ from dynabarn.errors import DynabarnError, unknown_choice
 from dynabarn.interfaces import Planner
 from dynabarn.interfaces.planner import check_planner, check_planner_factory
 from dynabarn.planners.dwa import DWAPlanner
-from dynabarn.planners.learned import BCPlanner, DaggerPlanner, TD3Planner
+from dynabarn.planners.learned import BCPlanner, DaggerPlanner, PPOPlanner, TD3Planner
 from dynabarn.planners.oracle import OraclePlanner, PresentStateOraclePlanner
 from dynabarn.planners.predictive import PredictivePlanner
 from dynabarn.planners.presets import planner_presets, read_planner_config
@@ -36,6 +36,7 @@ _BUILTIN: dict[str, Callable[..., Planner]] = {
     "bc": BCPlanner,  # the learned ones import torch only when built
     "td3": TD3Planner,
     "dagger": DaggerPlanner,
+    "ppo": PPOPlanner,  # trained on the Warp backend; none shipped (policy=FILE)
     "straight": StraightPlanner,
     "stop": StopPlanner,
 }

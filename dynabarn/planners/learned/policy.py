@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import ClassVar
 
-from dynabarn.errors import LEARN_EXTRA, LEARN_INSTALL, NotInstalledHere
+from dynabarn.errors import LEARN_EXTRA, LEARN_INSTALL, DynabarnError, NotInstalledHere
 from dynabarn.interfaces import EpisodeInfo, Observation, Planner
 from dynabarn.planners.global_planner import GlobalPlanner
 from dynabarn.planners.learned.features import Features
@@ -123,6 +123,19 @@ class BCPlanner(LearnedPlanner):
 class TD3Planner(LearnedPlanner):
     name = "td3"
     kind = "td3"
+
+
+class PPOPlanner(LearnedPlanner):
+    """`ppo`: an actor trained by `dynabarn-train ppo` on the Warp backend (none is shipped:
+    `policy=FILE`)."""
+
+    name = "ppo"
+    kind = "ppo"
+
+    def __init__(self, policy: str | None = None) -> None:
+        if policy is None:
+            raise DynabarnError("--planner ppo: none is shipped; train one (dynabarn-train ppo), give --policy FILE")
+        super().__init__(policy)
 
 
 class DaggerPlanner(PolicyFilePlanner):

@@ -1,0 +1,212 @@
+"""PPO on the Warp backend (`dynabarn-train ppo --env-backend warp`): thousands of episodes
+of one world stepped on the device (`learn.warp_env`), the policy and its update in
+PyTorch on the same device, no copy through the host in the loop.
+
+The policy is the Fig. 4 actor (`models.Actor`, its tanh mean) with a learned standard
+deviation per action, the value a 722-256-256-1 network; the update is PPO's clipped
+objective (Schulman et al. 2017) over generalised advantage estimates (gamma, lambda),
+minibatches over a few epochs, the gradient's norm clipped. A truncated episode (the
+protocol's time limit) is bootstrapped from its final observation's value, a terminated
+one (success, collision) is not. The actor is saved as a policy file of kind `ppo`
+(`dynabarn-run --planner ppo --planner-config policy=FILE`, evaluated on the C engine),
+with a checkpoint after every iteration from which `resume` goes on.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from dynabarn.errors import DynabarnError
+from dynabarn.files import write_atomically
+
+
+@dataclass
+class PPOConfig:
+    """PPO's settings; defaults sized for a GPU (4,096 worlds, 32 periods a rollout)."""
+
+    num_envs: int = 4096
+    rollout: int = 32
+    """Control periods of every world per iteration."""
+    iterations: int = 200
+    epochs: int = 4
+    minibatches: int = 8
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip: float = 0.2
+    lr: float = 3e-4
+    value_coef: float = 0.5
+    entropy_coef: float = 0.0
+    max_grad_norm: float = 0.5
+    init_log_std: float = -0.5
+    lookahead: float = 2.0
+    seed: int = 0
+    notes: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for name in ("num_envs", "rollout", "iterations", "epochs", "minibatches"):
+            if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
+                raise DynabarnError(f"ppo {name}={getattr(self, name)!r}: a whole number >= 1")
+        if self.num_envs * self.rollout < self.minibatches:
+            raise DynabarnError("ppo: fewer samples per iteration than minibatches")
+        if not (0 < self.gamma <= 1 and 0 <= self.gae_lambda <= 1 and 0 < self.clip < 1 and self.lr > 0):
+            raise DynabarnError("ppo: gamma in (0, 1], lambda in [0, 1], clip in (0, 1), lr > 0")
+
+
+def _networks(cfg: PPOConfig, device: str):
+    import torch
+    from torch import nn
+
+    from dynabarn.planners.learned.models import OBS_DIM, Actor, ObsScale
+
+    torch.manual_seed(cfg.seed)
+    actor = Actor(cfg.lookahead).to(device)
+    value = nn.Sequential(
+        ObsScale(cfg.lookahead), nn.Linear(OBS_DIM, 256), nn.Tanh(), nn.Linear(256, 256), nn.Tanh(), nn.Linear(256, 1)
+    ).to(device)
+    log_std = nn.Parameter(torch.full((2,), cfg.init_log_std, device=device))
+    optimiser = torch.optim.Adam([*actor.parameters(), *value.parameters(), log_std], lr=cfg.lr)
+    return actor, value, log_std, optimiser
+
+
+def _advantages(cfg: PPOConfig, rewards, values, next_values, terminal, ended):
+    """GAE over a rollout (T, N): `next_values` the value after each period (the final
+    observation's where an episode ended; zeroed where it terminated), `ended` where the
+    next period belongs to another episode."""
+    import torch
+
+    advantages = torch.zeros_like(rewards)
+    running = torch.zeros_like(rewards[0])
+    for t in reversed(range(rewards.shape[0])):
+        delta = rewards[t] + cfg.gamma * next_values[t] * (~terminal[t]) - values[t]
+        running = delta + cfg.gamma * cfg.gae_lambda * running * (~ended[t])
+        advantages[t] = running
+    return advantages
+
+
+def _collect(cfg: PPOConfig, env, obs, actor, value, log_std):
+    """One rollout of every world: the tensors PPO's update takes, and the next observation."""
+    import torch
+
+    T = cfg.rollout
+    store = {k: [] for k in ("obs", "actions", "logp", "values", "rewards", "next_values", "terminal", "ended")}
+    successes = episodes = 0
+    with torch.no_grad():
+        for _ in range(T):
+            dist = torch.distributions.Normal(actor(obs), log_std.exp())
+            action = dist.sample()
+            next_obs, reward, terminated, truncated, info = env.step(action.clamp(-1.0, 1.0))
+            ended = terminated | truncated
+            after = torch.where(ended[:, None], info["final_observation"], next_obs)
+            store["obs"].append(obs)
+            store["actions"].append(action)
+            store["logp"].append(dist.log_prob(action).sum(-1))
+            store["values"].append(value(obs).squeeze(-1))
+            store["rewards"].append(reward.clone())
+            store["next_values"].append(value(after).squeeze(-1))
+            store["terminal"].append(terminated.clone())
+            store["ended"].append(ended)
+            successes += int(info["success"].sum())
+            episodes += int(ended.sum())
+            obs = next_obs.clone()
+    batch = {k: torch.stack(v) for k, v in store.items()}
+    return batch, obs, {"episodes": episodes, "successes": successes, "reward": float(batch["rewards"].mean()) * T}
+
+
+def _update(cfg: PPOConfig, batch, advantages, actor, value, log_std, optimiser) -> dict:
+    import torch
+
+    returns = advantages + batch["values"]
+    flat = {k: v.reshape(-1, *v.shape[2:]) for k, v in batch.items()}
+    adv, ret = advantages.reshape(-1), returns.reshape(-1)
+    adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+    n = adv.shape[0]
+    size = n // cfg.minibatches
+    losses = []
+    for _ in range(cfg.epochs):
+        order = torch.randperm(n, device=adv.device)
+        for m in range(cfg.minibatches):
+            idx = order[m * size : (m + 1) * size]
+            dist = torch.distributions.Normal(actor(flat["obs"][idx]), log_std.exp())
+            ratio = (dist.log_prob(flat["actions"][idx]).sum(-1) - flat["logp"][idx]).exp()
+            policy_loss = -torch.min(ratio * adv[idx], ratio.clamp(1 - cfg.clip, 1 + cfg.clip) * adv[idx]).mean()
+            value_loss = (value(flat["obs"][idx]).squeeze(-1) - ret[idx]).pow(2).mean()
+            loss = policy_loss + cfg.value_coef * value_loss - cfg.entropy_coef * dist.entropy().sum(-1).mean()
+            optimiser.zero_grad()
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_([*actor.parameters(), *value.parameters(), log_std], cfg.max_grad_norm)
+            optimiser.step()
+            losses.append((float(policy_loss), float(value_loss)))
+    return {"policy_loss": losses[-1][0], "value_loss": losses[-1][1]}
+
+
+def train_ppo(
+    world_file: str,
+    out: Path,
+    cfg: PPOConfig,
+    *,
+    device: str = "cpu",
+    resume: bool = True,
+    progress: Callable[..., object] | None = None,
+) -> dict:
+    """Train on `world_file` into `out` (policy.pt, checkpoint.pt, history.json); a run
+    whose checkpoint is there goes on from it. Returns the history."""
+    import torch
+
+    from dynabarn.learn.warp_env import WarpVectorEnv
+    from dynabarn.planners.learned.models import save_policy
+
+    out.mkdir(parents=True, exist_ok=True)
+    env = WarpVectorEnv(world_file, cfg.num_envs, device=device, lookahead=cfg.lookahead, seed=cfg.seed)
+    torch_device = "cpu" if device == "cpu" else device
+    actor, value, log_std, optimiser = _networks(cfg, torch_device)
+    history, checkpoint = [], out / "checkpoint.pt"
+    if resume and checkpoint.is_file():
+        state = torch.load(checkpoint, map_location=torch_device, weights_only=True)
+        actor.load_state_dict(state["actor"])
+        value.load_state_dict(state["value"])
+        log_std.data.copy_(state["log_std"])
+        optimiser.load_state_dict(state["optimiser"])
+        history = json.loads((out / "history.json").read_text())
+    obs = env.reset(seed=cfg.seed + len(history))  # a resumed run draws trials anew
+    bar = progress(total=cfg.iterations, initial=len(history)) if progress else None
+    for iteration in range(len(history), cfg.iterations):
+        t0 = time.perf_counter()
+        batch, obs, seen = _collect(cfg, env, obs, actor, value, log_std)
+        advantages = _advantages(
+            cfg, batch["rewards"], batch["values"], batch["next_values"], batch["terminal"], batch["ended"]
+        )
+        losses = _update(cfg, batch, advantages, actor, value, log_std, optimiser)
+        history.append(
+            {
+                "iteration": iteration + 1,
+                "steps": (iteration + 1) * cfg.num_envs * cfg.rollout,
+                **seen,
+                **losses,
+                "log_std": [round(float(v), 4) for v in log_std.detach().cpu()],
+                "seconds": round(time.perf_counter() - t0, 3),
+            }
+        )
+        _save(out, actor, value, log_std, optimiser, history, cfg, save_policy)
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    return {"history": history, "policy": str(out / "policy.pt")}
+
+
+def _save(out: Path, actor, value, log_std, optimiser, history, cfg: PPOConfig, save_policy) -> None:
+    """The policy, the checkpoint and the history, each written whole (temporary file,
+    fsync, rename): a run stopped at any moment resumes from its last iteration."""
+    from dynabarn.planners.learned.models import save_tensors
+
+    notes = {**cfg.notes, "config": {k: v for k, v in asdict(cfg).items() if k != "notes"}, "iterations": len(history)}
+    cpu_actor = type(actor)(cfg.lookahead)
+    cpu_actor.load_state_dict({k: v.detach().cpu() for k, v in actor.state_dict().items()})
+    save_policy(cpu_actor, out / "policy.pt", kind="ppo", lookahead=cfg.lookahead, notes=notes)
+    state = {"actor": actor.state_dict(), "value": value.state_dict(), "log_std": log_std.detach()}
+    save_tensors(out / "checkpoint.pt", {**state, "optimiser": optimiser.state_dict()})
+    write_atomically(out / "history.json", json.dumps(history, indent=1) + "\n")
