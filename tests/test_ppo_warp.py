@@ -15,7 +15,7 @@ pytest.importorskip("mujoco_warp", reason="the Warp backend needs MuJoCo Warp: p
 pytest.importorskip("torch")
 
 BIN = Path(sys.executable).parent
-SMALL = ["--device", "cpu", "--envs", "2", "--rollout", "4", "--epochs", "1", "--minibatches", "2"]
+SMALL = ["--device", "cpu", "--num-envs", "2", "--rollout", "4", "--epochs", "1", "--minibatches", "2"]
 
 
 def _train(out: Path, iterations: int) -> subprocess.CompletedProcess:

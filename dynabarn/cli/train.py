@@ -57,7 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_ppo(sub) -> None:
     """`dynabarn-train ppo`: PPO on the Warp backend (`learn.ppo`)."""
-    from dynabarn.learn.ppo import PPOConfig
+    from dynabarn.learn.configs import PPOConfig
 
     pp = sub.add_parser(
         "ppo",
@@ -79,13 +79,7 @@ def _add_ppo(sub) -> None:
         help="Warp and PyTorch device: cuda, cuda:N, cpu (Warp's CPU device: for checking, slow), or auto (cuda "
         "when Warp sees one)",
     )
-    pp.add_argument("--envs", type=ranged(int, 1, 1 << 20), default=PPOConfig.num_envs, help="worlds stepped at once")
-    pp.add_argument("--rollout", type=ranged(int, 1, 10_000), default=PPOConfig.rollout, help="periods per rollout")
-    pp.add_argument("--iterations", type=ranged(int, 1, 1_000_000), default=PPOConfig.iterations, help="rollouts")
-    pp.add_argument("--epochs", type=ranged(int, 1, 100), default=PPOConfig.epochs, help="passes per rollout")
-    pp.add_argument("--minibatches", type=ranged(int, 1, 10_000), default=PPOConfig.minibatches, help="per pass")
-    pp.add_argument("--lr", type=ranged(float, 1e-8, 1.0), default=PPOConfig.lr, help="Adam learning rate")
-    pp.add_argument("--seed", type=ranged(int, 0, MAX_SEED), default=0, help="torch seed and the trials' seed")
+    _add_options(pp, PPOConfig)
     pp.add_argument("--out", type=Path, required=True, help="folder for policy.pt, checkpoint.pt and history.json")
 
 
@@ -253,7 +247,8 @@ def _train_dagger(args: argparse.Namespace, tqdm) -> int:
 
 
 def _train_ppo(args: argparse.Namespace, tqdm) -> int:
-    from dynabarn.learn.ppo import PPOConfig, train_ppo
+    from dynabarn.learn.configs import PPOConfig, cli_options
+    from dynabarn.learn.ppo import train_ppo
     from dynabarn.learn.warp_worlds import require_warp
     from dynabarn.worldset import resolve_world
 
@@ -270,10 +265,13 @@ def _train_ppo(args: argparse.Namespace, tqdm) -> int:
             f"--device {args.device}: Warp has no such device (it has: cpu{', cuda' * wp.is_cuda_available()})"
         ) from None
     world = resolve_world(args.world, None)
-    cfg = PPOConfig(
-        num_envs=args.envs, rollout=args.rollout, iterations=args.iterations, epochs=args.epochs,
-        minibatches=args.minibatches, lr=args.lr, seed=args.seed, notes={"world": str(world), "device": device},
-    )  # fmt: skip
+    try:
+        cfg = PPOConfig(
+            **{name: getattr(args, name) for name, *_ in cli_options(PPOConfig)},
+            notes={"world": str(world), "device": device},
+        )
+    except ValueError as exc:
+        raise DynabarnError(str(exc)) from None
     report = train_ppo(
         str(world),
         args.out,

@@ -77,6 +77,32 @@ class TD3Config:
         }
 
 
+@dataclass
+class PPOConfig:
+    """`dynabarn-train ppo` (`learn.ppo`): defaults sized for a GPU."""
+
+    num_envs: int = option(4096, 1, 1 << 20, "worlds stepped at once on the device")
+    rollout: int = option(32, 1, 10_000, "control periods of every world per iteration")
+    iterations: int = option(200, 1, 1_000_000, "rollouts and updates in total")
+    epochs: int = option(4, 1, 100, "passes over a rollout")
+    minibatches: int = option(8, 1, 100_000, "minibatches per pass")
+    gamma: float = option(0.99, 0.0, 1.0, "discount")
+    gae_lambda: float = option(0.95, 0.0, 1.0, "GAE's lambda")
+    clip: float = option(0.2, 0.01, 0.99, "PPO's ratio clip")
+    lr: float = option(3e-4, 1e-8, 1.0, "Adam learning rate")
+    value_coef: float = option(0.5, 0.0, 100.0, "weight of the value loss")
+    entropy_coef: float = option(0.0, 0.0, 1.0, "weight of the entropy bonus")
+    max_grad_norm: float = option(0.5, 1e-6, 1e6, "gradient norm clipped to this")
+    init_log_std: float = option(-0.5, -5.0, 2.0, "initial log standard deviation of the actions")
+    seed: int = option(0, 0, MAX_SEED, "torch seed and the trials' seed")
+    lookahead: float = 2.0
+    notes: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.num_envs * self.rollout < self.minibatches:
+            raise ValueError("ppo: fewer samples per iteration (num_envs x rollout) than minibatches")
+
+
 SHIPPED_STUDENT_PROFILE_SETS = (*DEFAULT_PROFILE_SETS, "tier-dense", "tier-fast", "tier-mixed", "tier-combined")
 """What `dynabarn-train dagger` draws training worlds from by default: the paper's and the
 release's profiles and the tiers' (their profiles, never their worlds), as the shipped

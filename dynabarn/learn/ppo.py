@@ -17,43 +17,11 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 
-from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
-
-
-@dataclass
-class PPOConfig:
-    """PPO's settings; defaults sized for a GPU (4,096 worlds, 32 periods a rollout)."""
-
-    num_envs: int = 4096
-    rollout: int = 32
-    """Control periods of every world per iteration."""
-    iterations: int = 200
-    epochs: int = 4
-    minibatches: int = 8
-    gamma: float = 0.99
-    gae_lambda: float = 0.95
-    clip: float = 0.2
-    lr: float = 3e-4
-    value_coef: float = 0.5
-    entropy_coef: float = 0.0
-    max_grad_norm: float = 0.5
-    init_log_std: float = -0.5
-    lookahead: float = 2.0
-    seed: int = 0
-    notes: dict = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        for name in ("num_envs", "rollout", "iterations", "epochs", "minibatches"):
-            if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
-                raise DynabarnError(f"ppo {name}={getattr(self, name)!r}: a whole number >= 1")
-        if self.num_envs * self.rollout < self.minibatches:
-            raise DynabarnError("ppo: fewer samples per iteration than minibatches")
-        if not (0 < self.gamma <= 1 and 0 <= self.gae_lambda <= 1 and 0 < self.clip < 1 and self.lr > 0):
-            raise DynabarnError("ppo: gamma in (0, 1], lambda in [0, 1], clip in (0, 1), lr > 0")
+from dynabarn.learn.configs import PPOConfig
 
 
 def _networks(cfg: PPOConfig, device: str):

@@ -44,20 +44,32 @@ TRIALS = 256
 
 if wp is not None:
 
+    @wp.struct
+    class PlanMap:
+        """A world's static map as the kernels read it: from each cell, the plan's first
+        cells (`plan_table`) and the cost-to-go; the grid; the local goal's distance."""
+
+        table: wp.array3d(dtype=float)
+        cost: wp.array(dtype=float)
+        origin: wp.vec2
+        resolution: float
+        nx: int
+        ny: int
+        lookahead: float
+
     @wp.func
-    def _local_goal(
-        pose: wp.vec3,
-        table: wp.array3d(dtype=float),
-        grid: wp.vec4,
-        nx: int,
-        ny: int,
-        lookahead: float,
-    ) -> wp.vec2:
+    def _cell(pose: wp.vec3, plan: PlanMap) -> int:
+        i = wp.clamp(int((pose[1] - plan.origin[1]) / plan.resolution), 0, plan.ny - 1)
+        j = wp.clamp(int((pose[0] - plan.origin[0]) / plan.resolution), 0, plan.nx - 1)
+        return i * plan.nx + j
+
+    @wp.func
+    def _local_goal(pose: wp.vec3, plan: PlanMap) -> wp.vec2:
         """The point `lookahead` metres along the plan from the pose (`points_along`), in
-        the robot frame. grid: the map's lower-left corner, its resolution, unused."""
-        i = wp.clamp(int((pose[1] - grid[1]) / grid[2]), 0, ny - 1)
-        j = wp.clamp(int((pose[0] - grid[0]) / grid[2]), 0, nx - 1)
-        c = i * nx + j
+        the robot frame."""
+        table = plan.table
+        lookahead = plan.lookahead
+        c = _cell(pose, plan)
         cells = table.shape[1]
         prev = wp.vec2(pose[0], pose[1])
         out = wp.vec2(table[c, cells - 1, 0], table[c, cells - 1, 1])
@@ -77,10 +89,8 @@ if wp is not None:
         return wp.vec2(cy * d[0] + sy * d[1], -sy * d[0] + cy * d[1])
 
     @wp.func
-    def _cost(pose: wp.vec3, cost: wp.array(dtype=float), grid: wp.vec4, nx: int, ny: int) -> float:
-        i = wp.clamp(int((pose[1] - grid[1]) / grid[2]), 0, ny - 1)
-        j = wp.clamp(int((pose[0] - grid[0]) / grid[2]), 0, nx - 1)
-        return cost[i * nx + j]
+    def _cost(pose: wp.vec3, plan: PlanMap) -> float:
+        return plan.cost[_cell(pose, plan)]
 
     @wp.kernel
     def _commands(actions: wp.array2d(dtype=float), limits: wp.vec3, commands: wp.array(dtype=wp.vec2)):
@@ -96,12 +106,7 @@ if wp is not None:
         end_pose: wp.array(dtype=wp.vec3),
         qpos: wp.array2d(dtype=float),
         scan: wp.array2d(dtype=float),
-        table: wp.array3d(dtype=float),
-        cost: wp.array(dtype=float),
-        grid: wp.vec4,
-        nx: int,
-        ny: int,
-        lookahead: float,
+        plan: PlanMap,
         last_cost: wp.array(dtype=float),
         reward: wp.array(dtype=float),
         terminated: wp.array(dtype=int),
@@ -117,7 +122,7 @@ if wp is not None:
         pose = wp.vec3(qpos[w, 0], qpos[w, 1], qpos[w, 2])
         if done != 0:
             pose = end_pose[w]
-        ctg = _cost(pose, cost, grid, nx, ny)
+        ctg = _cost(pose, plan)
         progress = wp.float32(0.0)
         if wp.isfinite(ctg) and wp.isfinite(last_cost[w]):
             progress = last_cost[w] - ctg
@@ -135,7 +140,7 @@ if wp is not None:
             nbeam = scan.shape[1]
             for b in range(nbeam):
                 final[w, b] = scan[w, b]
-            g = _local_goal(pose, table, grid, nx, ny, lookahead)
+            g = _local_goal(pose, plan)
             final[w, nbeam] = g[0]
             final[w, nbeam + 1] = g[1]
             episodes[w] += 1
@@ -160,12 +165,7 @@ if wp is not None:
     def _observation(
         qpos: wp.array2d(dtype=float),
         scan: wp.array2d(dtype=float),
-        table: wp.array3d(dtype=float),
-        cost: wp.array(dtype=float),
-        grid: wp.vec4,
-        nx: int,
-        ny: int,
-        lookahead: float,
+        plan: PlanMap,
         restarted: wp.array(dtype=int),
         last_cost: wp.array(dtype=float),
         obs: wp.array2d(dtype=float),
@@ -175,11 +175,11 @@ if wp is not None:
         for b in range(nbeam):
             obs[w, b] = scan[w, b]
         pose = wp.vec3(qpos[w, 0], qpos[w, 1], qpos[w, 2])
-        g = _local_goal(pose, table, grid, nx, ny, lookahead)
+        g = _local_goal(pose, plan)
         obs[w, nbeam] = g[0]
         obs[w, nbeam + 1] = g[1]
         if restarted[w] != 0:  # a new episode: its progress counts from its spawn
-            last_cost[w] = _cost(pose, cost, grid, nx, ny)
+            last_cost[w] = _cost(pose, plan)
 
 
 def _device_actions(actions):
@@ -234,13 +234,15 @@ class WarpVectorEnv:
         self.worlds = WarpWorlds(world_file, num_envs, device=device, protocol=protocol, laser_noise=laser_noise)
         _, planner = shared_world(str(world_file))
         f = planner.field
-        self._nx, self._ny = f.nx, f.ny
-        self._grid = wp.vec4(BOUNDS[0], BOUNDS[2], planner.resolution, 0.0)
         self._spawn = np.asarray(self.worlds.protocol.spawn, dtype=np.float32)
         n = num_envs
         with wp.ScopedDevice(device):
-            self._table = wp.array(plan_table(planner, self.lookahead), dtype=float)
-            self._cost = wp.array(f.cost.ravel().astype(np.float32), dtype=float)
+            self._plan = PlanMap()
+            self._plan.table = wp.array(plan_table(planner, self.lookahead), dtype=float)
+            self._plan.cost = wp.array(f.cost.ravel().astype(np.float32), dtype=float)
+            self._plan.origin = wp.vec2(BOUNDS[0], BOUNDS[2])
+            self._plan.resolution = planner.resolution
+            self._plan.nx, self._plan.ny, self._plan.lookahead = f.nx, f.ny, self.lookahead
             self._spawns = wp.array(np.tile(self._spawn, (n, 1)), dtype=wp.vec3)
             self._last_cost = wp.zeros(n, dtype=float)
             self._episodes = wp.zeros(n, dtype=int)
@@ -319,11 +321,8 @@ class WarpVectorEnv:
 
     def _ended_inputs(self) -> list:
         w = self.worlds
-        return [
-            w.outcome, w.end_pose, w.d.qpos, w.scan, self._table, self._cost, self._grid, self._nx, self._ny,
-            self.lookahead, self._last_cost, self.reward, self.terminated, self.truncated, self.success, self.final_obs,
-            self._episodes,
-        ]  # fmt: skip
+        ended = [self.reward, self.terminated, self.truncated, self.success, self.final_obs, self._episodes]
+        return [w.outcome, w.end_pose, w.d.qpos, w.scan, self._plan, self._last_cost, *ended]
 
     def _restart_ended(self) -> None:
         """Worlds whose episode ended start their next trial; then every observation."""
@@ -339,7 +338,6 @@ class WarpVectorEnv:
         wp.launch(
             _observation,
             self.num_envs,
-            inputs=[w.d.qpos, w.scan, self._table, self._cost, self._grid, self._nx, self._ny, self.lookahead,
-                    self._mask, self._last_cost],
+            inputs=[w.d.qpos, w.scan, self._plan, self._mask, self._last_cost],
             outputs=[self.obs],
         )  # fmt: skip

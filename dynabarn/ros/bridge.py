@@ -122,28 +122,13 @@ class RosPlanner(Planner):
         if c.ros2_bag:
             self.recorder = start_recorder(Path(c.ros2_bag), env)
             cmd += ["--recorder", RECORDER]
-        self.node = subprocess.Popen(
-            cmd,
-            env=env,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.DEVNULL,
-            start_new_session=True,
-            preexec_fn=die_with_parent(),
-        )
+        self.node = spawn(cmd, env, stdin=subprocess.PIPE, stdout=subprocess.PIPE)
         if launch:
             # The stack's output never reaches our stdout (a --json document is printed there).
             log = open(c.stack_log, "ab") if c.stack_log else sys.stderr  # noqa: SIM115 (the stack writes while it runs)
             try:
-                self.stack = subprocess.Popen(
-                    shlex.split(launch) if isinstance(launch, str) else list(launch),
-                    env=env,
-                    stdin=subprocess.DEVNULL,
-                    stdout=log,
-                    stderr=subprocess.STDOUT,
-                    start_new_session=True,
-                    preexec_fn=die_with_parent(),
-                )
+                words = shlex.split(launch) if isinstance(launch, str) else list(launch)
+                self.stack = spawn(words, env, stdout=log, stderr=subprocess.STDOUT)
             finally:
                 if c.stack_log:
                     log.close()
@@ -267,6 +252,21 @@ class RosPlanner(Planner):
         }
 
 
+def spawn(
+    cmd: list[str],
+    env: dict[str, str],
+    *,
+    stdin=subprocess.DEVNULL,
+    stdout=subprocess.DEVNULL,
+    stderr=subprocess.DEVNULL,
+) -> subprocess.Popen:
+    """A process of the bridge's (the node, the stack, the recorder): in a process group of
+    its own (stopped whole, `stop_process`) that dies with this process."""
+    return subprocess.Popen(
+        cmd, env=env, stdin=stdin, stdout=stdout, stderr=stderr, start_new_session=True, preexec_fn=die_with_parent()
+    )
+
+
 RECORDER = "dynabarn_recorder"
 """The node name `ros2 bag record` runs under: the bridge node waits for its subscriptions."""
 RECORDER_QOS = Path(__file__).resolve().parent / "launch" / "rosbag2" / "qos_overrides.yaml"
@@ -283,15 +283,7 @@ def start_recorder(folder: Path, env: dict[str, str]) -> subprocess.Popen:
         raise DynabarnError(f"{folder.parent}: no such folder for the ROS 2 bag")
     cmd = ["ros2", "bag", "record", "--all-topics", "--use-sim-time", "--storage", "mcap"]
     cmd += ["--node-name", RECORDER, "--qos-profile-overrides-path", str(RECORDER_QOS), "--output", str(folder)]
-    return subprocess.Popen(
-        cmd,
-        env=env,
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,
-        preexec_fn=die_with_parent(),
-    )
+    return spawn(cmd, env)
 
 
 def ros_planner(*, launch: str | None = None, master: str | None = None, **config) -> RosPlanner:
