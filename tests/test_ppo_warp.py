@@ -46,7 +46,7 @@ def test_ppo_trains_resumes_and_its_policy_drives_on_the_c_engine(tmp_path):
     assert result["planner_config"]["kind"] == "ppo"
 
 
-def test_ppo_without_a_policy_or_on_a_missing_device_is_one_line():
+def test_ppo_without_a_policy_on_a_missing_device_or_over_a_damaged_checkpoint_is_one_line(tmp_path):
     run = subprocess.run(
         [str(BIN / "dynabarn-run"), "--world", "137", "--planner", "ppo", "--no-log"],
         capture_output=True,
@@ -62,3 +62,8 @@ def test_ppo_without_a_policy_or_on_a_missing_device_is_one_line():
     )
     assert train.returncode == 2 and len(train.stderr.strip().splitlines()) == 1, train.stderr
     assert "cuda:7" in train.stderr
+    (tmp_path / "checkpoint.pt").write_bytes(b"garbage")
+    (tmp_path / "history.json").write_text("[]")
+    resumed = _train(tmp_path, 1)
+    assert resumed.returncode == 2 and len(resumed.stderr.strip().splitlines()) == 1, resumed.stderr
+    assert "cannot resume" in resumed.stderr and (tmp_path / "checkpoint.pt").read_bytes() == b"garbage"

@@ -20,6 +20,7 @@ from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 
+from dynabarn.errors import DynabarnError
 from dynabarn.files import write_atomically
 from dynabarn.learn.configs import PPOConfig
 
@@ -122,7 +123,6 @@ def train_ppo(
 ) -> dict:
     """Train on `world_file` into `out` (policy.pt, checkpoint.pt, history.json); a run
     whose checkpoint is there goes on from it. Returns the history."""
-    import torch
 
     from dynabarn.learn.warp_env import WarpVectorEnv
     from dynabarn.planners.learned.models import save_policy
@@ -133,12 +133,7 @@ def train_ppo(
     actor, value, log_std, optimiser = _networks(cfg, torch_device)
     history, checkpoint = [], out / "checkpoint.pt"
     if resume and checkpoint.is_file():
-        state = torch.load(checkpoint, map_location=torch_device, weights_only=True)
-        actor.load_state_dict(state["actor"])
-        value.load_state_dict(state["value"])
-        log_std.data.copy_(state["log_std"])
-        optimiser.load_state_dict(state["optimiser"])
-        history = json.loads((out / "history.json").read_text())
+        history = _resume(out, actor, value, log_std, optimiser)
     obs = env.reset(seed=cfg.seed + len(history))  # a resumed run draws trials anew
     bar = progress(total=cfg.iterations, initial=len(history)) if progress else None
     for iteration in range(len(history), cfg.iterations):
@@ -166,6 +161,34 @@ def train_ppo(
     return {"history": history, "policy": str(out / "policy.pt")}
 
 
+CHECKPOINT = "dynabarn-ppo-checkpoint"
+"""The format name a PPO checkpoint carries."""
+
+
+def _resume(out: Path, actor, value, log_std, optimiser) -> list[dict]:
+    """The run in `out` where its last iteration left it: the networks, the optimiser and
+    the history, checked; one line when the folder holds something else."""
+    from dynabarn.planners.learned.models import load_tensors
+
+    try:
+        state = load_tensors(out / "checkpoint.pt")
+        if not isinstance(state, dict) or state.get("format") != CHECKPOINT:
+            raise ValueError("not a PPO checkpoint")
+        actor.load_state_dict(state["actor"])
+        value.load_state_dict(state["value"])
+        log_std.data.copy_(state["log_std"])
+        optimiser.load_state_dict(state["optimiser"])
+        history = json.loads((out / "history.json").read_text())
+        if not isinstance(history, list) or len(history) != int(state["iterations"]):
+            raise ValueError("history.json does not match the checkpoint")
+    except Exception as exc:  # PyTorch's and JSON's refusals run to a page: their first line says it
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0][:160]
+        raise DynabarnError(
+            f"{out / 'checkpoint.pt'}: cannot resume ({type(exc).__name__}: {first}); remove the folder to start anew"
+        ) from None
+    return history
+
+
 def _save(out: Path, actor, value, log_std, optimiser, history, cfg: PPOConfig, save_policy) -> None:
     """The policy, the checkpoint and the history, each written whole (temporary file,
     fsync, rename): a run stopped at any moment resumes from its last iteration."""
@@ -176,5 +199,6 @@ def _save(out: Path, actor, value, log_std, optimiser, history, cfg: PPOConfig, 
     cpu_actor.load_state_dict({k: v.detach().cpu() for k, v in actor.state_dict().items()})
     save_policy(cpu_actor, out / "policy.pt", kind="ppo", lookahead=cfg.lookahead, notes=notes)
     state = {"actor": actor.state_dict(), "value": value.state_dict(), "log_std": log_std.detach()}
-    save_tensors(out / "checkpoint.pt", {**state, "optimiser": optimiser.state_dict()})
+    state |= {"format": CHECKPOINT, "iterations": len(history), "optimiser": optimiser.state_dict()}
+    save_tensors(out / "checkpoint.pt", state)
     write_atomically(out / "history.json", json.dumps(history, indent=1) + "\n")
