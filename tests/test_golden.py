@@ -91,7 +91,8 @@ def test_golden_set_covers_every_planner_difficulty_protocol_and_world_kind():
     assert any(c.sim != golden.SimConfig() for c in cases), "an episode with its own --dt and --control-rate"
     from dynabarn.planners.registry import _BUILTIN
 
-    assert {c.planner for c in cases} == set(_BUILTIN) - {"stop"}, "every built-in planner that moves"
+    # ppo ships no policy (dynabarn-train ppo makes one): nothing of it to pin.
+    assert {c.planner for c in cases} == set(_BUILTIN) - {"stop", "ppo"}, "every built-in planner that moves"
     assert {"teb_dynamic", "dwa_dynamic"} <= {c.config for c in cases}, "prediction from the laser in TEB and DWA"
     assert {c.protocol for c in cases} >= {"barn", "paper2022", "barn-static"}
     assert {c.source for c in cases} == {"generated", "mixed", "avoid", "yield", "release", "barn-static"}
