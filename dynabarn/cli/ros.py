@@ -250,17 +250,18 @@ def _check_ros(args: argparse.Namespace) -> None:
 def _check_ros2_bag(args: argparse.Namespace) -> None:
     """--ros2-bag: a new folder, and rosbag2 in the core; one line otherwise."""
     from dynabarn.ros import ros2_build
+    from dynabarn.ros.bridge import check_bag_folder
 
     args.ros2_bag = args.ros2_bag.expanduser().resolve()
-    if args.ros2_bag.exists():
-        raise DynabarnError(
-            f"--ros2-bag {args.ros2_bag}: exists (rosbag2 writes a new folder; move it or name another)"
-        )
     core = args.ros2_workspace.expanduser().resolve() if args.ros2_workspace else ros2_build.default_workspace()
     record = ros2_build.built(core) or {}
     if "ros2bag" not in record.get("packages", ()):
         raise DynabarnError("--ros2-bag: rosbag2 is not in the ROS 2 core; build it: make ros2-core ROS2_SRC=DIR")
     args.ros2_bag.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        check_bag_folder(args.ros2_bag)  # the bridge's own check, before anything starts
+    except DynabarnError as exc:
+        raise DynabarnError(f"--ros2-bag {exc}") from None
 
 
 def _ros_episode(args: argparse.Namespace) -> int:

@@ -61,8 +61,8 @@ def _collect(cfg: PPOConfig, env, obs, actor, value, log_std):
     import torch
 
     T = cfg.rollout
-    store = {k: [] for k in ("obs", "actions", "logp", "values", "rewards", "next_values", "terminal", "ended")}
-    successes = episodes = 0
+    keys = ("obs", "actions", "logp", "values", "rewards", "next_values", "terminal", "ended", "success")
+    store = {k: [] for k in keys}
     with torch.no_grad():
         for _ in range(T):
             dist = torch.distributions.Normal(actor(obs), log_std.exp())
@@ -74,15 +74,16 @@ def _collect(cfg: PPOConfig, env, obs, actor, value, log_std):
             store["actions"].append(action)
             store["logp"].append(dist.log_prob(action).sum(-1))
             store["values"].append(value(obs).squeeze(-1))
-            store["rewards"].append(reward.clone())
+            store["rewards"].append(reward.clone())  # the environment's buffer: the next step rewrites it
             store["next_values"].append(value(after).squeeze(-1))
-            store["terminal"].append(terminated.clone())
+            store["terminal"].append(terminated)
             store["ended"].append(ended)
-            successes += int(info["success"].sum())
-            episodes += int(ended.sum())
+            store["success"].append(info["success"])
             obs = next_obs.clone()
     batch = {k: torch.stack(v) for k, v in store.items()}
-    return batch, obs, {"episodes": episodes, "successes": successes, "reward": float(batch["rewards"].mean()) * T}
+    # Counted once per rollout, not per period: each read waits for the device.
+    seen = {"episodes": int(batch["ended"].sum()), "successes": int(batch.pop("success").sum())}
+    return batch, obs, {**seen, "reward": float(batch["rewards"].mean()) * T}
 
 
 def _update(cfg: PPOConfig, batch, advantages, actor, value, log_std, optimiser) -> dict:
@@ -94,7 +95,6 @@ def _update(cfg: PPOConfig, batch, advantages, actor, value, log_std, optimiser)
     adv = (adv - adv.mean()) / (adv.std() + 1e-8)
     n = adv.shape[0]
     size = n // cfg.minibatches
-    losses = []
     for _ in range(cfg.epochs):
         order = torch.randperm(n, device=adv.device)
         for m in range(cfg.minibatches):
@@ -108,8 +108,8 @@ def _update(cfg: PPOConfig, batch, advantages, actor, value, log_std, optimiser)
             loss.backward()
             torch.nn.utils.clip_grad_norm_([*actor.parameters(), *value.parameters(), log_std], cfg.max_grad_norm)
             optimiser.step()
-            losses.append((float(policy_loss), float(value_loss)))
-    return {"policy_loss": losses[-1][0], "value_loss": losses[-1][1]}
+    # The last minibatch's losses, read once (a read per minibatch would wait for the device each time).
+    return {"policy_loss": float(policy_loss), "value_loss": float(value_loss)}
 
 
 def train_ppo(

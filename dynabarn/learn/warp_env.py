@@ -32,7 +32,7 @@ from dynabarn.learn.shared_worlds import shared_world
 from dynabarn.learn.warp_worlds import COLLISION, SUCCESS, TIMEOUT, WarpWorlds, require_warp
 from dynabarn.planners.global_planner import BOUNDS
 from dynabarn.robot import JACKAL
-from dynabarn.sim_config import draw_clock_offset, episode_rng
+from dynabarn.sim_config import trial_clock_offset
 
 try:
     import warp as wp
@@ -267,10 +267,10 @@ class WarpVectorEnv:
 
     def _new_trials(self, seed: int) -> None:
         """Each environment's next `TRIALS` trial seeds from its own generator, and their
-        clock offsets (`draw_clock_offset(episode_rng(trial))`, as an `Episode` draws it)."""
+        clock offsets (`trial_clock_offset`, as an `Episode` draws it)."""
         streams = np.random.SeedSequence(seed).spawn(self.num_envs)
         trials = np.stack([np.random.default_rng(s).integers(2**31, size=TRIALS) for s in streams])
-        offsets = np.vectorize(lambda t: draw_clock_offset(episode_rng(int(t))))(trials)
+        offsets = np.vectorize(lambda t: trial_clock_offset(int(t)))(trials)
         self.trials = trials
         with wp.ScopedDevice(self.device):
             self._trial_offsets = wp.array(offsets.astype(np.float32), dtype=float)

@@ -112,10 +112,6 @@ if wp is not None:
         ctrl[w, 2] = yaw_rate
 
     @wp.kernel
-    def advance_steps(steps: wp.array(dtype=int)):
-        steps[wp.tid()] += 1
-
-    @wp.kernel
     def note_contacts(
         nacon: wp.array(dtype=int),
         worldid: wp.array(dtype=int),
@@ -142,9 +138,11 @@ if wp is not None:
         end_step: wp.array(dtype=int),
         end_pose: wp.array(dtype=wp.vec3),
     ):
-        """The step just taken, judged as `Episode.judge_step` judges it. rules: the goal's
-        tolerance, the time limit, the distance that starts the clock, unused."""
+        """The step just taken, counted (`steps`), then judged as `Episode._judge` judges
+        it. rules: the goal's tolerance, the time limit, the distance that starts the clock,
+        unused."""
         w = wp.tid()
+        steps[w] += 1
         contact_now_w = contact_now[w]
         contact_now[w] = 0
         if outcome[w] != RUNNING:

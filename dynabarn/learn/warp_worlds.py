@@ -12,7 +12,7 @@ through the host:
 2. `k` physics steps, each after the obstacles are placed at that step's time from their
    keyframe schedules (linear or Catmull-Rom Hermite, loop or hold, each world's own clock
    offset), the kernel `place_obstacles`, as `worlds.schedule` evaluates them;
-3. after each step, the protocol's checks in the C engine's order (`Episode.judge_step`): a
+3. after each step, the protocol's checks in the C engine's order (`Episode._judge`): a
    contact (any of the world's: in these worlds every contact is the robot's) ends it as a
    collision; else the clock starts once the robot has left its spawn, the goal region
    ends it as a success, the time limit as a timeout; the outcome and its step are kept
@@ -42,7 +42,6 @@ from dynabarn.learn.warp_kernels import (
     RUNNING,
     SUCCESS,
     TIMEOUT,
-    advance_steps,
     judge_step,
     limit_commands,
     mjw,
@@ -53,10 +52,11 @@ from dynabarn.learn.warp_kernels import (
     scan_beams,
     wp,
 )
-from dynabarn.mjcf import load_model, read_world
+from dynabarn.mjcf import load_model, open_world
 from dynabarn.protocol import EvalProtocol, GoalRegion, get_protocol
 from dynabarn.robot import JACKAL
 from dynabarn.sim_config import SimConfig
+from dynabarn.world_file import world_bytes
 from dynabarn.worlds.schedule import keyframes_of
 from dynabarn.worlds.spec import EndBehavior, Interpolation
 
@@ -86,8 +86,9 @@ class WarpWorlds:
         require_warp()
         if nworld < 1:
             raise DynabarnError(f"nworld {nworld}: at least 1")
-        self.world = read_world(world_path)
-        reactive = sorted({o.behavior for o in self.world.obstacles if o.behavior != "scripted"})
+        data = world_bytes(world_path)  # read and parsed once, as `Simulation` does
+        root, self.world = open_world(world_path, data)
+        reactive = sorted({o.behavior for o in self.world.obstacles if o.reactive})
         if reactive:
             raise DynabarnError(
                 f"{world_path}: obstacles that react to the robot ({', '.join(reactive)}) are not on the Warp backend"
@@ -95,7 +96,7 @@ class WarpWorlds:
         self.protocol = get_protocol(protocol) if isinstance(protocol, str) else protocol
         self.config, self.nworld, self.device = config, nworld, device
         self.k = config.steps_per_tick
-        model = load_model(world_path, beam_sensors=True)  # the Jackal with its 720 rangefinders
+        model = load_model(world_path, beam_sensors=True, data=data, root=root)  # the Jackal's 720 rangefinders
         model.opt.timestep = config.dt
         model.sensor_interval[:, 0] = 0.0  # every beam read whenever the sensors are computed
         rangefinders = np.flatnonzero(model.sensor_type == mujoco.mjtSensor.mjSENS_RANGEFINDER)
@@ -185,7 +186,6 @@ class WarpWorlds:
                     self.d.naconmax,
                     inputs=[self.d.nacon, self.d.contact.worldid, self.contact_now, self.touched],
                 )
-                wp.launch(advance_steps, self.nworld, inputs=[self.steps])
                 wp.launch(judge_step, self.nworld, inputs=judged)
             if observe:
                 self._observe()

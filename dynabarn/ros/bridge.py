@@ -273,14 +273,20 @@ RECORDER_QOS = Path(__file__).resolve().parent / "launch" / "rosbag2" / "qos_ove
 """Its QoS where rosbag2's default would lose messages (/clock's bursts)."""
 
 
+def check_bag_folder(folder: Path) -> None:
+    """A folder `ros2 bag record` can write: new, in a folder that exists (rosbag2 refuses
+    one that exists); one line otherwise."""
+    if folder.exists():
+        raise DynabarnError(f"{folder}: exists (rosbag2 writes a new folder; move it or name another)")
+    if not folder.parent.is_dir():
+        raise DynabarnError(f"{folder.parent}: no such folder for the ROS 2 bag")
+
+
 def start_recorder(folder: Path, env: dict[str, str]) -> subprocess.Popen:
     """`ros2 bag record` of every topic (services left out) into `folder` (MCAP storage), on
     the bridge's clock, in its process group; the bridge node's boot waits until it has
-    subscribed to each of the bridge's topics. rosbag2 refuses a folder that exists."""
-    if folder.exists():
-        raise DynabarnError(f"{folder}: exists (ros2 bag record writes a new folder; move it or name another)")
-    if not folder.parent.is_dir():
-        raise DynabarnError(f"{folder.parent}: no such folder for the ROS 2 bag")
+    subscribed to each of the bridge's topics."""
+    check_bag_folder(folder)
     cmd = ["ros2", "bag", "record", "--all-topics", "--use-sim-time", "--storage", "mcap"]
     cmd += ["--node-name", RECORDER, "--qos-profile-overrides-path", str(RECORDER_QOS), "--output", str(folder)]
     return spawn(cmd, env)

@@ -79,9 +79,13 @@ def find_sources(
     version line in place. One line naming what is missing or other."""
     if not source.is_dir():
         raise DynabarnError(f"{source}: no such folder (fetch the sources: python -m dynabarn.ros.{module} --repos)")
+
+    def folder_of(name: str, repository: str) -> Path | None:
+        return next((p for p in (source / name, source / repository) if p.is_dir()), None)
+
     folders, other, missing = {}, [], []
     for name, download in (downloads or {}).items():
-        folder = next((p for p in (source / name, source / download.repository) if p.is_dir()), None)
+        folder = folder_of(name, download.repository)
         marker = folder / download.version_file if folder is not None else None
         if marker is None or not marker.is_file():
             missing.append(name)
@@ -90,7 +94,7 @@ def find_sources(
         else:
             folders[name] = folder
     for name, (repository, version) in repositories.items():
-        folder = next((p for p in (source / name, source / repository) if p.is_dir()), None)
+        folder = folder_of(name, repository)
         versions = _package_versions(folder) if folder is not None else {}
         if not versions:
             missing.append(name)
