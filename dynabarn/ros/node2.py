@@ -43,6 +43,10 @@ URDF = """<?xml version="1.0"?>
 """
 
 
+RECORDER_SETTLE = 0.5
+"""[s] of wall time the boot goes on after the recorder has subscribed to every topic."""
+
+
 class Ros2Node(Node):
     """`Node` over rclpy: its publishers and subscriptions with ROS 2's QoS, the rest inherited."""
 
@@ -90,6 +94,7 @@ class Ros2Node(Node):
         self._client = None  # the navigate_to_pose client, made once nav2_msgs imports
         self._sent = None  # the last goal's acceptance, on its way
         self._next_try = 0.0  # [monotonic s] when a rejected goal is offered again
+        self._recorder_seen: tuple[float, int] | None = None  # when (and at which command) it had subscribed
         self._navigation = None  # the accepted navigation's result, on its way
         # The Jackal's twist_mux takes /cmd_vel; the challenge's launch files publish straight
         # to the controller's input. Both drive the robot here.
@@ -121,7 +126,21 @@ class Ros2Node(Node):
             and not topic.endswith("parameter_events")
             and all(info.node_name != self.args.recorder for info in self.ros.get_subscriptions_info_by_topic(topic))
         )
-        return f"the recorder {self.args.recorder} never subscribed to {', '.join(missing)}" if missing else ""
+        if missing:
+            return f"the recorder {self.args.recorder} never subscribed to {', '.join(missing)}"
+        # Seen subscribed here is not yet matched with the stack's publisher (DDS matches each
+        # pair on its own): the stack's first commands after it went unrecorded. The boot
+        # goes on for RECORDER_SETTLE s and, where the stack commands while booting, two more
+        # commands (a command per boot period).
+        with self.answer:
+            count = self.count
+        if self._recorder_seen is None:
+            self._recorder_seen = (time.monotonic(), count)
+        since, at = self._recorder_seen
+        commands = count >= at + 2 or self.args.ready == "subscribed"
+        if time.monotonic() - since < RECORDER_SETTLE or not commands:
+            return f"the recorder {self.args.recorder} subscribed, but the stack's commands did not reach it yet"
+        return ""
 
     def _stamp(self, t: float):
         return self.Time(sec=int(t), nanosec=round((t - int(t)) * 1e9) % 1_000_000_000)
