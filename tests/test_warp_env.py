@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from dynabarn.learn.env import DynaBARNEnv
+from dynabarn.worldset import resolve_world
 
 pytest.importorskip("warp", reason="the Warp backend needs MuJoCo Warp: pip install 'dynabarn[gpu]'")
 pytest.importorskip("mujoco_warp", reason="the Warp backend needs MuJoCo Warp: pip install 'dynabarn[gpu]'")
@@ -18,7 +19,7 @@ torch = pytest.importorskip("torch")
 
 from dynabarn.learn.warp_env import WarpVectorEnv  # noqa: E402
 
-WORLD = "generated_worlds/world_137.xml"
+WORLD = str(resolve_world("137"))  # from any current folder
 GOAL_M = 5e-3
 """[m] local goals (the pose agrees to 0.05 mm; the plan's cells are the same)."""
 SCAN_M = 6e-3

@@ -11,13 +11,14 @@ import pytest
 from dynabarn.protocol import get_protocol
 from dynabarn.sim.episode import Episode
 from dynabarn.sim.simulation import Simulation
+from dynabarn.worldset import resolve_world
 
 pytest.importorskip("warp", reason="the Warp backend needs MuJoCo Warp: pip install 'dynabarn[gpu]'")
 pytest.importorskip("mujoco_warp", reason="the Warp backend needs MuJoCo Warp: pip install 'dynabarn[gpu]'")
 
 from dynabarn.learn.warp_worlds import COLLISION, RUNNING, SUCCESS, TIMEOUT, WarpWorlds
 
-WORLD = "generated_worlds/world_137.xml"
+WORLD = str(resolve_world("137"))  # from any current folder
 POSE_M = 1e-3
 """[m, rad] the largest pose difference allowed (measured: 0.044 mm over a 112-period episode)."""
 SCAN_M = 1.5e-3
