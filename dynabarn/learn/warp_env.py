@@ -46,16 +46,20 @@ if wp is not None:
 
     @wp.struct
     class PlanMap:
-        """A world's static map as the kernels read it: from each cell, the plan's first
-        cells (`plan_table`) and the cost-to-go; the grid; the local goal's distance."""
+        """The static maps of a batch's worlds as the kernels read them: per library world,
+        each cell's next cell along the Dijkstra plan (`pred`, < 0 at the goal's cell and
+        where the goal cannot be reached), the cost-to-go and the goal; the grid; the local
+        goal's distance and the cells a walk to it needs (`GlobalPlanner.plan_suffix`)."""
 
-        table: wp.array3d(dtype=float)
-        cost: wp.array(dtype=float)
+        pred: wp.array2d(dtype=int)
+        cost: wp.array2d(dtype=float)
+        goal: wp.array(dtype=wp.vec2)
         origin: wp.vec2
         resolution: float
         nx: int
         ny: int
         lookahead: float
+        cells: int
 
     @wp.func
     def _cell(pose: wp.vec3, plan: PlanMap) -> int:
@@ -64,33 +68,45 @@ if wp is not None:
         return i * plan.nx + j
 
     @wp.func
-    def _local_goal(pose: wp.vec3, plan: PlanMap) -> wp.vec2:
-        """The point `lookahead` metres along the plan from the pose (`points_along`), in
-        the robot frame."""
-        table = plan.table
-        lookahead = plan.lookahead
-        c = _cell(pose, plan)
-        cells = table.shape[1]
+    def _local_goal(pose: wp.vec3, k: int, plan: PlanMap) -> wp.vec2:
+        """The point `lookahead` metres along world k's plan from the pose (`points_along`
+        over `plan_suffix`'s points: the next cells' centres, the goal once the walk meets
+        it, the last point repeated where the suffix is cut), in the robot frame."""
+        cur = _cell(pose, plan)
+        goal = plan.goal[k]
         prev = wp.vec2(pose[0], pose[1])
-        out = wp.vec2(table[c, cells - 1, 0], table[c, cells - 1, 1])
-        along = wp.float32(0.0)  # a variable the loop changes (Warp: declared by its type)
+        out = prev
+        p = prev
+        along = wp.float32(0.0)  # variables the loop changes (Warp: declared by their type)
         found = wp.int32(0)
-        for k in range(cells):
-            p = wp.vec2(table[c, k, 0], table[c, k, 1])
+        ended = wp.int32(0)
+        for n in range(plan.cells):
+            if ended == 0:
+                nxt = plan.pred[k, cur]
+                if nxt < 0:
+                    ended = 1
+                    p = goal
+                elif n < plan.cells - 1:
+                    cur = nxt
+                    i = nxt // plan.nx
+                    j = nxt - i * plan.nx
+                    p = plan.origin + wp.vec2(wp.float32(j) + 0.5, wp.float32(i) + 0.5) * plan.resolution
             seg = wp.length(p - prev)
-            if found == 0 and along + seg >= lookahead:
-                out = prev + (p - prev) * ((lookahead - along) / wp.max(seg, 1.0e-12))
+            if found == 0 and along + seg >= plan.lookahead:
+                out = prev + (p - prev) * ((plan.lookahead - along) / wp.max(seg, 1.0e-12))
                 found = 1
             along = along + seg
             prev = p
+        if found == 0:
+            out = p
         d = out - wp.vec2(pose[0], pose[1])
         cy = wp.cos(pose[2])
         sy = wp.sin(pose[2])
         return wp.vec2(cy * d[0] + sy * d[1], -sy * d[0] + cy * d[1])
 
     @wp.func
-    def _cost(pose: wp.vec3, plan: PlanMap) -> float:
-        return plan.cost[_cell(pose, plan)]
+    def _cost(pose: wp.vec3, k: int, plan: PlanMap) -> float:
+        return plan.cost[k, _cell(pose, plan)]
 
     @wp.kernel
     def _commands(actions: wp.array2d(dtype=float), limits: wp.vec3, commands: wp.array(dtype=wp.vec2)):
@@ -107,6 +123,7 @@ if wp is not None:
         qpos: wp.array2d(dtype=float),
         scan: wp.array2d(dtype=float),
         plan: PlanMap,
+        world_of: wp.array(dtype=int),
         last_cost: wp.array(dtype=float),
         reward: wp.array(dtype=float),
         terminated: wp.array(dtype=int),
@@ -122,7 +139,8 @@ if wp is not None:
         pose = wp.vec3(qpos[w, 0], qpos[w, 1], qpos[w, 2])
         if done != 0:
             pose = end_pose[w]
-        ctg = _cost(pose, plan)
+        k = world_of[w]
+        ctg = _cost(pose, k, plan)
         progress = wp.float32(0.0)
         if wp.isfinite(ctg) and wp.isfinite(last_cost[w]):
             progress = last_cost[w] - ctg
@@ -140,7 +158,7 @@ if wp is not None:
             nbeam = scan.shape[1]
             for b in range(nbeam):
                 final[w, b] = scan[w, b]
-            g = _local_goal(pose, plan)
+            g = _local_goal(pose, k, plan)
             final[w, nbeam] = g[0]
             final[w, nbeam + 1] = g[1]
             episodes[w] += 1
@@ -151,35 +169,40 @@ if wp is not None:
         episodes: wp.array(dtype=int),
         offsets: wp.array2d(dtype=float),
         seeds: wp.array2d(dtype=int),
+        worlds: wp.array2d(dtype=int),
         mask: wp.array(dtype=int),
         offset: wp.array(dtype=float),
         seed: wp.array(dtype=int),
+        world: wp.array(dtype=int),
     ):
         w = wp.tid()
         mask[w] = int(done[w] != 0)
         k = episodes[w] % offsets.shape[1]
         offset[w] = offsets[w, k]
         seed[w] = seeds[w, k]
+        world[w] = worlds[w, k]
 
     @wp.kernel
     def _observation(
         qpos: wp.array2d(dtype=float),
         scan: wp.array2d(dtype=float),
         plan: PlanMap,
+        world_of: wp.array(dtype=int),
         restarted: wp.array(dtype=int),
         last_cost: wp.array(dtype=float),
         obs: wp.array2d(dtype=float),
     ):
         w = wp.tid()
+        k = world_of[w]
         nbeam = scan.shape[1]
         for b in range(nbeam):
             obs[w, b] = scan[w, b]
         pose = wp.vec3(qpos[w, 0], qpos[w, 1], qpos[w, 2])
-        g = _local_goal(pose, plan)
+        g = _local_goal(pose, k, plan)
         obs[w, nbeam] = g[0]
         obs[w, nbeam + 1] = g[1]
         if restarted[w] != 0:  # a new episode: its progress counts from its spawn
-            last_cost[w] = _cost(pose, plan)
+            last_cost[w] = _cost(pose, k, plan)
 
 
 def _device_actions(actions):
@@ -194,30 +217,13 @@ def _device_actions(actions):
     return wp.array(np.asarray(actions, dtype=np.float32))
 
 
-def plan_table(planner, lookahead: float) -> np.ndarray:
-    """(nx * ny, cells, 2) float32: from each cell of the map, the first cells of the plan
-    a local goal `lookahead` away walks (`GlobalPlanner.plan_suffix`, padded by its end)."""
-    f = planner.field
-    cells = int(np.floor(lookahead / planner.resolution)) + 3
-    table = np.empty((f.nx * f.ny, cells, 2), dtype=np.float32)
-    for c in range(f.nx * f.ny):
-        i, j = divmod(c, f.nx)
-        x = BOUNDS[0] + (j + 0.5) * planner.resolution
-        y = BOUNDS[2] + (i + 0.5) * planner.resolution
-        suffix = planner.plan_suffix(x, y, lookahead)
-        n = min(len(suffix), cells)
-        table[c, :n] = suffix[:n]
-        table[c, n:] = suffix[n - 1]
-    return table
-
-
 class WarpVectorEnv:
     """`num_envs` episodes of one world's DynaBARN-v0 on a Warp device, with PyTorch
     tensors in and out (see the module docstring)."""
 
     def __init__(
         self,
-        world_file: str,
+        world_file: str | list[str],
         num_envs: int,
         *,
         device: str = "cpu",
@@ -232,23 +238,30 @@ class WarpVectorEnv:
             raise DynabarnError(f"lookahead {lookahead!r}: a number of metres in [0.1, 30]")
         self.num_envs, self.device, self.lookahead = num_envs, device, float(lookahead)
         self.worlds = WarpWorlds(world_file, num_envs, device=device, protocol=protocol, laser_noise=laser_noise)
-        _, planner = shared_world(str(world_file))
-        f = planner.field
+        self.world_files = [str(p) for p in self.worlds.library.paths]
+        """The worlds each environment's episodes are drawn from (uniformly, per trial)."""
+        planners = [shared_world(file)[1] for file in self.world_files]
+        f = planners[0].field
         self._spawn = np.asarray(self.worlds.protocol.spawn, dtype=np.float32)
         n = num_envs
         with wp.ScopedDevice(device):
             self._plan = PlanMap()
-            self._plan.table = wp.array(plan_table(planner, self.lookahead), dtype=float)
-            self._plan.cost = wp.array(f.cost.ravel().astype(np.float32), dtype=float)
+            self._plan.pred = wp.array(np.stack([pl.field.pred_array.ravel() for pl in planners]), dtype=int)
+            self._plan.cost = wp.array(
+                np.stack([pl.field.cost.ravel() for pl in planners]).astype(np.float32), dtype=float
+            )
+            self._plan.goal = wp.array(np.array([pl.goal for pl in planners], dtype=np.float32), dtype=wp.vec2)
             self._plan.origin = wp.vec2(BOUNDS[0], BOUNDS[2])
-            self._plan.resolution = planner.resolution
+            self._plan.resolution = planners[0].resolution
             self._plan.nx, self._plan.ny, self._plan.lookahead = f.nx, f.ny, self.lookahead
+            self._plan.cells = int(np.floor(self.lookahead / planners[0].resolution)) + 3  # `plan_suffix`'s
             self._spawns = wp.array(np.tile(self._spawn, (n, 1)), dtype=wp.vec3)
             self._last_cost = wp.zeros(n, dtype=float)
             self._episodes = wp.zeros(n, dtype=int)
-            self._mask, self._offset, self._seed = (
+            self._mask, self._offset, self._seed, self._world = (
                 wp.zeros(n, dtype=int),
                 wp.zeros(n, dtype=float),
+                wp.zeros(n, dtype=int),
                 wp.zeros(n, dtype=int),
             )
             self._commands = wp.zeros(n, dtype=wp.vec2)
@@ -266,15 +279,20 @@ class WarpVectorEnv:
         self._new_trials(seed)
 
     def _new_trials(self, seed: int) -> None:
-        """Each environment's next `TRIALS` trial seeds from its own generator, and their
-        clock offsets (`trial_clock_offset`, as an `Episode` draws it)."""
-        streams = np.random.SeedSequence(seed).spawn(self.num_envs)
-        trials = np.stack([np.random.default_rng(s).integers(2**31, size=TRIALS) for s in streams])
-        offsets = np.vectorize(lambda t: trial_clock_offset(int(t)))(trials)
-        self.trials = trials
+        """Each environment's next `TRIALS` trials from its own generator: the trial seeds,
+        their clock offsets (`trial_clock_offset`, as an `Episode` draws it), then the
+        world each is played in (an index into `world_files`)."""
+        trials, worlds = [], []
+        for stream in np.random.SeedSequence(seed).spawn(self.num_envs):
+            rng = np.random.default_rng(stream)
+            trials.append(rng.integers(2**31, size=TRIALS))
+            worlds.append(rng.integers(len(self.world_files), size=TRIALS))
+        self.trials, self.trial_worlds = np.stack(trials), np.stack(worlds)
+        offsets = np.vectorize(lambda t: trial_clock_offset(int(t)))(self.trials)
         with wp.ScopedDevice(self.device):
             self._trial_offsets = wp.array(offsets.astype(np.float32), dtype=float)
-            self._trial_seeds = wp.array(trials.astype(np.int32), dtype=int)
+            self._trial_seeds = wp.array(self.trials.astype(np.int32), dtype=int)
+            self._trial_worlds = wp.array(self.trial_worlds.astype(np.int32), dtype=int)
 
     def reset(self, seed: int | None = None):
         """Every environment's first episode (its trials drawn anew from `seed` when given);
@@ -322,7 +340,7 @@ class WarpVectorEnv:
     def _ended_inputs(self) -> list:
         w = self.worlds
         ended = [self.reward, self.terminated, self.truncated, self.success, self.final_obs, self._episodes]
-        return [w.outcome, w.end_pose, w.d.qpos, w.scan, self._plan, self._last_cost, *ended]
+        return [w.outcome, w.end_pose, w.d.qpos, w.scan, self._plan, w.world_of, self._last_cost, *ended]
 
     def _restart_ended(self) -> None:
         """Worlds whose episode ended start their next trial; then every observation."""
@@ -330,14 +348,14 @@ class WarpVectorEnv:
         wp.launch(
             _next_trials,
             self.num_envs,
-            inputs=[w.outcome, self._episodes, self._trial_offsets, self._trial_seeds],
-            outputs=[self._mask, self._offset, self._seed],
+            inputs=[w.outcome, self._episodes, self._trial_offsets, self._trial_seeds, self._trial_worlds],
+            outputs=[self._mask, self._offset, self._seed, self._world],
         )
-        w.restart(self._mask, self._spawns, self._offset, self._seed)
+        w.restart(self._mask, self._spawns, self._offset, self._seed, self._world)
         w.observe()
         wp.launch(
             _observation,
             self.num_envs,
-            inputs=[w.d.qpos, w.scan, self._plan, self._mask, self._last_cost],
+            inputs=[w.d.qpos, w.scan, self._plan, w.world_of, self._mask, self._last_cost],
             outputs=[self.obs],
         )  # fmt: skip

@@ -6,6 +6,7 @@ only where the `gpu` extra is installed."""
 from __future__ import annotations
 
 import os
+from typing import Any
 
 from dynabarn.errors import NotInstalledHere
 
@@ -52,21 +53,25 @@ if wp is not None:
         steps: wp.array(dtype=int),
         dt: float,
         clock_offset: wp.array(dtype=float),
+        world_of: wp.array(dtype=int),
         durations: wp.array(dtype=float),
         seg_lo: wp.array(dtype=int),
         seg_hi: wp.array(dtype=int),
         key_t: wp.array(dtype=float),
         key_p: wp.array(dtype=wp.vec2),
         key_m: wp.array(dtype=wp.vec2),
-        loop: int,
-        spline: int,
+        loop: wp.array(dtype=int),
+        spline: wp.array(dtype=int),
         mocap_pos: wp.array2d(dtype=wp.vec3),
     ):
-        """Obstacle i of world w at the time of that world's step `steps[w]`."""
-        w, i = wp.tid()
+        """Obstacle j of batch world w at the time of its step `steps[w]`: the library's
+        world `world_of[w]`, whose obstacle j is key row `world_of[w] * n + j`."""
+        w, j = wp.tid()
+        k = world_of[w]
+        i = k * mocap_pos.shape[1] + j
         tl = wp.float32(steps[w]) * dt + clock_offset[w]
         span = durations[i]
-        if loop != 0:  # noqa: SIM108 (a Warp kernel: plain branches)
+        if loop[k] != 0:  # noqa: SIM108 (a Warp kernel: plain branches)
             tl = tl - span * wp.floor(tl / span)
         else:
             tl = wp.min(tl, span)
@@ -79,7 +84,7 @@ if wp is not None:
         p0 = key_p[seg]
         p1 = key_p[seg + 1]
         p = p0 + (p1 - p0) * u
-        if spline != 0:
+        if spline[k] != 0:
             u2 = u * u
             u3 = u2 * u
             p = (
@@ -88,7 +93,7 @@ if wp is not None:
                 + (-2.0 * u3 + 3.0 * u2) * p1
                 + (u3 - u2) * key_m[seg + 1]
             )
-        mocap_pos[w, i] = wp.vec3(p[0], p[1], mocap_pos[w, i][2])
+        mocap_pos[w, j] = wp.vec3(p[0], p[1], mocap_pos[w, j][2])
 
     @wp.kernel
     def limit_commands(
@@ -129,7 +134,8 @@ if wp is not None:
         steps: wp.array(dtype=int),
         contact_now: wp.array(dtype=int),
         spawn: wp.array(dtype=wp.vec3),
-        goal: wp.vec2,
+        world_of: wp.array(dtype=int),
+        goals: wp.array(dtype=wp.vec2),
         rules: wp.vec4,
         square: int,
         dt: float,
@@ -158,6 +164,7 @@ if wp is not None:
         moved = wp.vec2(x - spawn[w][0], y - spawn[w][1])
         if t_start[w] < 0.0 and wp.dot(moved, moved) >= rules[2] * rules[2]:
             t_start[w] = t
+        goal = goals[world_of[w]]
         off = wp.vec2(x - goal[0], y - goal[1])
         inside = wp.dot(off, off) < rules[0] * rules[0]
         if square != 0:
@@ -190,6 +197,26 @@ if wp is not None:
             state = wp.rand_init(seed[w], steps[w] * nbeam + b)
             r = r + laser[2] * wp.randn(state)
         scan[w, b] = wp.rint(wp.clamp(r, laser[0], laser[1]) / grid) * grid
+
+    @wp.kernel
+    def assign_worlds(mask: wp.array(dtype=int), new_world: wp.array(dtype=int), world_of: wp.array(dtype=int)):
+        """Which of the library's worlds each restarting batch world plays next."""
+        w = wp.tid()
+        if mask[w] != 0:
+            world_of[w] = new_world[w]
+
+    @wp.kernel
+    def copy_world_rows(
+        mask: wp.array(dtype=int),
+        world_of: wp.array(dtype=int),
+        library: wp.array2d(dtype=Any),
+        rows: wp.array2d(dtype=Any),
+    ):
+        """A per-world model field's row of each restarting batch world, from its library
+        world's (`learn.warp_library`): one kernel for every such field, whatever its type."""
+        w, j = wp.tid()
+        if mask[w] != 0:
+            rows[w, j] = library[world_of[w], j]
 
     @wp.kernel
     def reset_worlds(
