@@ -41,7 +41,7 @@ def _steer(obs: np.ndarray) -> np.ndarray:
 
 def test_an_episode_is_the_c_environments_and_the_world_restarts_in_the_same_step():
     batch = WarpVectorEnv(WORLD, 2, device="cpu", laser_noise=False, seed=3)
-    obs = batch.reset().numpy().copy()
+    obs = batch.reset()[0].numpy().copy()
     trial = int(batch.trials[0, 0])
     single = DynaBARNEnv(worlds=[137])
     expected, _ = single.reset(seed=0, options={"trial_seed": trial})

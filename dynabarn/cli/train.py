@@ -61,11 +61,27 @@ def _add_ppo(sub) -> None:
 
     pp = sub.add_parser(
         "ppo",
-        help="PPO on the Warp backend: thousands of episodes of one world on a GPU (the gpu extra; "
+        help="PPO on the Warp backend: thousands of episodes at once on a GPU (the gpu extra; "
         "resumes from --out's checkpoint when run again)",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    pp.add_argument("--world", default="137", help="the world trained in: an id of the 300, or a world file")
+    where = pp.add_mutually_exclusive_group()
+    where.add_argument(
+        "--world", default=None, help="one world trained in: an id of the 300, or a world file (the default: 137)"
+    )
+    where.add_argument(
+        "--split",
+        choices=("train", "validation"),
+        default=None,
+        help="procedural worlds of a split (never the evaluation sets'): its first --procedural-worlds, drawn "
+        "from --split-seed",
+    )
+    where.add_argument(
+        "--world-set", default=None, help="every world of a set or folder (with --difficulty: those of one)"
+    )
+    pp.add_argument("--difficulty", choices=("easy", "medium", "hard"), default=None, help="with --world-set")
+    pp.add_argument("--split-seed", type=int, default=0, help="with --split: which procedural worlds")
+    pp.add_argument("--procedural-worlds", type=int, default=64, help="with --split: how many worlds the batch holds")
     pp.add_argument(
         "--env-backend",
         choices=("warp",),
@@ -264,21 +280,30 @@ def _train_ppo(args: argparse.Namespace, tqdm) -> int:
         raise DynabarnError(
             f"--device {args.device}: Warp has no such device (it has: cpu{', cuda' * wp.is_cuda_available()})"
         ) from None
-    world = resolve_world(args.world, None)
+    if args.difficulty is not None and args.world_set is None:
+        raise DynabarnError("--difficulty chooses within --world-set")
+    if args.split is not None:
+        worlds = {"split": args.split, "split_seed": args.split_seed, "procedural_worlds": args.procedural_worlds}
+        notes = {"split": args.split, "split_seed": args.split_seed, "procedural_worlds": args.procedural_worlds}
+    elif args.world_set is not None:
+        worlds = {"world_set": args.world_set, "difficulty": args.difficulty}
+        notes = {"world_set": args.world_set, "difficulty": args.difficulty}
+    else:
+        worlds = str(resolve_world(args.world or "137", None))
+        notes = {"world": worlds}
     try:
         cfg = PPOConfig(
-            **{name: getattr(args, name) for name, *_ in cli_options(PPOConfig)},
-            notes={"world": str(world), "device": device},
+            **{name: getattr(args, name) for name, *_ in cli_options(PPOConfig)}, notes={**notes, "device": device}
         )
-    except ValueError as exc:
+        report = train_ppo(
+            worlds,
+            args.out,
+            cfg,
+            device=device,
+            progress=lambda total, initial=0: tqdm(total=total, initial=initial, desc="iterations"),
+        )
+    except ValueError as exc:  # the worlds' keywords, refused by the environment in one line
         raise DynabarnError(str(exc)) from None
-    report = train_ppo(
-        str(world),
-        args.out,
-        cfg,
-        device=device,
-        progress=lambda total, initial=0: tqdm(total=total, initial=initial, desc="iterations"),
-    )
     last = report["history"][-1]
     print(
         f"wrote {report['policy']} after {last['iteration']} iterations ({last['steps']:,} control steps) on "

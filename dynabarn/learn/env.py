@@ -84,10 +84,10 @@ from typing import Any, ClassVar
 
 import gymnasium
 import numpy as np
-from gymnasium import spaces
 
 from dynabarn.errors import DynabarnError
 from dynabarn.interfaces.observation import Observation
+from dynabarn.learn.gym_spaces import ACTION_SPACE, observation_space
 from dynabarn.learn.observed import ObservedEpisodes, ObserverFactory
 from dynabarn.learn.shared_worlds import forget_world, shared_world
 from dynabarn.learn.split import DEFAULT_PROFILE_SETS, ProceduralWorlds, reserved_fingerprints
@@ -201,11 +201,7 @@ class DynaBARNEnv(gymnasium.Env):
         self.lookahead = float(lookahead)
         self.render_mode = render_mode
         self.camera, self.width, self.height = camera, width, height
-        n = len(JACKAL.laser_angles())
-        low = np.concatenate([np.full(n, JACKAL.laser_range_min), [-self.lookahead, -self.lookahead]])
-        high = np.concatenate([np.full(n, JACKAL.laser_range_max), [self.lookahead, self.lookahead]])
-        self.observation_space = spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+        self.observation_space, self.action_space = observation_space(self.lookahead), ACTION_SPACE
         self._sims: dict[str, Simulation] = {}
         self._planners: dict[str, GlobalPlanner] = {}
         self.episode: Episode | None = None

@@ -1,5 +1,5 @@
 """PPO on the Warp backend (`dynabarn-train ppo --env-backend warp`): thousands of episodes
-of one world stepped on the device (`learn.warp_env`), the policy and its update in
+of a batch of worlds stepped on the device (`learn.warp_env`), the policy and its update in
 PyTorch on the same device, no copy through the host in the loop.
 
 The policy is the Fig. 4 actor (`models.Actor`, its tanh mean) with a learned standard
@@ -113,7 +113,7 @@ def _update(cfg: PPOConfig, batch, advantages, actor, value, log_std, optimiser)
 
 
 def train_ppo(
-    world_file: str,
+    worlds: str | list[str] | dict,
     out: Path,
     cfg: PPOConfig,
     *,
@@ -121,20 +121,26 @@ def train_ppo(
     resume: bool = True,
     progress: Callable[..., object] | None = None,
 ) -> dict:
-    """Train on `world_file` into `out` (policy.pt, checkpoint.pt, history.json); a run
-    whose checkpoint is there goes on from it. Returns the history."""
+    """Train into `out` (policy.pt, checkpoint.pt, history.json) on `worlds`: a world file,
+    a list of them, or `DynaBARNVectorEnv`'s keywords choosing them (`{"world_set": ...,
+    "difficulty": ...}`, `{"split": "train", ...}`); a run whose checkpoint is there goes on
+    from it. Returns the history."""
 
+    from dynabarn.learn.vector_env import warp_vector_env
     from dynabarn.learn.warp_env import WarpVectorEnv
     from dynabarn.planners.learned.models import save_policy
 
     out.mkdir(parents=True, exist_ok=True)
-    env = WarpVectorEnv(world_file, cfg.num_envs, device=device, lookahead=cfg.lookahead, seed=cfg.seed)
+    if isinstance(worlds, dict):
+        env = warp_vector_env(cfg.num_envs, device=device, lookahead=cfg.lookahead, seed=cfg.seed, **worlds)
+    else:
+        env = WarpVectorEnv(worlds, cfg.num_envs, device=device, lookahead=cfg.lookahead, seed=cfg.seed)
     torch_device = "cpu" if device == "cpu" else device
     actor, value, log_std, optimiser = _networks(cfg, torch_device)
     history, checkpoint = [], out / "checkpoint.pt"
     if resume and checkpoint.is_file():
         history = _resume(out, actor, value, log_std, optimiser)
-    obs = env.reset(seed=cfg.seed + len(history))  # a resumed run draws trials anew
+    obs, _ = env.reset(seed=cfg.seed + len(history))  # a resumed run draws trials anew
     bar = progress(total=cfg.iterations, initial=len(history)) if progress else None
     for iteration in range(len(history), cfg.iterations):
         t0 = time.perf_counter()

@@ -177,12 +177,34 @@ class DynaBARNVectorEnv(VectorEnv):
     Args: `num_envs`, `workers` (default: one per usable core, at most `num_envs`), and every keyword of
     `DynaBARNEnv` but rendering (`world_set`, `split`, `split_seed`, `difficulty`,
     `worlds`, `protocol`, `lookahead`). `reset(seed=s)` seeds world i with s + i.
+
+    `backend="warp"` (the `gpu` extra) gives the Warp backend instead, for training: a
+    `WarpVectorEnv` on `device` ("cuda", "cuda:1" or Warp's "cpu") over the same worlds
+    (a set, a difficulty, chosen worlds, or a procedural split's first `procedural_worlds`),
+    with PyTorch tensors in and out and same-step autoreset; `seed` draws its trials.
+    `backend="c"` (the default) is MuJoCo's C engine, here, with numpy.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"autoreset_mode": AutoresetMode.NEXT_STEP}
 
+    def __new__(cls, num_envs: int = 8, *, backend: str = "c", device: str = "cpu", **kwargs):
+        if backend == "warp":
+            return warp_vector_env(num_envs, device=device, **kwargs)
+        if backend != "c":
+            raise ValueError(f"backend {backend!r}: use 'c' (MuJoCo's C engine) or 'warp' (MuJoCo Warp, for training)")
+        if device != "cpu":
+            raise ValueError(f"device {device!r}: the C engine runs on the CPU; a GPU is the Warp backend's")
+        return super().__new__(cls)
+
     def __init__(
-        self, num_envs: int = 8, *, workers: int | None = None, max_episode_steps: int | None = None, **env_kwargs
+        self,
+        num_envs: int = 8,
+        *,
+        workers: int | None = None,
+        max_episode_steps: int | None = None,
+        backend: str = "c",
+        device: str = "cpu",
+        **env_kwargs,
     ) -> None:
         # `gymnasium.make_vec` passes the registered max_episode_steps; the protocol always
         # ends an episode first (see DynaBARNEnv's docstring), so it is only recorded.
@@ -281,6 +303,51 @@ class DynaBARNVectorEnv(VectorEnv):
 INFO_KEYS = ("is_success", "world_id", "difficulty", "trial_seed", "outcome")
 INFO_KINDS = {"is_success": bool, "world_id": np.int64, "trial_seed": np.int64}
 """Their array types (object for the rest: names and outcomes)."""
+
+
+PROCEDURAL_WORLDS = 64
+"""Training worlds a Warp batch draws from a procedural split (`procedural_worlds`)."""
+
+
+def warp_vector_env(
+    num_envs: int,
+    *,
+    device: str,
+    workers: int | None = None,
+    max_episode_steps: int | None = None,
+    procedural_worlds: int = PROCEDURAL_WORLDS,
+    seed: int = 0,
+    **env_kwargs,
+):
+    """`DynaBARNVectorEnv(backend="warp")`: the worlds `DynaBARNEnv` would draw from, in a
+    `WarpVectorEnv` on `device`. A procedural split (`split="train"`) gives its first
+    `procedural_worlds` worlds (the same on any machine for the same split and seed), drawn
+    once: a Warp batch's worlds are compiled into its model when it is made."""
+    from dynabarn.learn.warp_env import WarpVectorEnv  # the `gpu` extra: only when asked for
+
+    if workers is not None:
+        raise ValueError("workers: the Warp backend steps every world on its device, in this process")
+    if "render_mode" in env_kwargs:
+        raise ValueError("the vector environment does not render; use DynaBARNEnv for pictures")
+    if not (isinstance(procedural_worlds, int) and 1 <= procedural_worlds <= 4096):
+        raise ValueError(f"procedural_worlds must be a whole number in [1, 4096], got {procedural_worlds!r}")
+    probe = DynaBARNEnv(**env_kwargs)  # the same worlds, and the same one-line refusals
+    try:
+        if probe.procedural is not None:
+            probe.procedural.keep = procedural_worlds  # every file kept until the batch is made
+            files = [str(probe.procedural.world(k).path) for k in range(procedural_worlds)]
+        else:
+            files = [file for _, file, _ in probe.entries]
+        return WarpVectorEnv(
+            files,
+            num_envs,
+            device=device,
+            lookahead=probe.lookahead,
+            protocol=env_kwargs.get("protocol", "barn"),
+            seed=seed,
+        )
+    finally:
+        probe.close()  # a procedural split's files go with it: the batch holds what it needs
 
 
 def _infos(items: list[dict]) -> dict:

@@ -24,10 +24,14 @@ only; evaluation stays on the C engine.
 
 from __future__ import annotations
 
+from typing import Any, ClassVar
+
 import numpy as np
+from gymnasium.vector import AutoresetMode
 
 from dynabarn.errors import DynabarnError
 from dynabarn.learn.env import REWARD_COLLISION, REWARD_PROGRESS, REWARD_SUCCESS, REWARD_TIME
+from dynabarn.learn.gym_spaces import ACTION_SPACE, observation_space
 from dynabarn.learn.shared_worlds import shared_world
 from dynabarn.learn.warp_worlds import COLLISION, SUCCESS, TIMEOUT, WarpWorlds, require_warp
 from dynabarn.planners.global_planner import BOUNDS
@@ -218,8 +222,12 @@ def _device_actions(actions):
 
 
 class WarpVectorEnv:
-    """`num_envs` episodes of one world's DynaBARN-v0 on a Warp device, with PyTorch
-    tensors in and out (see the module docstring)."""
+    """`num_envs` episodes of DynaBARN-v0 on a Warp device, with PyTorch tensors in and out
+    (see the module docstring): of one world file, or of a list of them (each episode in one
+    drawn from the environment's own generator, as `DynaBARNEnv` draws its worlds).
+    `DynaBARNVectorEnv(..., backend="warp")` makes one from a set's name."""
+
+    metadata: ClassVar[dict[str, Any]] = {"autoreset_mode": AutoresetMode.SAME_STEP}
 
     def __init__(
         self,
@@ -272,6 +280,7 @@ class WarpVectorEnv:
             self.obs = wp.zeros((n, self.worlds.n_beams + 2), dtype=float)
             self.final_obs = wp.zeros((n, self.worlds.n_beams + 2), dtype=float)
         self._limits = wp.vec3(JACKAL.v_min, JACKAL.v_max, JACKAL.w_max)
+        self.single_observation_space, self.single_action_space = observation_space(self.lookahead), ACTION_SPACE
         self.graph = wp.get_device(device).is_cuda if graph is None else bool(graph)
         """A period replayed as a CUDA graph (default on a GPU): Python launches dozens of
         kernels per physics step, which a graph replaces with one launch per period."""
@@ -294,16 +303,23 @@ class WarpVectorEnv:
             self._trial_seeds = wp.array(self.trials.astype(np.int32), dtype=int)
             self._trial_worlds = wp.array(self.trial_worlds.astype(np.int32), dtype=int)
 
-    def reset(self, seed: int | None = None):
-        """Every environment's first episode (its trials drawn anew from `seed` when given);
-        the observations (num_envs, 722) as a PyTorch tensor on the device."""
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Every environment's first episode (its trials drawn anew from `seed` when given),
+        as Gymnasium's `VectorEnv.reset`: the observations (num_envs, 722), a PyTorch tensor
+        on the device, and an info with each environment's world (`world`, an index into
+        `world_files`). No options are taken."""
+        if options:
+            raise ValueError(f"the Warp backend's reset takes no options, got {sorted(options)}")
         if seed is not None:
             self._new_trials(seed)
         with wp.ScopedDevice(self.device):
             self._episodes.zero_()
             self.worlds.outcome.fill_(1)  # every world "ended": all restart on their first trial
             self._restart_ended()
-        return wp.to_torch(self.obs)
+        return wp.to_torch(self.obs), {"world": wp.to_torch(self.worlds.world_of)}
+
+    def close(self) -> None:
+        """Nothing to end: no process or thread of its own (Gymnasium's `close`)."""
 
     def step(self, actions):
         """One control period of every environment: `actions` (num_envs, 2) in [-1, 1] (a
