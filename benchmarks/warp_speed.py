@@ -4,6 +4,7 @@ vector environment on the same machine in the same run.
 
     python benchmarks/warp_speed.py --device cpu --envs 1,8,32 --record       # here: Warp's CPU device
     python benchmarks/warp_speed.py --device cuda --envs 1,16,256,4096,16384 --record   # on a GPU
+    python benchmarks/warp_speed.py --device cuda --set tier-combined --envs 4096 --record   # a set's batch
 
 `--record` writes results/warp_speed/DEVICE.json (`cpu-device`, or the GPU's name); the
 speed page's table (block `warp-speed`) is generated from every record there. Shares:
@@ -42,13 +43,17 @@ def _timed(fn, periods: int, sync) -> float:
     return (time.perf_counter() - t0) / periods
 
 
-def measure_warp(device: str, n: int, periods: int) -> dict:
+def measure_warp(device: str, n: int, periods: int, world_set: str | None = None) -> dict:
     import torch
     import warp as wp
 
+    from dynabarn.learn.vector_env import DynaBARNVectorEnv
     from dynabarn.learn.warp_env import WarpVectorEnv
 
-    env = WarpVectorEnv(str(WORLD), n, device=device, seed=0)
+    if world_set is None:
+        env = WarpVectorEnv(str(WORLD), n, device=device, seed=0)
+    else:  # every world of the set in one padded batch, each environment drawing its own
+        env = DynaBARNVectorEnv(n, backend="warp", device=device, world_set=world_set, seed=0)
     env.reset()
     torch_device = "cpu" if device == "cpu" else device
     actions = torch.rand((n, 2), device=torch_device) * 2 - 1
@@ -112,7 +117,7 @@ def device_name(device: str) -> str:
 def table(records: list[dict]) -> str:
     """The speed page's table: per record and batch size, steps/s and where a period goes."""
     lines = [
-        "| device (machine) | worlds | control steps/s | ms per period | physics | scan | of which schedules "
+        "| device (machine) | worlds (of) | control steps/s | ms per period | physics | scan | of which schedules "
         "| environment | policy forward, ms | C engine's vector env, steps/s |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
@@ -120,12 +125,18 @@ def table(records: list[dict]) -> str:
         c = record["c_engine"]
         for row in record["warp"]:
             lines.append(
-                f"| {record['device']} ({record['machine']}) | {row['worlds']:,} | {row['steps_per_s']:,.0f} | "
+                f"| {record['device']} ({record['machine']}) | {row['worlds']:,} ({_of(record)}) | "
+                f"{row['steps_per_s']:,.0f} | "
                 f"{row['ms_per_period']:.1f} | {row['physics_share']:.0%} | {row['scan_share']:.0%} | "
                 f"{row['schedule_share']:.0%} | {row['env_share']:.0%} | {row['policy_ms']:.2f} | "
                 f"{c['steps_per_s']:,.0f} ({c['worlds']} worlds, {c['workers']} workers) |"
             )
     return "\n".join(lines)
+
+
+def _of(record: dict) -> str:
+    world = record.get("world", 137)
+    return f"world {world}" if isinstance(world, int) else f"`{world}`"
 
 
 def read_records() -> list[dict]:
@@ -138,18 +149,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--envs", default="1,8,32", help="batch sizes, comma-separated (default: 1,8,32)")
     parser.add_argument("--periods", type=int, default=10, help="control periods timed per size (default: 10)")
     parser.add_argument("--c-envs", type=int, default=64, help="worlds of the C engine's vector env (default: 64)")
-    parser.add_argument("--record", action="store_true", help="write results/warp_speed/DEVICE.json")
+    parser.add_argument(
+        "--set", default=None, help="a world set's worlds in one batch (default: world 137 alone); recorded apart"
+    )
+    parser.add_argument("--record", action="store_true", help="write results/warp_speed/DEVICE[-SET].json")
     args = parser.parse_args(argv)
     sizes = [int(s) for s in args.envs.split(",")]
     rows = []
     for n in sizes:
         print(f"{n} worlds on {args.device} ...", file=sys.stderr, flush=True)
-        rows.append(measure_warp(args.device, n, args.periods))
+        rows.append(measure_warp(args.device, n, args.periods, args.set))
     print(f"the C engine's vector env, {args.c_envs} worlds ...", file=sys.stderr, flush=True)
     record = {
         "device": device_name(args.device),
         "machine": f"{os.cpu_count()} cores",
-        "world": 137,
+        "world": 137 if args.set is None else args.set,
         "periods": args.periods,
         "warp": rows,
         "c_engine": measure_c(args.c_envs, max(args.periods, 20)),
@@ -157,7 +171,8 @@ def main(argv: list[str] | None = None) -> int:
     print(table([record]))
     if args.record:
         OUT.mkdir(parents=True, exist_ok=True)
-        write_atomically(OUT / f"{record['device']}.json", json.dumps(record, indent=1, sort_keys=True) + "\n")
+        name = record["device"] + ("" if args.set is None else f"-{Path(args.set).name}")
+        write_atomically(OUT / f"{name}.json", json.dumps(record, indent=1, sort_keys=True) + "\n")
     return 0
 
 

@@ -67,3 +67,22 @@ def test_ppo_without_a_policy_on_a_missing_device_or_over_a_damaged_checkpoint_i
     resumed = _train(tmp_path, 1)
     assert resumed.returncode == 2 and len(resumed.stderr.strip().splitlines()) == 1, resumed.stderr
     assert "cannot resume" in resumed.stderr and (tmp_path / "checkpoint.pt").read_bytes() == b"garbage"
+
+
+def test_ppo_trains_on_a_procedural_splits_worlds_and_records_which(tmp_path):
+    """`--split train`: the batch holds the split's first worlds (never an evaluation set's)."""
+    out = tmp_path / "ppo"
+    command = [str(BIN / "dynabarn-train"), "ppo", "--split", "train", "--procedural-worlds", "2", *SMALL]
+    command += ["--iterations", "1", "--out", str(out)]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-2000:]
+    notes = __import__("torch").load(out / "policy.pt", weights_only=True)["notes"]
+    assert (notes["split"], notes["procedural_worlds"], notes["device"]) == ("train", 2, "cpu"), notes
+    bad = subprocess.run(
+        [str(BIN / "dynabarn-train"), "ppo", "--difficulty", "hard", *SMALL, "--out", str(tmp_path / "x")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1, bad.stderr
+    assert "--difficulty chooses within --world-set" in bad.stderr

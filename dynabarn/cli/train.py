@@ -101,7 +101,7 @@ def _add_ppo(sub) -> None:
 
 def _add_dagger(sub) -> None:
     """`dynabarn-train dagger`'s options: the configuration's fields, then the choices."""
-    from dynabarn.learn.configs import DEVICES, SHIPPED_STUDENT_PROFILE_SETS, TEACHERS, DaggerConfig
+    from dynabarn.learn.configs import DEVICES, ENV_BACKENDS, SHIPPED_STUDENT_PROFILE_SETS, TEACHERS, DaggerConfig
     from dynabarn.planners.learned.spaces import ENCODERS, HEADS
 
     dg = sub.add_parser(
@@ -136,7 +136,16 @@ def _add_dagger(sub) -> None:
         "--device",
         choices=DEVICES,
         default=DaggerConfig.device,
-        help="where the student is fitted: auto takes a CUDA GPU when PyTorch sees one (collection runs on the CPU)",
+        help="where the student is fitted (and, with --env-backend warp, the training episodes stepped): auto "
+        "takes a CUDA GPU when PyTorch sees one",
+    )
+    dg.add_argument(
+        "--env-backend",
+        choices=ENV_BACKENDS,
+        default=DaggerConfig.env_backend,
+        help="where the training episodes are stepped: c (MuJoCo's C engine in the --workers) or warp (one MuJoCo "
+        "Warp batch of --warp-envs on --device, the gpu extra; the student and teacher stay on the CPU); "
+        "validation is always on the C engine",
     )
     dg.add_argument(
         "--no-velocity", dest="velocity", action="store_false", help="leave the measured (v, w) out of the inputs"
@@ -244,6 +253,7 @@ def _train_dagger(args: argparse.Namespace, tqdm) -> int:
         head=args.head,
         encoder=args.encoder,
         device=args.device,
+        env_backend=args.env_backend,
         velocity=args.velocity,
         static_map=args.static_map,
         profile_sets=profile_sets,

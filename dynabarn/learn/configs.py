@@ -113,6 +113,8 @@ TEACHERS = ("oracle_present", "predictive")
 """Who labels DAgger's states (`--teacher`): the oracle told the obstacles' true present
 state (privileged), or `predictive`, the same search on the laser tracker's predictions
 (what the student itself sees). Both choose among the same grid of commands."""
+ENV_BACKENDS = ("c", "warp")
+"""Where DAgger's training episodes are stepped: MuJoCo's C engine, or MuJoCo Warp."""
 CORES = min(usable_cores(), MAX_JOBS)
 """DAgger's collection workers and fitting threads by default: collection and fitting take
 turns, so each may use every core this process may run on."""
@@ -137,8 +139,14 @@ class DaggerConfig:
     """How the student reads its inputs (`student.ENCODERS`): `set`, the scans by convolution
     and the tracks as a set (the shipped student), or `mlp`, the flat vector (the first)."""
     device: str = "auto"
-    """Where the student is fitted (`auto`: a CUDA GPU when PyTorch sees one, else the CPU).
-    Collection and validation run on the CPU in the workers whatever it is."""
+    """Where the student is fitted (`auto`: a CUDA GPU when PyTorch sees one, else the CPU),
+    and where a Warp collection steps its worlds. Validation runs on the CPU in the workers
+    whatever it is."""
+    env_backend: str = "c"
+    """Where the training episodes are stepped (`ENV_BACKENDS`): `c`, MuJoCo's C engine in
+    the collection workers; `warp`, one MuJoCo Warp batch on `device` (`learn.warp_dagger`,
+    the gpu extra), the same episodes within the Warp backend's tolerances."""
+    warp_envs: int = option(256, 1, 65_536, "environments of the Warp batch (with --env-backend warp)")
     updates: int = option(4000, 1, 100_000_000, "gradient steps per iteration over the whole aggregated dataset")
     final_updates: int = option(0, 0, 100_000_000, "updates after the last iteration, the learning rate falling to 0")
     """After the last iteration, this many more updates on the whole dataset with the
@@ -170,6 +178,8 @@ class DaggerConfig:
         get_protocol(self.protocol)
         if self.teacher not in TEACHERS:
             raise DynabarnError(f"teacher {self.teacher!r}: use one of {', '.join(TEACHERS)}")
+        if self.env_backend not in ENV_BACKENDS:
+            raise DynabarnError(f"env_backend {self.env_backend!r}: use one of {', '.join(ENV_BACKENDS)}")
         if isinstance(self.profile_sets, str) or not self.profile_sets:
             raise DynabarnError(f"profile_sets {self.profile_sets!r}: give one or more profile set or tier names")
         for name in self.profile_sets:

@@ -35,7 +35,7 @@ import torch
 from dynabarn.errors import DynabarnError
 from dynabarn.files import save_atomically, write_atomically
 from dynabarn.learn.configs import DEVICES, DaggerConfig, completed_config, resuming, saved_config
-from dynabarn.learn.dagger_rollout import EpisodeData, run_episodes
+from dynabarn.learn.dagger_rollout import EpisodeData, run_episodes, student_from
 from dynabarn.learn.split import describe_split
 from dynabarn.planners.learned.models import load_tensors, save_tensors
 from dynabarn.planners.learned.spaces import HEADS, command_to_action
@@ -59,7 +59,7 @@ def _log(out: Path, line: str) -> None:
         f.write(line + "\n")
 
 
-HOW_IT_RUNS = ("threads", "workers", "device")
+HOW_IT_RUNS = ("threads", "workers", "device", "warp_envs")
 """Settings that say how a run runs, not what it does (left out of its policy file)."""
 RUN_LENGTH = ("iterations", "final_updates", *HOW_IT_RUNS)
 """Settings a run may change when resumed: where it ends and how it runs, not what it did."""
@@ -112,6 +112,18 @@ def _validate(pool, cfg: DaggerConfig, actor: StudentActor) -> list[EpisodeData]
     """The student alone on the fixed validation worlds."""
     weights = _cpu_weights(actor)
     return run_episodes(pool, cfg, "validation", range(cfg.validation_episodes), beta=0.0, weights=weights, label=False)
+
+
+def _collect(pool, cfg: DaggerConfig, ks, beta: float, weights: dict | None, device: str) -> list[EpisodeData]:
+    """An iteration's labelled training episodes: in the workers on the C engine, or in one
+    Warp batch on `device` (`learn.warp_dagger`)."""
+    if cfg.env_backend == "warp":
+        from dynabarn.learn.warp_dagger import collect_on_warp
+
+        actor = student_from(cfg, weights)
+        actor = None if actor is None else actor.to(device)
+        return collect_on_warp(cfg, ks, beta=beta, actor=actor, device=device, num_envs=cfg.warp_envs)
+    return run_episodes(pool, cfg, "train", ks, beta=beta, weights=weights, label=True)
 
 
 def _checkpoint(out: Path, actor: StudentActor, opt, report: DaggerReport, line: dict) -> None:
@@ -246,7 +258,7 @@ def train_dagger(cfg: DaggerConfig, out_dir: Path, *, progress=None) -> DaggerRe
             beta = cfg.beta_decay**it
             weights = None if it == 0 else _cpu_weights(actor)
             ks = range(it * cfg.episodes, (it + 1) * cfg.episodes)
-            eps = run_episodes(pool, cfg, "train", ks, beta=beta, weights=weights, label=True)
+            eps = _collect(pool, cfg, ks, beta, weights, device)
             rows = data.add(it, eps)
             report.fingerprints.extend(e.fingerprint for e in eps)
             x, y = data.arrays()

@@ -109,13 +109,18 @@ def episode(cfg, split: str, k: int, beta: float, actor: StudentActor | None, la
     )
 
 
+def student_from(cfg, weights: dict | None) -> StudentActor | None:
+    """The student of `weights` (CPU tensors), ready to act (None: no student yet)."""
+    if weights is None:
+        return None
+    classes = weights.get("classes")
+    actor = student_for(cfg.features(), None if classes is None else classes.numpy(), cfg.encoder)
+    actor.load_state_dict(weights)
+    return actor.eval()
+
+
 def _job(cfg, split: str, ks: list[int], beta: float, weights: dict | None, label: bool) -> list[EpisodeData]:
-    actor = None
-    if weights is not None:
-        classes = weights.get("classes")
-        actor = student_for(cfg.features(), None if classes is None else classes.numpy(), cfg.encoder)
-        actor.load_state_dict(weights)
-        actor.eval()
+    actor = student_from(cfg, weights)
     return [episode(cfg, split, k, beta, actor, label) for k in ks]
 
 

@@ -30,10 +30,10 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 
 from dynabarn.errors import DynabarnError
-from dynabarn.learn.env import REWARD_COLLISION, REWARD_PROGRESS, REWARD_SUCCESS, REWARD_TIME
+from dynabarn.learn import warp_env_kernels as kernels
 from dynabarn.learn.gym_spaces import ACTION_SPACE, observation_space
 from dynabarn.learn.shared_worlds import shared_world
-from dynabarn.learn.warp_worlds import COLLISION, SUCCESS, TIMEOUT, WarpWorlds, require_warp
+from dynabarn.learn.warp_worlds import WarpWorlds, require_warp
 from dynabarn.planners.global_planner import BOUNDS
 from dynabarn.robot import JACKAL
 from dynabarn.sim_config import trial_clock_offset
@@ -45,168 +45,6 @@ except ImportError:
 
 TRIALS = 256
 """Trials tabled per environment; its episodes go round them (a new table: `reset(seed=...)`)."""
-
-if wp is not None:
-
-    @wp.struct
-    class PlanMap:
-        """The static maps of a batch's worlds as the kernels read them: per library world,
-        each cell's next cell along the Dijkstra plan (`pred`, < 0 at the goal's cell and
-        where the goal cannot be reached), the cost-to-go and the goal; the grid; the local
-        goal's distance and the cells a walk to it needs (`GlobalPlanner.plan_suffix`)."""
-
-        pred: wp.array2d(dtype=int)
-        cost: wp.array2d(dtype=float)
-        goal: wp.array(dtype=wp.vec2)
-        origin: wp.vec2
-        resolution: float
-        nx: int
-        ny: int
-        lookahead: float
-        cells: int
-
-    @wp.func
-    def _cell(pose: wp.vec3, plan: PlanMap) -> int:
-        i = wp.clamp(int((pose[1] - plan.origin[1]) / plan.resolution), 0, plan.ny - 1)
-        j = wp.clamp(int((pose[0] - plan.origin[0]) / plan.resolution), 0, plan.nx - 1)
-        return i * plan.nx + j
-
-    @wp.func
-    def _local_goal(pose: wp.vec3, k: int, plan: PlanMap) -> wp.vec2:
-        """The point `lookahead` metres along world k's plan from the pose (`points_along`
-        over `plan_suffix`'s points: the next cells' centres, the goal once the walk meets
-        it, the last point repeated where the suffix is cut), in the robot frame."""
-        cur = _cell(pose, plan)
-        goal = plan.goal[k]
-        prev = wp.vec2(pose[0], pose[1])
-        out = prev
-        p = prev
-        along = wp.float32(0.0)  # variables the loop changes (Warp: declared by their type)
-        found = wp.int32(0)
-        ended = wp.int32(0)
-        for n in range(plan.cells):
-            if ended == 0:
-                nxt = plan.pred[k, cur]
-                if nxt < 0:
-                    ended = 1
-                    p = goal
-                elif n < plan.cells - 1:
-                    cur = nxt
-                    i = nxt // plan.nx
-                    j = nxt - i * plan.nx
-                    p = plan.origin + wp.vec2(wp.float32(j) + 0.5, wp.float32(i) + 0.5) * plan.resolution
-            seg = wp.length(p - prev)
-            if found == 0 and along + seg >= plan.lookahead:
-                out = prev + (p - prev) * ((plan.lookahead - along) / wp.max(seg, 1.0e-12))
-                found = 1
-            along = along + seg
-            prev = p
-        if found == 0:
-            out = p
-        d = out - wp.vec2(pose[0], pose[1])
-        cy = wp.cos(pose[2])
-        sy = wp.sin(pose[2])
-        return wp.vec2(cy * d[0] + sy * d[1], -sy * d[0] + cy * d[1])
-
-    @wp.func
-    def _cost(pose: wp.vec3, k: int, plan: PlanMap) -> float:
-        return plan.cost[k, _cell(pose, plan)]
-
-    @wp.kernel
-    def _commands(actions: wp.array2d(dtype=float), limits: wp.vec3, commands: wp.array(dtype=wp.vec2)):
-        """`action_to_command`: [-1, 1]^2 -> (v, w)."""
-        w = wp.tid()
-        a0 = wp.clamp(actions[w, 0], -1.0, 1.0)
-        a1 = wp.clamp(actions[w, 1], -1.0, 1.0)
-        commands[w] = wp.vec2(limits[0] + 0.5 * (a0 + 1.0) * (limits[1] - limits[0]), limits[2] * a1)
-
-    @wp.kernel
-    def _conclude(
-        outcome: wp.array(dtype=int),
-        end_pose: wp.array(dtype=wp.vec3),
-        qpos: wp.array2d(dtype=float),
-        scan: wp.array2d(dtype=float),
-        plan: PlanMap,
-        world_of: wp.array(dtype=int),
-        last_cost: wp.array(dtype=float),
-        reward: wp.array(dtype=float),
-        terminated: wp.array(dtype=int),
-        truncated: wp.array(dtype=int),
-        success: wp.array(dtype=int),
-        final: wp.array2d(dtype=float),
-        episodes: wp.array(dtype=int),
-    ):
-        """A period's reward and end (`DynaBARNEnv.conclude`); a world that ended gets its
-        final observation (this period's scan, the final pose's local goal) and its next trial."""
-        w = wp.tid()
-        done = outcome[w]
-        pose = wp.vec3(qpos[w, 0], qpos[w, 1], qpos[w, 2])
-        if done != 0:
-            pose = end_pose[w]
-        k = world_of[w]
-        ctg = _cost(pose, k, plan)
-        progress = wp.float32(0.0)
-        if wp.isfinite(ctg) and wp.isfinite(last_cost[w]):
-            progress = last_cost[w] - ctg
-        r = REWARD_PROGRESS * progress + REWARD_TIME
-        if done == COLLISION:
-            r = r + REWARD_COLLISION
-        if done == SUCCESS:
-            r = r + REWARD_SUCCESS
-        reward[w] = r
-        last_cost[w] = ctg
-        terminated[w] = int(done == SUCCESS or done == COLLISION)  # noqa: SIM109 (no tuples in a kernel)
-        truncated[w] = int(done == TIMEOUT)
-        success[w] = int(done == SUCCESS)
-        if done != 0:
-            nbeam = scan.shape[1]
-            for b in range(nbeam):
-                final[w, b] = scan[w, b]
-            g = _local_goal(pose, k, plan)
-            final[w, nbeam] = g[0]
-            final[w, nbeam + 1] = g[1]
-            episodes[w] += 1
-
-    @wp.kernel
-    def _next_trials(
-        done: wp.array(dtype=int),
-        episodes: wp.array(dtype=int),
-        offsets: wp.array2d(dtype=float),
-        seeds: wp.array2d(dtype=int),
-        worlds: wp.array2d(dtype=int),
-        mask: wp.array(dtype=int),
-        offset: wp.array(dtype=float),
-        seed: wp.array(dtype=int),
-        world: wp.array(dtype=int),
-    ):
-        w = wp.tid()
-        mask[w] = int(done[w] != 0)
-        k = episodes[w] % offsets.shape[1]
-        offset[w] = offsets[w, k]
-        seed[w] = seeds[w, k]
-        world[w] = worlds[w, k]
-
-    @wp.kernel
-    def _observation(
-        qpos: wp.array2d(dtype=float),
-        scan: wp.array2d(dtype=float),
-        plan: PlanMap,
-        world_of: wp.array(dtype=int),
-        restarted: wp.array(dtype=int),
-        last_cost: wp.array(dtype=float),
-        obs: wp.array2d(dtype=float),
-    ):
-        w = wp.tid()
-        k = world_of[w]
-        nbeam = scan.shape[1]
-        for b in range(nbeam):
-            obs[w, b] = scan[w, b]
-        pose = wp.vec3(qpos[w, 0], qpos[w, 1], qpos[w, 2])
-        g = _local_goal(pose, k, plan)
-        obs[w, nbeam] = g[0]
-        obs[w, nbeam + 1] = g[1]
-        if restarted[w] != 0:  # a new episode: its progress counts from its spawn
-            last_cost[w] = _cost(pose, k, plan)
 
 
 def _device_actions(actions):
@@ -253,7 +91,7 @@ class WarpVectorEnv:
         self._spawn = np.asarray(self.worlds.protocol.spawn, dtype=np.float32)
         n = num_envs
         with wp.ScopedDevice(device):
-            self._plan = PlanMap()
+            self._plan = kernels.PlanMap()
             self._plan.pred = wp.array(np.stack([pl.field.pred_array.ravel() for pl in planners]), dtype=int)
             self._plan.cost = wp.array(
                 np.stack([pl.field.cost.ravel() for pl in planners]).astype(np.float32), dtype=float
@@ -303,6 +141,35 @@ class WarpVectorEnv:
             self._trial_seeds = wp.array(self.trials.astype(np.int32), dtype=int)
             self._trial_worlds = wp.array(self.trial_worlds.astype(np.int32), dtype=int)
 
+    def schedule(self, trials: np.ndarray, worlds: np.ndarray) -> None:
+        """Each environment's coming episodes chosen by its caller instead of drawn: row w of
+        `trials` (trial seeds) and `worlds` (indices into `world_files`), both (num_envs, T),
+        from the next `reset` on (without a seed: a seed draws anew). DAgger's collection
+        plays its episodes so, each in its world and trial."""
+        trials, worlds = np.asarray(trials, dtype=np.int64), np.asarray(worlds, dtype=np.int64)
+        if trials.shape != worlds.shape or trials.ndim != 2 or trials.shape[0] != self.num_envs:
+            raise DynabarnError(f"schedule: trials and worlds of shape ({self.num_envs}, T) each")
+        if worlds.min() < 0 or worlds.max() >= len(self.world_files) or trials.min() < 0 or trials.max() >= 2**31:
+            raise DynabarnError("schedule: world indices into world_files, trial seeds in [0, 2**31)")
+        self.trials, self.trial_worlds = trials, worlds
+        offsets = np.vectorize(lambda t: trial_clock_offset(int(t)))(trials)
+        with wp.ScopedDevice(self.device):
+            self._trial_offsets = wp.array(offsets.astype(np.float32), dtype=float)
+            self._trial_seeds = wp.array(trials.astype(np.int32), dtype=int)
+            self._trial_worlds = wp.array(worlds.astype(np.int32), dtype=int)
+
+    def cut(self, mask) -> None:
+        """End the episodes of the environments in `mask` (num_envs,) before the protocol
+        does (a caller's step limit): each starts its next trial; their rows of the
+        observation (`obs`) are then those episodes' first."""
+        with wp.ScopedDevice(self.device):
+            wp.launch(
+                kernels.cut_episodes,
+                self.num_envs,
+                inputs=[wp.array(np.asarray(mask, dtype=np.int32)), self.worlds.outcome, self._episodes],
+            )
+            self._restart_ended()
+
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Every environment's first episode (its trials drawn anew from `seed` when given),
         as Gymnasium's `VectorEnv.reset`: the observations (num_envs, 722), a PyTorch tensor
@@ -348,9 +215,10 @@ class WarpVectorEnv:
 
     def _period(self) -> None:
         """A control period's launches, on fixed buffers (what a CUDA graph records)."""
-        wp.launch(_commands, self.num_envs, inputs=[self._actions, self._limits], outputs=[self._commands])
+        n = self.num_envs
+        wp.launch(kernels.actions_to_commands, n, inputs=[self._actions, self._limits], outputs=[self._commands])
         self.worlds.step(self._commands, observe=False)  # the final observations take this period's scan
-        wp.launch(_conclude, self.num_envs, inputs=[*self._ended_inputs()])
+        wp.launch(kernels.conclude_period, self.num_envs, inputs=[*self._ended_inputs()])
         self._restart_ended()
 
     def _ended_inputs(self) -> list:
@@ -362,7 +230,7 @@ class WarpVectorEnv:
         """Worlds whose episode ended start their next trial; then every observation."""
         w = self.worlds
         wp.launch(
-            _next_trials,
+            kernels.next_trials,
             self.num_envs,
             inputs=[w.outcome, self._episodes, self._trial_offsets, self._trial_seeds, self._trial_worlds],
             outputs=[self._mask, self._offset, self._seed, self._world],
@@ -370,7 +238,7 @@ class WarpVectorEnv:
         w.restart(self._mask, self._spawns, self._offset, self._seed, self._world)
         w.observe()
         wp.launch(
-            _observation,
+            kernels.observe_envs,
             self.num_envs,
             inputs=[w.d.qpos, w.scan, self._plan, w.world_of, self._mask, self._last_cost],
             outputs=[self.obs],
