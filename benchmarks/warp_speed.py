@@ -87,11 +87,13 @@ def measure_warp(device: str, n: int, periods: int, world_set: str | None = None
     }
 
 
-def measure_c(n: int, periods: int) -> dict:
-    """The C engine's vector environment on world 137 (every core of this machine)."""
+def measure_c(n: int, periods: int, world_set: str | None = None) -> dict:
+    """The C engine's vector environment on world 137, or on the set's worlds (every core of
+    this machine)."""
     from dynabarn.learn.vector_env import DynaBARNVectorEnv
 
-    vec = DynaBARNVectorEnv(n, world_set="paper60", worlds=[137])
+    where = {"world_set": "paper60", "worlds": [137]} if world_set is None else {"world_set": world_set}
+    vec = DynaBARNVectorEnv(n, **where)
     try:
         vec.reset(seed=0)
         rng = np.random.default_rng(0)
@@ -166,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
         "world": 137 if args.set is None else args.set,
         "periods": args.periods,
         "warp": rows,
-        "c_engine": measure_c(args.c_envs, max(args.periods, 20)),
+        "c_engine": measure_c(args.c_envs, max(args.periods, 20), args.set),
     }
     print(table([record]))
     if args.record:
