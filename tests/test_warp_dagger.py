@@ -27,12 +27,13 @@ scan carries its noise draw, Warp's its own (1 mm, i.e. 2e-4 of the scale)."""
 
 def test_the_teachers_episodes_on_warp_are_the_c_engines():
     """The oracle teacher drives (beta 1) three of the split's worlds with two environments
-    (one plays two episodes in turn, one is cut by max_steps): the same worlds, trials,
-    outcomes and steps as the C collection, every label equal (measured: all of them), and
-    at most 0.1 % of the feature entries past the tolerance (measured: 11 of 195,120)."""
+    on two hosts (this process and a spawned one; one environment plays two episodes in
+    turn, each cut by max_steps): the same worlds, trials, outcomes and steps as the C
+    collection, every label equal (measured: all of them), and at most 0.1 % of the feature
+    entries past the tolerance (measured: 11 of 195,120)."""
     cfg = DaggerConfig(max_steps=60, workers=1, threads=1, teacher="oracle_present", tracks=0)
     ks = [0, 1, 2]
-    warp = collect_on_warp(cfg, ks, beta=1.0, actor=None, device="cpu", num_envs=2)
+    warp = collect_on_warp(cfg, ks, beta=1.0, actor=None, device="cpu", num_envs=2, workers=2)
     c = [episode(cfg, "train", k, 1.0, None, True) for k in ks]
     assert [e.k for e in warp] == ks
     for a, b in zip(warp, c, strict=True):

@@ -122,7 +122,9 @@ def _collect(pool, cfg: DaggerConfig, ks, beta: float, weights: dict | None, dev
 
         actor = student_from(cfg, weights)
         actor = None if actor is None else actor.to(device)
-        return collect_on_warp(cfg, ks, beta=beta, actor=actor, device=device, num_envs=cfg.warp_envs)
+        return collect_on_warp(
+            cfg, ks, beta=beta, actor=actor, device=device, num_envs=cfg.warp_envs, workers=cfg.workers
+        )
     return run_episodes(pool, cfg, "train", ks, beta=beta, weights=weights, label=True)
 
 

@@ -7,159 +7,131 @@ probability beta. What moves is where they are stepped: every episode's physics,
 judgement and scan run in one `WarpVectorEnv` batch on the device, the iteration's worlds
 padded into its model, each environment playing its share of the episodes in turn.
 
-The student and its teacher are the CPU's, as in the C collection: the student's features
-hold the laser tracker, and the teacher (`predictive` or the oracle) is a search. Each
-period the batch's state comes to the host once (scans, poses, velocities, steps), and a
-mirror `Episode` per environment (the world's C model, not stepped) turns a world's state
-into the `Observation` the C engine would make of it: the privileged obstacles from the
-same schedules, the same velocity, time and goal. The student acts for every environment
-in one forward pass. So the data differ from the C collection's only by the Warp backend's
-float32 path and its own draw of the laser's noise.
+The student's features (the laser tracker among them) and the teacher (a search) are the
+CPU's, as in the C collection, spread over `workers` hosts (`learn.warp_dagger_hosts`: this
+process and spawned ones, each with a slice of the environments). Each period the batch's
+state comes to the host once (scans, poses, velocities, steps) into buffers the hosts
+share; a mirror `Episode` per environment (the world's C model, not stepped) turns it into
+the `Observation` the C engine would make: the privileged obstacles from the same
+schedules, the same velocity, time and goal. The student acts for every environment in one
+forward pass on the device. So the data differ from the C collection's only by the Warp
+backend's float32 path and its own draw of the laser's noise.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import contextlib
+import multiprocessing as mp
+import os
 
 import numpy as np
 import torch
 
 from dynabarn.learn.dagger_rollout import EpisodeData
 from dynabarn.learn.env import DynaBARNEnv
-from dynabarn.learn.shared_worlds import shared_world
-from dynabarn.learn.split import DrawnWorld
-from dynabarn.planners.learned.features import Features
-from dynabarn.planners.learned.spaces import command_to_action
+from dynabarn.learn.warp_dagger_hosts import Buffers, Host, Plan, end_codes, serve
 from dynabarn.planners.learned.student import StudentActor
-from dynabarn.planners.registry import get_planner
-from dynabarn.protocol import get_protocol
-from dynabarn.sim.episode import Episode
-
-
-@dataclass
-class _Running:
-    """One environment's episode in progress: its mirror, features, teacher and data."""
-
-    k: int
-    drawn: DrawnWorld
-    mirror: Episode
-    features: Features
-    teacher: object
-    rng: np.random.Generator
-    xs: list = field(default_factory=list)
-    ys: list = field(default_factory=list)
-    teacher_steps: int = 0
-    steps: int = 0
-
-    def observation(self, scan: np.ndarray, qpos: np.ndarray, qvel: np.ndarray, step: int):
-        """The C engine's observation of this world in the batch's state."""
-        mirror = self.mirror
-        mirror.step = int(step)
-        mirror.sim.data.qpos[:3] = qpos[:3]
-        mirror.sim.data.qvel[:3] = qvel[:3]
-        mirror.place_obstacles()
-        return mirror.observe_scan(scan.astype(np.float64))
-
-    def data(self, outcome: str, feature_size: int) -> EpisodeData:
-        self.teacher.finish(outcome)
-        n = len(self.xs)
-        return EpisodeData(
-            k=self.k,
-            difficulty=self.drawn.difficulty,
-            fingerprint=self.drawn.fingerprint,
-            outcome=outcome,
-            steps=self.steps,
-            teacher_share=self.teacher_steps / max(1, self.steps),
-            features=np.stack(self.xs) if n else np.zeros((0, feature_size), np.float16),
-            labels=np.stack(self.ys).astype(np.float32) if n else np.zeros((0, 2), np.float32),
-        )
+from dynabarn.processes import safe_path_for_children
 
 
 def collect_on_warp(
-    cfg, ks, *, beta: float, actor: StudentActor | None, device: str, num_envs: int
+    cfg, ks, *, beta: float, actor: StudentActor | None, device: str, num_envs: int, workers: int = 1
 ) -> list[EpisodeData]:
     """The labelled training episodes of worlds `ks` of the split (`dagger_rollout.episode`'s,
     with the teacher driving with probability beta and labelling every state), stepped on
-    `device` by at most `num_envs` environments; in the order of ks."""
+    `device` by at most `num_envs` environments, their CPU side on `workers` hosts; in the
+    order of ks."""
     from dynabarn.learn.warp_env import WarpVectorEnv  # the `gpu` extra
 
     ks = list(ks)
     probe = DynaBARNEnv(
         split="train", split_seed=cfg.seed, split_profile_sets=tuple(cfg.profile_sets), protocol=cfg.protocol
     )
-    try:
-        probe.procedural.keep = len(ks)  # every world's file kept until the batch is made
+    try:  # the split's files live as long as the probe: every host compiles its mirrors from them
+        probe.procedural.keep = len(ks)
         drawn = [probe.procedural.world(k) for k in ks]
         n = min(num_envs, len(ks))
         env = WarpVectorEnv([str(d.path) for d in drawn], n, device=device, protocol=cfg.protocol)
-        templates = [shared_world(str(d.path))[0] for d in drawn]  # the mirrors' models, while the files exist
+        trials = [int(np.random.default_rng(np.random.SeedSequence([cfg.seed, k, 0])).integers(2**31)) for k in ks]
+        plan = Plan(
+            ks=ks,
+            files=[str(d.path) for d in drawn],
+            difficulties=[d.difficulty for d in drawn],
+            fingerprints=[d.fingerprint for d in drawn],
+            trials=trials,
+            queues=[list(range(w, len(ks), n)) for w in range(n)],
+        )
+        # Environment w plays episodes w, w + n, ...; one that has played them all repeats
+        # its last, unrecorded, until the others are done.
+        width = max(len(q) for q in plan.queues) + 1
+        table = np.array([[q[min(j, len(q) - 1)] for j in range(width)] for q in plan.queues])
+        env.schedule(np.array(trials)[table], table)
+        return _run(cfg, plan, env, actor, beta, workers)
     finally:
         probe.close()
-    rngs = [np.random.default_rng(np.random.SeedSequence([cfg.seed, k, 0])) for k in ks]
-    trials = [int(r.integers(2**31)) for r in rngs]
-    # Environment w plays episodes w, w + n, w + 2n, ...; a finished environment repeats its
-    # last one, unrecorded, until the others are done.
-    queues = [list(range(w, len(ks), n)) for w in range(n)]
-    width = max(len(q) for q in queues) + 1
-    table = np.array([[q[min(j, len(q) - 1)] for j in range(width)] for q in queues])
-    env.schedule(np.array(trials)[table], table)
+
+
+def _run(cfg, plan: Plan, env, actor, beta: float, workers: int) -> list[EpisodeData]:
+    n, size = env.num_envs, cfg.features().size()
+    ctx = mp.get_context("spawn")
+    buffers = Buffers.allocate(ctx, n, size)
+    slices = [range(int(s[0]), int(s[-1]) + 1) for s in np.array_split(np.arange(n), min(workers, n))]
+    conns, procs = [], []
+    safe_path_for_children()  # a spawned host starts as `python -c`: never from the current folder
+    try:
+        for envs in slices[1:]:
+            parent, child = ctx.Pipe()
+            args = (child, cfg, plan, envs, buffers.raw, n, size, beta, actor is not None, os.getpid())
+            p = ctx.Process(target=serve, args=args, daemon=True)
+            p.start()
+            child.close()
+            conns.append(parent)
+            procs.append(p)
+        local = Host(cfg, plan, slices[0], buffers, beta=beta, student=actor is not None)
+        for conn in conns:
+            conn.recv()  # "ready": its mirrors compiled
+        return _periods(env, buffers, local, conns, actor, plan.ks)
+    finally:
+        for conn in conns:
+            with contextlib.suppress(OSError):  # a host that died has nothing to stop
+                conn.send("stop")
+        for p in procs:
+            p.join(timeout=10)
+            if p.is_alive():
+                p.kill()
+
+
+def _ask(local: Host, conns: list, command: str) -> list:
+    """Every host's answer to `command`: the others asked first, then this process's own."""
+    for conn in conns:
+        conn.send(command)
+    answers = [getattr(local, command)()]
+    return answers + [conn.recv() for conn in conns]
+
+
+def _periods(env, b: Buffers, local: Host, conns: list, actor, ks: list[int]) -> list[EpisodeData]:
     obs, _ = env.reset()
-    protocol, size = get_protocol(cfg.protocol), cfg.features().size()
-
-    def start(w: int, j: int) -> _Running | None:
-        if j >= len(queues[w]):
-            return None
-        i = queues[w][j]
-        mirror = Episode(templates[i].fork(), protocol, seed=trials[i], privileged=True)
-        features, teacher = Features(cfg.features()), get_planner(cfg.teacher)
-        features.reset(mirror.info)
-        teacher.reset(mirror.info)
-        return _Running(ks[i], drawn[i], mirror, features, teacher, rngs[i])
-
-    played = [0] * n
-    running = [start(w, 0) for w in range(n)]
-    results: dict[int, EpisodeData] = {}
     worlds = env.worlds
-    while any(r is not None for r in running):
-        scans, qpos, qvel = obs[:, :720].cpu().numpy(), worlds.d.qpos.numpy(), worlds.d.qvel.numpy()
-        steps = worlds.steps.numpy()
-        xs = np.zeros((n, size), dtype=np.float32)
-        teacher = np.zeros((n, 2), dtype=np.float32)
-        for w, r in enumerate(running):
-            if r is not None:
-                o = r.observation(scans[w], qpos[w], qvel[w], steps[w])
-                xs[w] = r.features(o)
-                teacher[w] = command_to_action(*r.teacher.act(o))
-        actions = teacher.copy()
+    results: dict[int, EpisodeData] = {}
+    while b.active.any():
+        b.scans[:] = obs[:, :720].cpu().numpy()
+        b.qpos[:] = worlds.d.qpos.numpy()[:, :3]
+        b.qvel[:] = worlds.d.qvel.numpy()[:, :3]
+        b.steps[:] = worlds.steps.numpy()
+        _ask(local, conns, "observe")
+        actions = np.where(b.active[:, None] != 0, b.teacher, 0.0).astype(np.float32)
         if actor is not None:
             with torch.no_grad():
-                student = actor.act(torch.from_numpy(xs).to(next(actor.parameters()).device)).cpu().numpy()
-        for w, r in enumerate(running):
-            if r is None:
-                continue
-            if actor is None or r.rng.random() < beta:
-                r.teacher_steps += 1
-            else:
-                actions[w] = student[w]
-            r.xs.append(xs[w].astype(np.float16))
-            r.ys.append(teacher[w])
-            r.steps += 1
+                x = torch.from_numpy(b.xs).to(next(actor.parameters()).device)
+                student = actor.act(x).cpu().numpy()
+            drives = (b.active != 0) & (b.coin == 0)
+            actions[drives] = student[drives]
         obs, _, terminated, truncated, info = env.step(torch.from_numpy(actions).to(obs.device))
-        ended = (terminated | truncated).cpu().numpy()
         success = info["success"].cpu().numpy()
-        cut = np.zeros(n, dtype=bool)
-        for w, r in enumerate(running):
-            if r is None:
-                continue
-            if ended[w]:
-                outcome = "success" if success[w] else ("collision" if terminated[w] else "timeout")
-            elif len(r.xs) >= cfg.max_steps:
-                outcome, cut[w] = "cut", True
-            else:
-                continue
-            results[r.k] = r.data(outcome, size)
-            played[w] += 1
-            running[w] = start(w, played[w])
-        if cut.any():
-            env.cut(cut)  # their rows of `obs` (a view on the batch's buffer) now start their next episodes
+        terminated, truncated = terminated.cpu().numpy(), truncated.cpu().numpy()
+        b.ends[:] = end_codes(terminated, truncated, success)
+        for done in _ask(local, conns, "settle"):
+            results.update((e.k, e) for e in done)
+        if b.cut.any():
+            env.cut(b.cut != 0)  # their rows of `obs` (a view on the batch's buffer) start their next episodes
     return [results[k] for k in ks]
