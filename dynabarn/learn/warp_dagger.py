@@ -89,7 +89,7 @@ def _run(cfg, plan: Plan, env, actor, beta: float, workers: int) -> list[Episode
             procs.append(p)
         local = Host(cfg, plan, slices[0], buffers, beta=beta, student=actor is not None)
         for conn in conns:
-            conn.recv()  # "ready": its mirrors compiled
+            _answer(conn)  # "ready": its mirrors compiled
         return _periods(env, buffers, local, conns, actor, plan.ks)
     finally:
         for conn in conns:
@@ -106,7 +106,14 @@ def _ask(local: Host, conns: list, command: str) -> list:
     for conn in conns:
         conn.send(command)
     answers = [getattr(local, command)()]
-    return answers + [conn.recv() for conn in conns]
+    return answers + [_answer(conn) for conn in conns]
+
+
+def _answer(conn):
+    try:
+        return conn.recv()
+    except (EOFError, OSError):
+        raise RuntimeError("a host of the Warp collection ended before its work did (see its error above)") from None
 
 
 def _periods(env, b: Buffers, local: Host, conns: list, actor, ks: list[int]) -> list[EpisodeData]:
