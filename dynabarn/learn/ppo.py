@@ -130,11 +130,11 @@ def train_ppo(
     from dynabarn.learn.warp_env import WarpVectorEnv
     from dynabarn.planners.learned.models import save_policy
 
-    out.mkdir(parents=True, exist_ok=True)
     if isinstance(worlds, dict):
         env = warp_vector_env(cfg.num_envs, device=device, lookahead=cfg.lookahead, seed=cfg.seed, **worlds)
     else:
         env = WarpVectorEnv(worlds, cfg.num_envs, device=device, lookahead=cfg.lookahead, seed=cfg.seed)
+    out.mkdir(parents=True, exist_ok=True)  # after the worlds are accepted: a refusal leaves nothing behind
     torch_device = "cpu" if device == "cpu" else device
     actor, value, log_std, optimiser = _networks(cfg, torch_device)
     history, checkpoint = [], out / "checkpoint.pt"
