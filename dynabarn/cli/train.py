@@ -294,13 +294,11 @@ def _train_ppo(args: argparse.Namespace, tqdm) -> int:
         raise DynabarnError("--difficulty chooses within --world-set")
     if args.split is not None:
         worlds = {"split": args.split, "split_seed": args.split_seed, "procedural_worlds": args.procedural_worlds}
-        notes = {"split": args.split, "split_seed": args.split_seed, "procedural_worlds": args.procedural_worlds}
     elif args.world_set is not None:
         worlds = {"world_set": args.world_set, "difficulty": args.difficulty}
-        notes = {"world_set": args.world_set, "difficulty": args.difficulty}
     else:
         worlds = str(resolve_world(args.world or "137", None))
-        notes = {"world": worlds}
+    notes = dict(worlds) if isinstance(worlds, dict) else {"world": worlds}  # what the policy was trained on
     try:
         cfg = PPOConfig(
             **{name: getattr(args, name) for name, *_ in cli_options(PPOConfig)}, notes={**notes, "device": device}

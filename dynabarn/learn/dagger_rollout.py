@@ -62,14 +62,20 @@ def _close_env() -> None:
 atexit.register(_close_env)
 
 
+def episode_draws(cfg, split: str, k: int) -> tuple[int, np.random.Generator]:
+    """Episode k's trial seed, and the generator that then tosses its coin step by step:
+    everything an episode draws, from `SeedSequence([seed, k, split])` (both collections')."""
+    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, k, 0 if split == "train" else 1]))
+    return int(rng.integers(2**31)), rng
+
+
 def episode(cfg, split: str, k: int, beta: float, actor: StudentActor | None, label: bool) -> EpisodeData:
     """One episode of world k of `split`: who drives is drawn per step (teacher with
     probability beta). The teacher acts through the environment's step (`ExpertLabels`):
     the student's and the teacher's episodes differ only in the action passed to it."""
     env = _env(cfg, split)
     labelled = ExpertLabels(env, cfg.teacher) if label else env
-    rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, k, 0 if split == "train" else 1]))
-    trial = int(rng.integers(2**31))
+    trial, rng = episode_draws(cfg, split, k)
     _, info = labelled.reset(options={"world_index": k, "trial_seed": trial, "privileged": label})
     features = Features(cfg.features())
     features.reset(env.episode.info)

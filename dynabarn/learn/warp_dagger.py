@@ -27,7 +27,7 @@ import os
 import numpy as np
 import torch
 
-from dynabarn.learn.dagger_rollout import EpisodeData
+from dynabarn.learn.dagger_rollout import EpisodeData, episode_draws
 from dynabarn.learn.env import DynaBARNEnv
 from dynabarn.learn.warp_dagger_hosts import Buffers, Host, Plan, end_codes, serve
 from dynabarn.planners.learned.student import StudentActor
@@ -52,7 +52,7 @@ def collect_on_warp(
         drawn = [probe.procedural.world(k) for k in ks]
         n = min(num_envs, len(ks))
         env = WarpVectorEnv([str(d.path) for d in drawn], n, device=device, protocol=cfg.protocol)
-        trials = [int(np.random.default_rng(np.random.SeedSequence([cfg.seed, k, 0])).integers(2**31)) for k in ks]
+        trials = [episode_draws(cfg, "train", k)[0] for k in ks]
         plan = Plan(
             ks=ks,
             files=[str(d.path) for d in drawn],

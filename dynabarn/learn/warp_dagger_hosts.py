@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dynabarn.learn.dagger_rollout import EpisodeData
+from dynabarn.learn.dagger_rollout import EpisodeData, episode_draws
 from dynabarn.learn.shared_worlds import shared_world
 from dynabarn.planners.learned.features import Features
 from dynabarn.planners.learned.spaces import command_to_action
@@ -116,9 +116,7 @@ class Host:
         features, teacher = Features(cfg.features()), get_planner(cfg.teacher)
         features.reset(mirror.info)
         teacher.reset(mirror.info)
-        # The C collection's generator of episode k: its trial drawn first, then the coin.
-        rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, self.plan.ks[i], 0]))
-        rng.integers(2**31)
+        _, rng = episode_draws(cfg, "train", self.plan.ks[i])  # the coin, as the C collection tosses it
         return _Running(i, mirror, features, teacher, rng)
 
     def _mark_active(self) -> None:

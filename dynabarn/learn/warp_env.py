@@ -127,19 +127,13 @@ class WarpVectorEnv:
 
     def _new_trials(self, seed: int) -> None:
         """Each environment's next `TRIALS` trials from its own generator: the trial seeds,
-        their clock offsets (`trial_clock_offset`, as an `Episode` draws it), then the
-        world each is played in (an index into `world_files`)."""
+        then the world each is played in (an index into `world_files`)."""
         trials, worlds = [], []
         for stream in np.random.SeedSequence(seed).spawn(self.num_envs):
             rng = np.random.default_rng(stream)
             trials.append(rng.integers(2**31, size=TRIALS))
             worlds.append(rng.integers(len(self.world_files), size=TRIALS))
-        self.trials, self.trial_worlds = np.stack(trials), np.stack(worlds)
-        offsets = np.vectorize(lambda t: trial_clock_offset(int(t)))(self.trials)
-        with wp.ScopedDevice(self.device):
-            self._trial_offsets = wp.array(offsets.astype(np.float32), dtype=float)
-            self._trial_seeds = wp.array(self.trials.astype(np.int32), dtype=int)
-            self._trial_worlds = wp.array(self.trial_worlds.astype(np.int32), dtype=int)
+        self._table(np.stack(trials), np.stack(worlds))
 
     def schedule(self, trials: np.ndarray, worlds: np.ndarray) -> None:
         """Each environment's coming episodes chosen by its caller instead of drawn: row w of
@@ -151,6 +145,11 @@ class WarpVectorEnv:
             raise DynabarnError(f"schedule: trials and worlds of shape ({self.num_envs}, T) each")
         if worlds.min() < 0 or worlds.max() >= len(self.world_files) or trials.min() < 0 or trials.max() >= 2**31:
             raise DynabarnError("schedule: world indices into world_files, trial seeds in [0, 2**31)")
+        self._table(trials, worlds)
+
+    def _table(self, trials: np.ndarray, worlds: np.ndarray) -> None:
+        """The coming trials (seeds, worlds), with their clock offsets (`trial_clock_offset`,
+        as an `Episode` draws it), on the device."""
         self.trials, self.trial_worlds = trials, worlds
         offsets = np.vectorize(lambda t: trial_clock_offset(int(t)))(trials)
         with wp.ScopedDevice(self.device):
@@ -218,7 +217,7 @@ class WarpVectorEnv:
         n = self.num_envs
         wp.launch(kernels.actions_to_commands, n, inputs=[self._actions, self._limits], outputs=[self._commands])
         self.worlds.step(self._commands, observe=False)  # the final observations take this period's scan
-        wp.launch(kernels.conclude_period, self.num_envs, inputs=[*self._ended_inputs()])
+        wp.launch(kernels.conclude_period, n, inputs=[*self._ended_inputs()])
         self._restart_ended()
 
     def _ended_inputs(self) -> list:

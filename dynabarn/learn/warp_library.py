@@ -91,13 +91,12 @@ def padded_world(world: WorldSpec, padding: Padding) -> WorldSpec:
     )
 
 
-def compile_padded(path: Path, world: WorldSpec, padding: Padding) -> mujoco.MjModel:
-    """The padded world compiled by MuJoCo with the Jackal's 720 rangefinders, its stand-ins
-    moved `BELOW` the floor (a field of the model, which the library batches)."""
-    padded = padded_world(world, padding)
+def compile_padded(path: Path, padded: WorldSpec, own_statics: int) -> mujoco.MjModel:
+    """A padded world (`padded_world`, its own static cylinders the first `own_statics`)
+    compiled by MuJoCo with the Jackal's 720 rangefinders, its stand-ins moved `BELOW` the
+    floor (a field of the model, which the library batches)."""
     xml = world_to_xml(padded, world_dir=path.parent)
     model = load_model(path, beam_sensors=True, data=xml.encode())
-    own_statics = len(world.layout.cylinders)
     padded_geoms = np.zeros(model.ngeom, dtype=bool)
     for g in range(model.ngeom):
         name = model.geom(g).name
@@ -131,12 +130,15 @@ class WorldLibrary:
                     f"{path}: obstacles that react to the robot ({', '.join(reactive)}) are not on the Warp backend"
                 )
         self.padding = Padding.covering(self.worlds)
-        models = [compile_padded(p, w, self.padding) for p, w in zip(self.paths, self.worlds, strict=True)]
+        padded = [padded_world(w, self.padding) for w in self.worlds]
+        models = [
+            compile_padded(path, pw, len(w.layout.cylinders))
+            for path, pw, w in zip(self.paths, padded, self.worlds, strict=True)
+        ]
         self.model = models[0]
         _check_same_structure(models, self.paths)
         self.fields = {name: np.stack([getattr(m, name) for m in models]) for name in PER_WORLD_FIELDS}
         self.placed = _static_placement(models)
-        padded = [padded_world(w, self.padding) for w in self.worlds]
         self.n_obstacles = sum(len(s) for s in self.padding.slots)
         self.keys = _joined_keyframes(padded)
         self.goal = np.array([w.layout.goal[:2] for w in self.worlds], dtype=np.float32)
