@@ -49,8 +49,11 @@ def main() -> int:
     def decide(scan: LaserScan, odom: Odometry) -> None:
         if args.mute or state.get("gave_up"):
             return
-        cmd = Twist()  # before a goal: standing still, but answering
-        cmd.linear.x, cmd.angular.z = command(scan, odom, state["goal"], delay=args.delay)
+        answer = command(scan, odom, state["goal"], delay=args.delay)
+        if answer is None:  # no goal yet: silent, as move_base and Nav2 are
+            return
+        cmd = Twist()
+        cmd.linear.x, cmd.angular.z = answer
         cmd_pub.publish(cmd)
 
     def key(msg) -> tuple[int, int]:

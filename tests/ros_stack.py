@@ -56,8 +56,11 @@ def main() -> int:
             os._exit(3)  # a crash: no clean shutdown
         if args.mute or (args.mute_after and state["n"] > args.mute_after):
             return
-        cmd = Twist()  # before a goal: standing still, but answering
-        cmd.linear.x, cmd.angular.z = command(scan, odom, state["goal"], delay=args.delay)
+        answer = command(scan, odom, state["goal"], delay=args.delay)
+        if answer is None:  # no goal yet: silent, as move_base and Nav2 are
+            return
+        cmd = Twist()
+        cmd.linear.x, cmd.angular.z = answer
         cmd_pub.publish(cmd)
 
     pairs = StampPairs(decide)

@@ -8,12 +8,20 @@ import math
 import time
 
 
-def command(scan, odom, goal: tuple[float, float] | None, *, delay: float = 0.0) -> tuple[float, float]:
-    """The stack's answer to a scan and its odometry: standing still until there is a goal,
-    then `steer`; `delay` seconds of thinking first (a slow stack)."""
+def command(scan, odom, goal: tuple[float, float] | None, *, delay: float = 0.0) -> tuple[float, float] | None:
+    """The stack's answer to a scan and its odometry: none until there is a goal (as
+    move_base and Nav2 command nothing without one), then `steer`; `delay` seconds of
+    thinking first (a slow stack).
+
+    Silence before the goal is what makes an episode the same on every run: the bridge
+    starts the episode at the stack's first command, and a stack that answered before its
+    goal arrived would start driving at whichever tick the goal's delivery happened to
+    land on (a race between two topics that lockstep cannot order)."""
+    if goal is None:
+        return None
     if delay:
         time.sleep(delay)
-    return (0.0, 0.0) if goal is None else steer(scan, odom, goal)
+    return steer(scan, odom, goal)
 
 
 def steer(scan, odom, goal: tuple[float, float]) -> tuple[float, float]:
