@@ -51,6 +51,7 @@ from warp_agreement import read_records as warp_agreement_records
 from warp_agreement import table as warp_agreement_table
 from warp_speed import read_records as warp_speed_records
 from warp_speed import table as warp_speed_table
+from warp_student import table as warp_student_table
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS_DIR = ROOT / "results"
@@ -362,6 +363,7 @@ BLOCKS = {
     "ros-speed": lambda f, s: ros_speed_table(_record("ros_speed/world137.json")),
     "warp-speed": lambda f, s: warp_speed_table(warp_speed_records()),
     "warp-agreement": lambda f, s: warp_agreement_table(warp_agreement_records()),
+    "warp-student": lambda f, s: warp_student_table(),
     "certification": lambda f, s: certification_table(certified_sets()),
     "certified-ladder": lambda f, s: certified_ladder(f, certified_sets(), SETS, LADDER),
     "calibration": lambda f, s: calibration_table(),
@@ -395,7 +397,7 @@ PAGES = {
     DOCS / "tutorials" / "ros.md": ("move-base", "dwa-ablation"),
     DOCS / "tutorials" / "ros2.md": ("nav2",),
     DOCS / "speed.md": ("ros-speed", "warp-speed"),
-    DOCS / "concepts" / "warp.md": ("warp-agreement",),
+    DOCS / "concepts" / "warp.md": ("warp-student", "warp-agreement"),
     DOCS / "concepts" / "difficulty.md": ("calibration",),
     DOCS / "concepts" / "perception.md": (
         "tracker-validation",
