@@ -24,6 +24,7 @@ imported first from ../shared/reference when that is there (left out, and said, 
 
 from __future__ import annotations
 
+import argparse
 import json
 import shutil
 import sys
@@ -158,7 +159,12 @@ def table(results: Path = ROOT / "results") -> str:
     return "\n".join(lines)
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--table", action="store_true", help="print the table from results/ and run nothing")
+    if parser.parse_args(argv).table:
+        print(table())
+        return 0
     for name in RUNS:
         if train(name):
             return 1
