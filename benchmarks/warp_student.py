@@ -25,14 +25,16 @@ imported first from ../shared/reference when that is there (left out, and said, 
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import sys
+from collections import Counter
 from pathlib import Path
 
 from bench_command import ROOT, import_release, run_dynabarn
+from tracker_tables import success_cell
 
 from dynabarn.bench import DIFFICULTIES
+from dynabarn.bench.results import RESULTS, is_row, read_results
 from dynabarn.bench.stats import wilson_interval
 from dynabarn.bench.summary import FLOOR
 
@@ -85,33 +87,14 @@ def sweep(name: str, world_set: str, folder: str) -> int:
     )  # fmt: skip
 
 
-def _outcomes(folder: Path, planner: str) -> dict[tuple[str, int], bool]:
-    """(world file's name, seed) -> success, of the rows of `planner`."""
-    out = {}
-    with open(folder / "results.jsonl") as f:
-        for line in f:
-            row = json.loads(line)
-            if "key" in row and row.get("planner") == planner:
-                out[Path(row["world_file"]).name, int(row["seed"])] = row["outcome"] == "success"
-    return out
+def _rows(folder: Path) -> list[dict]:
+    """A sweep's result rows, as the summaries take them (`read_results`, `is_row`, no retries)."""
+    return [r for r in read_results(folder / RESULTS) if is_row(r) and not r.get("retry")]
 
 
-def _difficulty(folder: Path) -> dict[str, str]:
-    """World file's name -> difficulty, from the rows of the committed sweep."""
-    out = {}
-    with open(folder / "results.jsonl") as f:
-        for line in f:
-            row = json.loads(line)
-            if "key" in row:
-                out[Path(row["world_file"]).name] = row["difficulty"]
-    return out
-
-
-def _cell(wins: int, n: int) -> str:
-    if not n:
-        return "-"
-    lo, hi = wilson_interval(wins, n)
-    return f"{wins / n:.2f} [{lo:.2f}, {hi:.2f}]"
+def _outcomes(rows: list[dict], planner: str) -> dict[tuple[str, int], str]:
+    """(world file's name, seed) -> outcome, of the rows of `planner`."""
+    return {(Path(r["world_file"]).name, r["seed"]): r["outcome"] for r in rows if r["planner"] == planner}
 
 
 def table(results: Path = ROOT / "results") -> str:
@@ -131,21 +114,22 @@ def table(results: Path = ROOT / "results") -> str:
     for _, committed, _ in SWEEPS:
         base = results / committed
         ours = {name: results / f"warp_student_{name}_{committed}" for name in RUNS}
-        if not all((f / "results.jsonl").is_file() for f in (base, *ours.values())):
+        if not all((f / RESULTS).is_file() for f in (base, *ours.values())):
             for title in titles.values():
                 rows.setdefault(title, []).extend(["-"] * len(DIFFICULTIES))
             continue
-        difficulty = _difficulty(base)
-        outcomes = {name: _outcomes(ours[name], "dagger") for name in RUNS}
+        base_rows = _rows(base)
+        difficulty = {Path(r["world_file"]).name: r["difficulty"] for r in base_rows}
+        outcomes = {name: _outcomes(_rows(ours[name]), "dagger") for name in RUNS}
         shared = set.intersection(*(set(outcomes[name]) for name in RUNS))
-        outcomes |= {p: _outcomes(base, p) for p in ("dagger", FLOOR)}
+        outcomes |= {p: _outcomes(base_rows, p) for p in ("dagger", FLOOR)}
         for name, title in titles.items():
             for d in DIFFICULTIES:
-                keys = [k for k in shared if difficulty.get(k[0]) == d and k in outcomes[name]]
-                rows.setdefault(title, []).append(_cell(sum(outcomes[name][k] for k in keys), len(keys)))
+                ends = Counter(outcomes[name][k] for k in shared if difficulty.get(k[0]) == d and k in outcomes[name])
+                rows.setdefault(title, []).append(success_cell(ends, wilson_interval) if ends else "-")
         for (a, b), counts in paired.items():
             for k in shared:
-                x, y = outcomes[a][k], outcomes[b][k]
+                x, y = outcomes[a][k] == "success", outcomes[b][k] == "success"
                 counts["won" if x and not y else "lost" if y and not x else "same"] += 1
     for title, cells in rows.items():
         lines.append(f"| {title} | " + " | ".join(cells) + " |")
