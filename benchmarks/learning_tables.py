@@ -215,14 +215,27 @@ def student_table(prefix: str) -> str:
     """Success [95% interval] per difficulty of the student of `prefix` (`NEW_STUDENTS`)
     and, on the same worlds and trial seeds, the shipped student, both teachers and the
     floor."""
-    from dynabarn.bench.results import read_results
-    from dynabarn.bench.summary import summarise
-
     rows = ((prefix, NEW_STUDENTS[prefix]), *OTHER_ROWS)
     lines = [
         "| worlds | trials | planner | " + " | ".join(DIFFICULTIES) + " | all |",
         "|---|---|---|" + "---|" * (len(DIFFICULTIES) + 1),
     ]
+    for title, trials, by in student_summaries(prefix):
+        for planner, name in rows:
+            cells = [_cell(by, planner, d, skill=False) for d in (*DIFFICULTIES, "all")]
+            if any(c != "-" for c in cells):
+                lines.append(f"| {title} | {trials} | {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def student_summaries(prefix: str) -> list[tuple[str, int, dict[tuple[str, str], dict]]]:
+    """Per set the student of `prefix` was swept on (`SET_STUDENT_SETS`' order): (the set's
+    title, trials, summary rows by (planner, difficulty)) of the student and, on the same
+    worlds and trial seeds, every planner of the set's committed sweep."""
+    from dynabarn.bench.results import read_results
+    from dynabarn.bench.summary import summarise
+
+    out = []
     for folder, title in SET_STUDENT_SETS.items():
         ours = [r for r in _student_rows(prefix, folder) if r["planner"] == prefix]
         if not ours:
@@ -231,12 +244,8 @@ def student_table(prefix: str) -> str:
         rest = [r for r in read_results(ROOT / "results" / folder / "results.jsonl") if not r.get("retry")]
         same = [r for r in rest if (r.get("world"), r.get("seed")) in episodes]
         by = {(s["planner"], s["difficulty"]): s for s in summarise(ours + same)}
-        trials = len({r["seed"] for r in ours})
-        for planner, name in rows:
-            cells = [_cell(by, planner, d, skill=False) for d in (*DIFFICULTIES, "all")]
-            if any(c != "-" for c in cells):
-                lines.append(f"| {title} | {trials} | {name} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        out.append((title, len({r["seed"] for r in ours}), by))
+    return out
 
 
 DAGGER_RUNS = {

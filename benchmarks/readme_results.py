@@ -35,6 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from certified_tables import calibration_table, certification_table, certified_ladder, certified_sets
 from leaderboard import leaderboard_table, tier_ladder_table
 from learning_tables import dagger_curves, dagger_training, generalisation_table, student_ablation, student_table
+from perception_aims import aims_tables
 from ros_speed import table as ros_speed_table
 from ros_tables import MOVE_BASE_SETS, NAV2_FOLDERS, STACK_GUESTS, ablation_table, move_base_table, nav2_table
 from tracker_tables import (
@@ -370,6 +371,7 @@ BLOCKS = {
     "leaderboard": lambda f, s: leaderboard_table(f, LEADERBOARD_SETS, STACK_GUESTS),
     "tier-ladder": lambda f, s: tier_ladder_table(f, TIER_SETS, LADDER),
     "trackers": lambda f, s: tracker_table(f, _ci, _skill),
+    "perception-aims": lambda f, s: aims_tables(f, _ci),
     "teb-padding": lambda f, s: tracker_table(f, _ci, _skill, TEB_PADDING, "TEB plans against"),
     "tracker-validation": lambda f, s: validation_table(_record("tracker_validation/validation.json")),
     "perception-gap": lambda f, s: gap_table(_record("perception_gap/tier-combined.json"), wilson_interval),
@@ -389,6 +391,7 @@ PAGES = {
         "certified-ladder",
         "tracking",
         "trackers",
+        "perception-aims",
         "other-worlds",
         "tiers",
         "generalisation",

@@ -70,21 +70,33 @@ def tracker_table(
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for world_set in SETS:
-        title, ladder = LADDERS[world_set]
-        own: dict = {}  # the sweeps' rows first (the circle tracker's re-scored recall), then the ladder's
-        for preset in reversed(PRESETS):
-            own |= {(s["planner"], s["difficulty"]): s for s in folders.get(folder(preset, world_set), ([], []))[1]}
-        if not own:
+        hard = hard_summaries(folders, world_set)
+        if hard is None:
             continue
-        base = {(s["planner"], s["difficulty"]): s for s in folders.get(ladder, ([], []))[1]}
-        privileged = base.get(("oracle_present", "hard"))
+        privileged = hard.get("oracle_present")
         beside = ci(privileged) if privileged else "-"
         for planner, tracker in rows:
-            s = own.get((planner, "hard")) or base.get((planner, "hard"))
+            s = hard.get(planner)
             if s is None:
                 continue
-            lines.append(f"| {title} | {tracker} | {ci(s)} | {skill(s)} | {_tracking(s)} | {beside} |")
+            lines.append(f"| {LADDERS[world_set][0]} | {tracker} | {ci(s)} | {skill(s)} | {_tracking(s)} | {beside} |")
     return "\n".join(lines)
+
+
+def hard_summaries(folders: dict[str, tuple[list[dict], list[dict]]], world_set: str) -> dict[str, dict] | None:
+    """A swept set's summary rows of its hard worlds by planner: the tracker sweeps' own rows
+    first (the circle tracker's re-scored recall), then its ladder folder's (the privileged
+    rungs, and the trackers no sweep re-ran there); None where no tracker sweep of the set is
+    committed."""
+    own: dict = {}
+    for preset in reversed(PRESETS):
+        summary = folders.get(folder(preset, world_set), ([], []))[1]
+        own |= {s["planner"]: s for s in summary if s["difficulty"] == "hard"}
+    if not own:
+        return None
+    ladder = LADDERS[world_set][1]
+    base = {s["planner"]: s for s in folders.get(ladder, ([], []))[1] if s["difficulty"] == "hard"}
+    return base | own
 
 
 def validation_table(record: dict | None) -> str:
