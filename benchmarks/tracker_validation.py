@@ -44,7 +44,15 @@ RANGE_BINS = np.array([0.0, 2.0, 4.0, 6.0, 8.0, 12.0, 30.0])
 SPEED_BINS = np.array([0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 4.0])
 SEED = 5700
 TRACKER_KINDS = ("kalman", "shaped", "registered")
-FIELDS = ("recall", "precision", "position_error_median", "position_error_p95", "velocity_error_p95", "id_switches")
+FIELDS = (
+    "recall",
+    "precision",
+    "position_error_median",
+    "position_error_p95",
+    "velocity_error_p95",
+    "id_switches",
+    "id_switches_mot",
+)
 
 
 class Watching(Planner):
@@ -196,7 +204,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(
                     f"{tier:<14} {kind:<7} recall {m['recall']:.3f} precision {m['precision']:.3f} "
                     f"position {1000 * m['position_error_median']:.1f} / {1000 * m['position_error_p95']:.0f} mm "
-                    f"velocity p95 {m['velocity_error_p95']:.2f} m/s switches {m['id_switches']:.1f}",
+                    f"velocity p95 {m['velocity_error_p95']:.2f} m/s switches {m['id_switches']:.1f} "
+                    f"(CLEAR-MOT {m['id_switches_mot']:.1f})",
                     flush=True,
                 )
     record = {"seed": SEED, "worlds_per_tier": args.worlds, "driver": "oracle_present", "tiers": table}

@@ -104,3 +104,24 @@ def test_certify_verify_on_worlds_without_certificates_refuses(tmp_path):
     (out / "index.json").write_text(json.dumps(index))
     line = one_clear_line("worlds", ["certify", str(out), "--verify", "--worlds", "5"])
     assert "none of the 1 world(s) asked for has a barn certificate to verify" in line
+
+
+def test_a_row_from_before_a_tracking_measure_was_added_reproduces_with_a_note(tmp_path, capsys):
+    """A row written before the scorer counted CLEAR-MOT switches (`id_switches_mot`): the
+    re-run agrees on every measure the row has and adds one, a note; a measure it has that
+    differs is still a difference."""
+    out = tmp_path / "tracked"
+    assert bench_main(["--planner", "predictive", "--no-floor", *ONE, "--out", str(out)]) == 0
+    rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert "id_switches_mot" in rows[0]["tracking"]
+    del rows[0]["tracking"]["id_switches_mot"]
+    (out / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    code = bench_main(["--verify", str(out), "--sample", "all", "--jobs", "1"])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    assert "now reports tracking measures the row's version did not: id_switches_mot" in printed
+    rows[0]["tracking"]["id_switches"] += 1
+    (out / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    code = bench_main(["--verify", str(out), "--sample", "all", "--jobs", "1"])
+    printed = capsys.readouterr().out
+    assert code == 1 and "DIFFERS" in printed and "tracking" in printed, printed

@@ -113,14 +113,23 @@ def check_row(row: dict, parts: dict, folder: Path, roots: list[Path], protocol_
     mismatches = compare(key, shared, {k: now[k] for k in shared})
     differences, notes = [], []
     for m in mismatches:
-        added = _added_parameters(m.golden, m.now) if m.field == "planner_config" else None
+        added = _added_parameters(m.golden, m.now) if m.field in ADDED_NOTES else None
         if m.field == "planner_config" and parts["given"] and _same_but(m.golden, m.now, parts["given"]):
             notes.append(f"given on the command line in place of the rows' values: {', '.join(parts['given'])}")
         elif added:
-            notes.append(f"the planner now has parameters the row's version did not: {', '.join(added)}")
+            notes.append(f"{ADDED_NOTES[m.field]}: {', '.join(added)}")
         else:
             differences.append({"key": key, "field": m.field, "old": m.golden, "new": m.now})
     return RowCheck(key, not differences, differences, notes=notes)
+
+
+ADDED_NOTES = {
+    "planner_config": "the planner now has parameters the row's version did not",
+    "tracking": "the episode now reports tracking measures the row's version did not",
+}
+"""Fields where a re-run that agrees on everything the row has and adds entries is the same
+episode, a note rather than a difference: a planner's new options with their defaults, the
+scorer's new measures (`sim/track_scoring.py`)."""
 
 
 def _same_but(old: object, new: object, left_out: list[str]) -> bool:
@@ -131,8 +140,9 @@ def _same_but(old: object, new: object, left_out: list[str]) -> bool:
 
 
 def _added_parameters(old: object, new: object) -> list[str] | None:
-    """The parameters `new` has beyond `old` when they agree on every parameter `old` has
-    (a planner that gained options with defaults since the row was written), else None."""
+    """The entries `new` has beyond `old` when they agree on every entry `old` has (a planner
+    that gained options with defaults, or a scorer that gained measures, since the row was
+    written), else None."""
     if not isinstance(old, dict) or not isinstance(new, dict) or any(new.get(k, object()) != v for k, v in old.items()):
         return None
     return sorted(set(new) - set(old))
