@@ -134,7 +134,9 @@ def aims_tables(folders: dict, ci: Callable[[dict], str]) -> str:
     return (
         "`predictive`'s success:\n\n"
         + success_aims(folders, ci)
-        + "\n\nTracking (the best of the three trackers per column):\n\n"
+        + "\n\nTracking (the best of the three trackers per column; identity switches as the committed rows count "
+        "them, matched afresh each tick: the CLEAR-MOT count, about a fifth to a third lower, is in the perception "
+        "page's validation table):\n\n"
         + tracking_aims(folders)
         + "\n\nThe students against their teacher (in brackets: the student's success minus the teacher's):\n\n"
         + student_aims(ci)
