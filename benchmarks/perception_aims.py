@@ -145,9 +145,9 @@ def aims_tables(folders: dict, ci: Callable[[dict], str]) -> str:
 
 def main() -> int:
     """Print the tables from the committed results."""
-    from readme_results import _ci, load_all
+    from readme_results import BLOCKS, load_all
 
-    print(aims_tables(load_all()[0], _ci))
+    print(BLOCKS["perception-aims"](*load_all()))
     return 0
 
 
