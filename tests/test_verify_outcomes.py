@@ -125,3 +125,54 @@ def test_a_row_from_before_a_tracking_measure_was_added_reproduces_with_a_note(t
     code = bench_main(["--verify", str(out), "--sample", "all", "--jobs", "1"])
     printed = capsys.readouterr().out
     assert code == 1 and "DIFFERS" in printed and "tracking" in printed, printed
+
+
+def _verify_with(out: Path, rows: list[dict], capsys) -> tuple[int, str]:
+    (out / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    code = bench_main(["--verify", str(out), "--sample", "all", "--jobs", "1"])
+    return code, capsys.readouterr().out
+
+
+@pytest.mark.parametrize("world_set", ["tier-mixed", "paper60"])
+def test_a_recall_scored_before_the_static_field_fix_is_excused_only_there_and_only_alone(world_set, tmp_path, capsys):
+    """Rows written before issue 57's scoring fix counted obstacles hidden behind standing
+    cylinders as in view: on a world with a static field, a row without the later scorer's
+    `id_switches_mot` whose recall alone differs reproduces, with a note; without a static
+    field, from the later scorer, or with another measure off, it differs."""
+    out = tmp_path / world_set
+    args = ["--planner", "predictive", "--no-floor", "--set", world_set, "--worlds", "200", "--trials", "1"]
+    assert bench_main([*args, "--jobs", "1", "--out", str(out)]) == 0
+    (row,) = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    old = {k: v for k, v in row["tracking"].items() if k != "id_switches_mot"} | {
+        "recall": row["tracking"]["recall"] / 2
+    }
+    code, printed = _verify_with(out, [row | {"tracking": old}], capsys)
+    if world_set == "tier-mixed":
+        assert code == 0 and "scored before issue 57's fix" in printed, printed
+    else:
+        assert code == 1 and "DIFFERS" in printed, printed
+    later = row["tracking"] | {"recall": old["recall"]}  # the later scorer: no excuse
+    code, printed = _verify_with(out, [row | {"tracking": later}], capsys)
+    assert code == 1 and "DIFFERS" in printed, printed
+    also_off = old | {"precision": old["precision"] / 2}
+    code, printed = _verify_with(out, [row | {"tracking": also_off}], capsys)
+    assert code == 1 and "DIFFERS" in printed, printed
+
+
+def test_a_world_of_the_same_name_with_other_bytes_does_not_hide_the_right_one_further_on(tmp_path):
+    """Worlds are found by name under each place in turn: a set whose world_201.xml is
+    another world (the paper's 300 beside a mixed set) is passed over for the place that
+    holds the row's bytes; where no place does, the other bytes are what is said."""
+    from dynabarn.bench.row_rules import row_world_file
+    from dynabarn.world_file import world_sha256
+
+    first, second = tmp_path / "first", tmp_path / "second"
+    for folder, text in ((first, "<mujoco model='a'/>"), (second, "<mujoco model='b'/>")):
+        folder.mkdir()
+        (folder / "world_201.xml").write_text(text)
+    row = {"world_file": "elsewhere/world_201.xml", "world_sha256": world_sha256(second / "world_201.xml")}
+    assert row_world_file(row, [first, second], "world_201.xml") == (second / "world_201.xml", "")
+    path, problem = row_world_file(row | {"world_sha256": "0" * 64}, [first, second], "world_201.xml")
+    assert path is None and "first/world_201.xml has other bytes than the row's" in problem
+    path, problem = row_world_file(row, [first], "world_201.xml")
+    assert path is None and "other bytes" in problem

@@ -210,6 +210,7 @@ def row_world_file(row: dict, roots: list[Path], name: str) -> tuple[Path | None
             hints.append(hint)
     hints.append(PurePosixPath(name))
     shown = written if isinstance(written, str) else name
+    other_bytes = ""  # a file of the name with other bytes: said only when no place has the row's
     for root in roots:
         inside = root.resolve()
         for hint in hints:
@@ -222,10 +223,12 @@ def row_world_file(row: dict, roots: list[Path], name: str) -> tuple[Path | None
                 continue
             if digest is None:
                 return None, f"world file {path} is larger than {MAX_WORLD_BYTES >> 20} MiB or not a regular file"
-            if digest != row.get("world_sha256"):
-                return None, f"world file {path} has other bytes than the row's (sha256 differs)"
-            return path, ""
-    return None, (
+            if digest == row.get("world_sha256"):
+                return path, ""
+            # Another set's world of the same name (world_201.xml of the paper's 300 beside a
+            # mixed set's): look on, as far as the set named with --set.
+            other_bytes = other_bytes or f"world file {path} has other bytes than the row's (sha256 differs)"
+    return None, other_bytes or (
         f"world file {str(shown)[:200]!r} is not on this machine inside the results folder or this package's world "
         "sets (generate or import it where the sweep ran, or name its set with --set)"
     )
