@@ -36,9 +36,15 @@ def matched_pairs(tracked: np.ndarray, true: np.ndarray) -> tuple[np.ndarray, np
     method, a pair counting only within `MATCH_DISTANCE`: (the tracks' rows, the obstacles'
     rows, the (n, k) distances)."""
     d = np.sqrt(((tracked[:, None, :] - true[None, :, :]) ** 2).sum(axis=-1))
+    return (*gated_assignment(d), d)
+
+
+def gated_assignment(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The Hungarian method's one-to-one pairs of an (n, k) distance matrix, each within
+    `MATCH_DISTANCE`: (rows, columns)."""
     rows, cols = linear_sum_assignment(np.where(d <= MATCH_DISTANCE, d, 1e6))
     ok = d[rows, cols] <= MATCH_DISTANCE
-    return rows[ok], cols[ok], d
+    return rows[ok], cols[ok]
 
 
 MIN_BEAMS = 3
@@ -105,10 +111,8 @@ class TrackScorer:
         pair = np.where(kept, self.paired, -1)
         free_rows, free_cols = np.flatnonzero(~track_kept), np.flatnonzero(~kept)
         if len(free_rows) and len(free_cols):
-            sub = d[np.ix_(free_rows, free_cols)]
-            r, c = linear_sum_assignment(np.where(sub <= MATCH_DISTANCE, sub, 1e6))
-            ok = sub[r, c] <= MATCH_DISTANCE
-            pair[free_cols[c[ok]]] = ids[free_rows[r[ok]]]
+            r, c = gated_assignment(d[np.ix_(free_rows, free_cols)])
+            pair[free_cols[c]] = ids[free_rows[r]]
         matched = pair >= 0
         self.switches_mot += int((matched & (self.last_id_mot >= 0) & (self.last_id_mot != pair)).sum())
         self.last_id_mot[matched] = pair[matched]
